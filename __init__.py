@@ -1,0 +1,22 @@
+"""bubblecal: DPD microbubble shell models calibrated against AFM and acoustic data.
+
+Subpackages (layers point one way: workflows -> inference, models -> surrogates, priors -> data;
+sim depends on data only):
+
+- ``bubblecal.data``        units, reference curves, acoustic observations, loaders
+- ``bubblecal.priors``      prior/hyperprior TOML files and their typed loader
+- ``bubblecal.sim``         Warp DPD simulator and training-data campaigns
+- ``bubblecal.surrogates``  MLP / acoustic surrogates (train in torch, evaluate in JAX)
+- ``bubblecal.models``      NumPyro models
+- ``bubblecal.inference``   TMCMC, NUTS, hierarchy, predictive metrics, sensitivity
+- ``bubblecal.workflows``   the ``bubblecal`` command line and pipelines
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("bubblecal")
+except PackageNotFoundError:  # running from a source tree that was never installed
+    __version__ = "0.0.0+unknown"
+
+__all__ = ["__version__"]

@@ -1,0 +1,63 @@
+"""The ``bubblecal`` command line: a thin typer shell over the package's modules.
+
+Each command group lives in its own ``cli_<group>.py`` module exposing a ``typer.Typer`` named
+``app``; those modules import heavy libraries (jax, torch, warp) inside the command functions so
+that ``bubblecal --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import typer
+
+from bubblecal import __version__
+
+app = typer.Typer(
+    name="bubblecal",
+    help="Calibrate DPD microbubble shell models against AFM force spectroscopy and acoustic data.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+#: (group name, module path) of every command group; each module exposes ``app``.
+COMMAND_GROUPS: list[tuple[str, str]] = [
+    ("data", "bubblecal.workflows.cli_data"),
+    ("priors", "bubblecal.workflows.cli_priors"),
+]
+
+#: Modules that register top-level commands on :data:`app` when imported (``register(app)``).
+TOP_LEVEL_MODULES: list[str] = [
+    "bubblecal.workflows.cli_info",
+]
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"bubblecal {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version_callback, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
+    """bubblecal: DPD shell models, neural surrogates and hierarchical Bayesian calibration."""
+
+
+for _name, _module in COMMAND_GROUPS:
+    app.add_typer(importlib.import_module(_module).app, name=_name)
+for _module in TOP_LEVEL_MODULES:
+    importlib.import_module(_module).register(app)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app()
+
+
+if __name__ == "__main__":
+    main()
