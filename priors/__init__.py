@@ -1,1 +1,23 @@
-"""bubblecal.priors."""
+"""bubblecal.priors: user-editable prior/hyperprior TOML files (one per workflow) and their loader."""
+
+from bubblecal.priors.spec import (
+    NOISE_PARAMETERS,
+    NONLINEAR_PARAMETERS,
+    SHELL_PARAMETERS,
+    Bounds,
+    NoisePrior,
+    ParameterPrior,
+    PriorError,
+    PriorSpec,
+    available_priors,
+    check_priors,
+    load_priors,
+    prior_path,
+    workflow_file_name,
+)
+
+__all__ = [
+    "SHELL_PARAMETERS", "NONLINEAR_PARAMETERS", "NOISE_PARAMETERS", "Bounds", "ParameterPrior", "NoisePrior",
+    "PriorSpec", "PriorError", "available_priors", "check_priors", "load_priors", "prior_path",
+    "workflow_file_name",
+]

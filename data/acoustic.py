@@ -1,0 +1,120 @@
+"""Acoustic resonance observations: the shipped table and its grouping into datasets.
+
+In the hierarchy each acoustic dataset has its own latent shell parameters: Definity's 14
+bubbles (Goertz et al. 2006) form one dataset, SonoVue's 3 bubbles (van der Meer et al. 2004)
+three datasets (``shared/docs/inference.md`` section 3).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data.curves import DataError
+
+__all__ = ["AcousticObservation", "AcousticDataset", "acoustic_observations", "acoustic_datasets",
+           "load_acoustic_table"]
+
+_COLUMNS = ("agent", "source", "source_figure", "diameter_um", "resonance_frequency_MHz")
+_AGENTS = ("definity", "sonovue")
+
+
+@dataclass(frozen=True)
+class AcousticObservation:
+    """One bubble: ``diameter_um`` [um] and measured resonance ``frequency_MHz`` [MHz]."""
+
+    agent: str
+    diameter_um: float
+    frequency_MHz: float
+    source: str
+    source_figure: str
+
+
+@dataclass(frozen=True)
+class AcousticDataset:
+    """A group of observations sharing one latent parameter set in the hierarchy.
+
+    ``diameter_um`` [um] and ``frequency_MHz`` [MHz] are arrays of equal length.
+    """
+
+    name: str
+    agent: str
+    diameter_um: np.ndarray
+    frequency_MHz: np.ndarray
+    source: str
+
+    @property
+    def n_points(self) -> int:
+        """Number of bubbles in the dataset."""
+        return int(self.diameter_um.size)
+
+
+def load_acoustic_table(path: str | Path) -> list[AcousticObservation]:
+    """Read and validate an acoustic table (columns: agent, source, source_figure, diameter_um,
+    resonance_frequency_MHz). Raises :class:`DataError` naming file, row and column."""
+    path = Path(path)
+    problems: list[str] = []
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            reader = csv.DictReader(handle)
+            header = reader.fieldnames or []
+            missing = [c for c in _COLUMNS if c not in header]
+            if missing:
+                raise DataError(path, [f"header: missing column(s) {', '.join(missing)} (found: {', '.join(header)})"])
+            rows = list(reader)
+    except FileNotFoundError as exc:
+        raise DataError(path, ["file not found"]) from exc
+    out = []
+    for k, row in enumerate(rows, start=1):
+        agent = (row["agent"] or "").strip().lower()
+        if agent not in _AGENTS:
+            problems.append(f"row {k}, column 'agent': {row['agent']!r} not one of {', '.join(_AGENTS)}")
+        values = {}
+        for col in ("diameter_um", "resonance_frequency_MHz"):
+            try:
+                value = float(row[col])
+            except (TypeError, ValueError):
+                problems.append(f"row {k}, column {col!r}: {row[col]!r} is not a number")
+                continue
+            if not math.isfinite(value) or value <= 0:
+                problems.append(f"row {k}, column {col!r}: {value} must be finite and > 0")
+                continue
+            values[col] = value
+        if len(values) == 2 and agent in _AGENTS:
+            out.append(AcousticObservation(agent, values["diameter_um"], values["resonance_frequency_MHz"],
+                                           row["source"].strip(), row["source_figure"].strip()))
+    if problems:
+        raise DataError(path, problems)
+    return out
+
+
+def acoustic_observations(agent: str | None = None) -> list[AcousticObservation]:
+    """The 17 shipped observations (or one agent's), in file order."""
+    path = Path(str(resources.files("bubblecal.data") / "reference" / "acoustic_observations_published.csv"))
+    rows = load_acoustic_table(path)
+    if agent is None:
+        return rows
+    if agent.lower() not in _AGENTS:
+        raise DataError(path, [f"unknown agent {agent!r}; allowed: {', '.join(_AGENTS)}"])
+    return [r for r in rows if r.agent == agent.lower()]
+
+
+def acoustic_datasets(agent: str, observations: list[AcousticObservation] | None = None) -> list[AcousticDataset]:
+    """Group observations into hierarchy datasets: Definity one dataset; SonoVue one per bubble."""
+    rows = acoustic_observations(agent) if observations is None else [o for o in observations
+                                                                       if o.agent == agent.lower()]
+    if not rows:
+        return []
+    if agent.lower() == "definity":
+        return [AcousticDataset(
+            name="definity_acoustic", agent="definity",
+            diameter_um=np.array([r.diameter_um for r in rows]), frequency_MHz=np.array([r.frequency_MHz for r in rows]),
+            source=rows[0].source)]
+    return [AcousticDataset(name=f"sonovue_acoustic_{r.diameter_um:g}um", agent="sonovue",
+                            diameter_um=np.array([r.diameter_um]), frequency_MHz=np.array([r.frequency_MHz]),
+                            source=r.source) for r in rows]

@@ -1,0 +1,158 @@
+"""Particle types, per-type-pair DPD parameters and masses (physics.md section 2).
+
+Types (integers stored per particle):
+
+====  ===========  ===========================================================
+id    name         role
+====  ===========  ===========================================================
+0     ``water``    solvent outside the shell (a = 100, gamma = 3.5, s = 0.25)
+1     ``gas``      ideal gas inside the shell (a = 0, gamma = 11, s = 0.5)
+2     ``vertex``   shell vertex (lives in the vertex arrays, not the solvent arrays)
+3     ``wall``     frozen particles (plates); never integrated
+====  ===========  ===========================================================
+
+A :class:`PairTable` holds the symmetric (a, gamma, s) matrices of one replica. Pairs with
+``a == 0 and gamma == 0`` do not interact (water-gas in the published set, where the shell
+separates them anyway). ``s`` shapes the dissipative and random weights only; the conservative
+weight is always linear.
+
+The fluid-structure friction follows physics.md section 2:
+``gamma_fsi = fscale 2 eta (2k+1)(2k+2)(2k+3)(2k+4) / (3 pi r_c^4 rho n_s)`` with k = s = 0.5,
+``n_s`` the number of vertices per unit area of the membrane and ``rho`` the number density of the
+fluid on that side. Viscosities are converted with the unit system of :mod:`bubblecal.data.units`
+(viscosity unit = pressure unit x time unit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+
+WATER, GAS, VERTEX, WALL = 0, 1, 2, 3
+N_TYPES = 4
+TYPE_NAMES = ("water", "gas", "vertex", "wall")
+
+#: Published water viscosity in DPD units (physics.md section 2).
+ETA_WATER_DPD = 379.3
+#: Gas viscosity [Pa s] (physics.md section 2).
+ETA_GAS_PA_S = 1.86e-5
+#: Published gas mass density [kg/m^3] of the compression set.
+RHO_GAS_KG_M3 = 11.2
+#: Shell mass density [kg/m^3].
+RHO_SHELL_KG_M3 = 1100.0
+
+__all__ = [
+    "WATER", "GAS", "VERTEX", "WALL", "N_TYPES", "TYPE_NAMES", "PairTable", "viscosity_to_dpd",
+    "gamma_fsi", "gas_mass", "vertex_mass", "published_pair_table", "fluid_pair_table",
+    "ETA_WATER_DPD", "ETA_GAS_PA_S", "RHO_GAS_KG_M3", "RHO_SHELL_KG_M3",
+]
+
+
+def viscosity_to_dpd(eta_pa_s: float, units: UnitSystem = DEFAULT_UNITS) -> float:
+    """Dynamic viscosity [Pa s] -> DPD units (u_e u_t / u_l^3)."""
+    return float(eta_pa_s) / (units.pressure_Pa * units.time_s)
+
+
+def gamma_fsi(eta_dpd: float, rho: float, n_s: float, s: float = 0.5, units: UnitSystem = DEFAULT_UNITS,
+              rc: float = 1.0) -> float:
+    """Fluid-structure dissipative coefficient of physics.md section 2.
+
+    ``eta_dpd``: fluid viscosity (DPD); ``rho``: fluid number density; ``n_s``: vertices per unit
+    membrane area (DPD); ``s``: the exponent k of the weight (0.5 in the published sets).
+    """
+    k = float(s)
+    num = units.fscale * 2.0 * eta_dpd * (2 * k + 1) * (2 * k + 2) * (2 * k + 3) * (2 * k + 4)
+    return num / (3.0 * math.pi * rc**4 * rho * n_s)
+
+
+def gas_mass(rho_gas_kg_m3: float = RHO_GAS_KG_M3, units: UnitSystem = DEFAULT_UNITS) -> float:
+    """Mass of a gas bead, rho_gas / rho_water (water bead mass 1)."""
+    return float(rho_gas_kg_m3) / units.rho_water
+
+
+def vertex_mass(area_mesh_dpd: float, n_vertices: int, rho_shell_kg_m3: float = RHO_SHELL_KG_M3,
+                mass_factor: float = 1.0, units: UnitSystem = DEFAULT_UNITS) -> float:
+    """Shell vertex mass rho_shell h A_mesh u_l^2 / (u_m N_v) x mass_factor (physics.md section 2)."""
+    m = rho_shell_kg_m3 * units.shell_thickness_m * area_mesh_dpd * units.length_m**2 / (units.mass_kg * n_vertices)
+    return float(m * mass_factor)
+
+
+@dataclass
+class PairTable:
+    """Symmetric per-type-pair DPD parameters (a, gamma, s) and per-type masses of one replica."""
+
+    a: np.ndarray = field(default_factory=lambda: np.zeros((N_TYPES, N_TYPES)))
+    gamma: np.ndarray = field(default_factory=lambda: np.zeros((N_TYPES, N_TYPES)))
+    s: np.ndarray = field(default_factory=lambda: np.full((N_TYPES, N_TYPES), 0.5))
+    mass: np.ndarray = field(default_factory=lambda: np.ones(N_TYPES))
+
+    def set(self, t1: int, t2: int, a: float, gamma: float, s: float) -> PairTable:
+        """Set the (a, gamma, s) of the pair of types (t1, t2) symmetrically; returns self."""
+        for i, j in ((t1, t2), (t2, t1)):
+            self.a[i, j] = a
+            self.gamma[i, j] = gamma
+            self.s[i, j] = s
+        return self
+
+    def copy(self) -> PairTable:
+        return PairTable(self.a.copy(), self.gamma.copy(), self.s.copy(), self.mass.copy())
+
+    def validate(self) -> None:
+        for name in ("a", "gamma", "s"):
+            m = np.asarray(getattr(self, name), dtype=float)
+            if m.shape != (N_TYPES, N_TYPES):
+                raise ValueError(f"PairTable.{name} must be {N_TYPES}x{N_TYPES}")
+            if not np.allclose(m, m.T):
+                raise ValueError(f"PairTable.{name} must be symmetric")
+            if not np.all(np.isfinite(m)):
+                raise ValueError(f"PairTable.{name} must be finite")
+        if np.any(self.gamma < 0) or np.any(self.s <= 0):
+            raise ValueError("gamma must be >= 0 and s > 0")
+        if np.any(self.mass[[WATER, GAS, VERTEX]] <= 0):
+            raise ValueError("masses of water, gas and vertex must be > 0")
+
+    def as_dict(self) -> dict:
+        return {"a": self.a.tolist(), "gamma": self.gamma.tolist(), "s": self.s.tolist(), "mass": self.mass.tolist()}
+
+
+def fluid_pair_table(a: float = 25.0, gamma: float = 4.5, s: float = 0.5) -> PairTable:
+    """A single-component water fluid (for the EOS checks); all other pairs inert."""
+    t = PairTable()
+    t.set(WATER, WATER, a, gamma, s)
+    return t
+
+
+def published_pair_table(
+    n_s: float,
+    protocol: str = "compression",
+    *,
+    a_vertex_water: float | None = None,
+    rho_water_number: float = 3.0,
+    rho_gas_number: float = 3.0,
+    rho_gas_kg_m3: float = RHO_GAS_KG_M3,
+    m_vertex: float = 1.0,
+    units: UnitSystem = DEFAULT_UNITS,
+) -> PairTable:
+    """The published interaction set (physics.md section 2).
+
+    water-water (100, 3.5, 0.25); gas-gas (0, 11, 0.5); water-gas none; vertex-water
+    (400 compression / 40 indentation -- *choice*, overridable with ``a_vertex_water``, gamma_fsi,
+    0.5); vertex-gas (0, gamma_fsi_gas, 0.5). ``n_s`` is the number of vertices per unit area.
+    The gas number density (``rho_gas_number``, default 3 -- *choice*) enters gamma_fsi,gas.
+    """
+    if protocol not in ("compression", "indentation"):
+        raise ValueError("protocol must be 'compression' or 'indentation'")
+    if a_vertex_water is None:
+        a_vertex_water = 400.0 if protocol == "compression" else 40.0
+    t = PairTable()
+    t.set(WATER, WATER, 100.0, 3.5, 0.25)
+    t.set(GAS, GAS, 0.0, 11.0, 0.5)
+    t.set(VERTEX, WATER, a_vertex_water, gamma_fsi(ETA_WATER_DPD, rho_water_number, n_s, 0.5, units), 0.5)
+    eta_gas = viscosity_to_dpd(ETA_GAS_PA_S, units)
+    t.set(VERTEX, GAS, 0.0, gamma_fsi(eta_gas, rho_gas_number, n_s, 0.5, units), 0.5)
+    t.mass[:] = [1.0, gas_mass(rho_gas_kg_m3, units), m_vertex, 1.0]
+    return t

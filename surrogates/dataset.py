@@ -1,0 +1,398 @@
+"""Training data I/O for the mechanical surrogates: the published row layout and our campaign store.
+
+A :class:`TrainingSet` holds one curve per row in the *surrogate's* orientation (DPD units):
+
+* compression: ``x`` = imposed total displacement [DPD length], ``y`` = force [DPD force];
+* indentation: ``x`` = applied force [DPD force], ``y`` = indentation depth [DPD length].
+
+Published layout (``../shared/reference/README.md`` section (c)): 38 numbers per row (comma
+separated with a header, or whitespace separated ``.dat`` without one): ``Yt_Pa, ka, kb, b1, b2,
+a3, a4, radius_dpd``, 15 loading coordinates, 15 responses. For indentation files the first block
+is the *axial diameter* at each force and the second the force; the reader converts to
+displacement = initial diameter - value, with initial diameter = 2 median(radius_dpd column).
+
+Filtering (:func:`filter_curves`) removes, with counts reported per reason: rows with non-finite
+numbers; store records whose status is not ``'ok'``; rupture by *trailing zeros* (the last raw
+response - force for compression, axial diameter for indentation - at most ``zero_frac`` of the
+curve's largest magnitude); rupture by a *drop*: the response must grow along the loading path, and
+a curve is dropped when it falls below its running maximum by more than ``max_rel_drop`` of the
+curve's largest magnitude.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data.units import DEFAULT_UNITS
+
+__all__ = [
+    "PARAM_NAMES", "SETUPS", "DatasetError", "TrainingSet", "FilterReport", "read_published",
+    "write_published", "read_store_dataset", "read_dataset", "filter_curves", "diameter_um_from_radius",
+    "X_INFO", "Y_INFO",
+]
+
+PARAM_NAMES: tuple[str, ...] = ("ka", "kb", "b1", "b2", "a3", "a4")
+SETUPS = ("compression", "indentation")
+N_META = 8  # Yt_Pa, ka, kb, b1, b2, a3, a4, radius_dpd
+PUBLISHED_POINTS = 15
+
+#: (name, units) of the loading coordinate and the response, per setup.
+X_INFO = {"compression": ("displacement", "DPD length"), "indentation": ("force", "DPD force")}
+Y_INFO = {"compression": ("force", "DPD force"), "indentation": ("displacement", "DPD length")}
+
+
+class DatasetError(ValueError):
+    """Training data failed validation; the message names the file (or source) and the field."""
+
+
+def diameter_um_from_radius(radius_dpd: float) -> float:
+    """DPD radius -> bubble diameter [um] (radius 4.2 -> 2.1 um)."""
+    return float(radius_dpd) * 2.0 * DEFAULT_UNITS.length_m * 1e6
+
+
+@dataclass
+class TrainingSet:
+    """Curves of one setup and (normally) one diameter, in the surrogate's orientation."""
+
+    setup: str
+    params: np.ndarray  # (n, 6) ka, kb, b1, b2, a3, a4
+    radius_dpd: np.ndarray  # (n,)
+    x: np.ndarray  # (n, m)
+    y: np.ndarray  # (n, m)
+    curve_id: np.ndarray  # (n,) str
+    source: str = ""
+    status: np.ndarray | None = None  # (n,) str; None means all 'ok'
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.setup not in SETUPS:
+            raise DatasetError(f"{self.source}: setup must be one of {SETUPS}, got {self.setup!r}")
+        self.params = np.asarray(self.params, dtype=float).reshape(-1, len(PARAM_NAMES))
+        n = self.params.shape[0]
+        self.radius_dpd = np.asarray(self.radius_dpd, dtype=float).reshape(n)
+        self.x = np.asarray(self.x, dtype=float).reshape(n, -1)
+        self.y = np.asarray(self.y, dtype=float).reshape(n, -1)
+        if self.x.shape != self.y.shape:
+            raise DatasetError(f"{self.source}: x and y shapes differ: {self.x.shape} vs {self.y.shape}")
+        self.curve_id = np.asarray(self.curve_id).astype(str).reshape(n)
+        if self.status is None:
+            self.status = np.full(n, "ok")
+        self.status = np.asarray(self.status).astype(str).reshape(n)
+
+    # -- basic properties ------------------------------------------------------------------------
+    @property
+    def n_curves(self) -> int:
+        return int(self.params.shape[0])
+
+    @property
+    def n_points(self) -> int:
+        return int(self.x.shape[1])
+
+    @property
+    def diameter_um(self) -> float:
+        """Bubble diameter [um] from the median radius (NaN when empty)."""
+        r = self.radius_dpd[np.isfinite(self.radius_dpd)]
+        return diameter_um_from_radius(np.median(r)) if r.size else float("nan")
+
+    @property
+    def x_name(self) -> str:
+        return X_INFO[self.setup][0]
+
+    @property
+    def y_name(self) -> str:
+        return Y_INFO[self.setup][0]
+
+    def subset(self, mask_or_index) -> TrainingSet:
+        idx = np.asarray(mask_or_index)
+        return replace(self, params=self.params[idx], radius_dpd=self.radius_dpd[idx], x=self.x[idx],
+                       y=self.y[idx], curve_id=self.curve_id[idx], status=self.status[idx],
+                       extra={k: v[idx] for k, v in self.extra.items()})
+
+    def data_hash(self) -> str:
+        """sha256 of setup, parameters, radius, x and y (float64, C order): identifies the data."""
+        h = hashlib.sha256()
+        h.update(self.setup.encode())
+        for arr in (self.params, self.radius_dpd, self.x, self.y):
+            h.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+        return h.hexdigest()
+
+    def points(self):
+        """Pointwise arrays: inputs (n·m, 7) = (params, x), targets (n·m,), curve index (n·m,)."""
+        n, m = self.x.shape
+        u = np.concatenate([np.repeat(self.params, m, axis=0), self.x.reshape(-1, 1)], axis=1)
+        return u, self.y.reshape(-1), np.repeat(np.arange(n), m)
+
+    def param_ranges(self) -> dict[str, tuple[float, float]]:
+        return {k: (float(self.params[:, j].min()), float(self.params[:, j].max()))
+                for j, k in enumerate(PARAM_NAMES)}
+
+    def x_range(self) -> tuple[float, float]:
+        return float(self.x.min()), float(self.x.max())
+
+    def check_trainable(self, min_curves: int = 1) -> None:
+        """Raise :class:`DatasetError` naming the field for data that cannot be standardised/trained."""
+        src = self.source or "<training set>"
+        if self.n_curves < min_curves:
+            raise DatasetError(f"{src}: {self.n_curves} curve(s) after filtering; at least {min_curves} needed")
+        for name, arr in (("params", self.params), ("x", self.x), ("y", self.y)):
+            if not np.all(np.isfinite(arr)):
+                raise DatasetError(f"{src}: field '{name}' holds non-finite values (run filter_curves first)")
+        for j, name in enumerate(PARAM_NAMES):
+            col = self.params[:, j]
+            if np.ptp(col) == 0:
+                raise DatasetError(f"{src}: parameter '{name}' has zero variance (every value {col[0]:g}); "
+                                   "it cannot be standardised - drop it from the design or vary it")
+        if np.ptp(self.x) == 0:
+            raise DatasetError(f"{src}: loading coordinate '{self.x_name}' has zero variance")
+        if np.ptp(self.y) == 0:
+            raise DatasetError(f"{src}: response '{self.y_name}' has zero variance")
+        radii = np.unique(np.round(self.radius_dpd, 9))
+        if radii.size > 1:
+            raise DatasetError(f"{src}: field 'radius_dpd' holds several radii {radii[:5].tolist()}; train one "
+                               "surrogate per diameter")
+
+
+@dataclass
+class FilterReport:
+    """Counts of curves removed per reason (a curve is counted under the first reason it meets)."""
+
+    source: str
+    n_in: int
+    n_kept: int
+    counts: dict[str, int]
+    dropped: dict[str, list[str]]
+    settings: dict
+
+    def as_dict(self) -> dict:
+        return {"source": self.source, "n_in": self.n_in, "n_kept": self.n_kept, "counts": dict(self.counts),
+                "settings": dict(self.settings)}
+
+    def __str__(self) -> str:
+        lines = [f"{self.source}: {self.n_in} curves read, {self.n_kept} kept"]
+        for reason, count in self.counts.items():
+            lines.append(f"  {reason:<24s} {count:6d}")
+        return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------------------------
+# published layout
+# ----------------------------------------------------------------------------------------------
+def _parse_rows(path: Path) -> tuple[list[str] | None, list[tuple[int, list[str]]]]:
+    """Return (header or None, [(line number, tokens)]) of a comma- or whitespace-separated file."""
+    text = path.read_text()
+    header = None
+    rows = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        tokens = [t for t in re.split(r"[,\s]+", s) if t]
+        if header is None and not rows and any(re.match(r"^[A-Za-z_]", t) and t.lower() not in
+                                               ("nan", "inf", "-inf", "+inf", "infinity") for t in tokens):
+            header = tokens
+            continue
+        rows.append((lineno, tokens))
+    return header, rows
+
+
+def _infer_setup(header: list[str] | None, path: Path) -> str:
+    names = " ".join(header or []).lower() + " " + path.name.lower()
+    if "axial" in names or "indent" in names or "samples_all" in names:
+        return "indentation"
+    if "disp" in names or "compress" in names or "f_delta" in names:
+        return "compression"
+    raise DatasetError(f"{path}: cannot tell compression from indentation from the header/file name; "
+                       "pass setup='compression' or 'indentation'")
+
+
+def read_published(path: str | Path, setup: str | None = None, n_points: int | str = PUBLISHED_POINTS,
+                   units=DEFAULT_UNITS) -> TrainingSet:
+    """Read a table in the published row layout (CSV with header or whitespace ``.dat``).
+
+    ``n_points`` is the number of loading points per row (15 in the published layout: 38 columns);
+    ``'auto'`` accepts any ``8 + 2 m`` columns (e.g. the 12-column CI smoke fixture). Every row
+    must have the same, expected number of columns; a mismatch raises :class:`DatasetError`
+    naming the file, the line and the count. Non-finite numbers are kept here and counted by
+    :func:`filter_curves`.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"training data file not found: {path}")
+    header, rows = _parse_rows(path)
+    if not rows:
+        raise DatasetError(f"{path}: no data rows")
+    if n_points == "auto":
+        ncol = len(rows[0][1])
+        if ncol < N_META + 2 or (ncol - N_META) % 2:
+            raise DatasetError(f"{path}: line {rows[0][0]}: {ncol} columns; the published layout needs "
+                               f"{N_META} + 2 m columns")
+        m = (ncol - N_META) // 2
+    else:
+        m = int(n_points)
+    expected = N_META + 2 * m
+    if header is not None and len(header) != expected:
+        raise DatasetError(f"{path}: header has {len(header)} columns, expected {expected} "
+                           f"(Yt_Pa, ka..a4, radius_dpd, {m} loading coordinates, {m} responses)")
+    data = np.empty((len(rows), expected))
+    for i, (lineno, tokens) in enumerate(rows):
+        if len(tokens) != expected:
+            raise DatasetError(f"{path}: line {lineno}: {len(tokens)} columns, expected {expected} "
+                               f"(Yt_Pa, ka..a4, radius_dpd, {m} loading coordinates, {m} responses)")
+        try:
+            data[i] = [float(t) for t in tokens]
+        except ValueError as exc:
+            raise DatasetError(f"{path}: line {lineno}: not a number ({exc})") from exc
+    setup = setup or _infer_setup(header, path)
+    if setup not in SETUPS:
+        raise DatasetError(f"{path}: setup must be one of {SETUPS}, got {setup!r}")
+    params = data[:, 1:7]
+    radius = data[:, 7]
+    first, second = data[:, N_META:N_META + m], data[:, N_META + m:]
+    extra = {"yt_pa": data[:, 0]}
+    if setup == "compression":
+        x, y = first, second
+    else:
+        finite_r = radius[np.isfinite(radius)]
+        d0 = 2.0 * float(np.median(finite_r)) if finite_r.size else float("nan")
+        x, y = second, d0 - first
+        extra["initial_diameter_dpd"] = np.full(len(rows), d0)
+    curve_id = np.array([f"{path.stem}:{lineno}" for lineno, _ in rows])
+    ts = TrainingSet(setup=setup, params=params, radius_dpd=radius, x=x, y=y, curve_id=curve_id,
+                     source=str(path), extra=extra)
+    return ts
+
+
+def write_published(ts: TrainingSet, path: str | Path, units=DEFAULT_UNITS) -> Path:
+    """Write ``ts`` in the published row layout (CSV with header; values as Python repr).
+
+    Indentation curves are written back as axial diameters: value = initial diameter - y with
+    initial diameter = 2 median(radius_dpd) (the reader's convention), so a round trip is exact
+    up to float round-off.
+    """
+    path = Path(path)
+    m = ts.n_points
+    if ts.setup == "compression":
+        cols = [f"disp_dpd_{i:02d}" for i in range(1, m + 1)] + [f"force_dpd_{i:02d}" for i in range(1, m + 1)]
+        first, second = ts.x, ts.y
+    else:
+        cols = ([f"axial_diameter_dpd_{i:02d}" for i in range(1, m + 1)]
+                + [f"force_dpd_{i:02d}" for i in range(1, m + 1)])
+        d0 = 2.0 * float(np.median(ts.radius_dpd))
+        first, second = d0 - ts.y, ts.x
+    header = ["Yt_Pa", "ka_dpd", "kb_dpd", "b1", "b2", "a3", "a4", "radius_dpd"] + cols
+    yt = units.ka_to_yt(ts.params[:, 0])
+    table = np.column_stack([yt, ts.params, ts.radius_dpd, first, second])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w") as fh:
+        fh.write(",".join(header) + "\n")
+        for row in table:
+            fh.write(",".join(repr(float(v)) for v in row) + "\n")
+    return path
+
+
+# ----------------------------------------------------------------------------------------------
+# campaign store
+# ----------------------------------------------------------------------------------------------
+def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSet:
+    """Read every record of a campaign store (:mod:`bubblecal.surrogates.store`) as a TrainingSet.
+
+    All statuses are returned (``status`` column); :func:`filter_curves` keeps ``'ok'`` only.
+    Records of one setup only (``setup`` selects when the store holds several). Curves must all
+    have the same number of points (the published protocol); otherwise DatasetError.
+    """
+    from bubblecal.surrogates.store import CampaignStore
+
+    store = CampaignStore(path)
+    records = store.read()
+    if setup is not None:
+        records = [r for r in records if r["setup"] == setup]
+    if not records:
+        raise DatasetError(f"{path}: no records{' for setup ' + setup if setup else ''}")
+    setups = {r["setup"] for r in records}
+    if len(setups) > 1:
+        raise DatasetError(f"{path}: records of several setups {sorted(setups)}; pass setup=")
+    lengths = {len(r["x"]) for r in records if r["status"] == "ok"} or {len(r["x"]) for r in records}
+    if len(lengths) > 1:
+        raise DatasetError(f"{path}: field 'x' has different lengths across 'ok' records: {sorted(lengths)}")
+    m = lengths.pop()
+
+    def _arr(values):
+        a = np.full(m, np.nan)
+        v = np.asarray(values, dtype=float)
+        if v.size == m:
+            a[:] = v
+        return a
+
+    params = np.array([[r["params"][k] for k in PARAM_NAMES] for r in records], dtype=float)
+    ts = TrainingSet(
+        setup=setups.pop(), params=params, radius_dpd=[r["radius_dpd"] for r in records],
+        x=np.array([_arr(r["x"]) for r in records]), y=np.array([_arr(r["y"]) for r in records]),
+        curve_id=[r["curve_id"] for r in records], status=[r["status"] for r in records], source=str(path),
+        extra={"seed": np.array([r.get("seed", -1) for r in records]),
+               "tier": np.array([str(r.get("tier", "")) for r in records])},
+    )
+    return ts
+
+
+def read_dataset(path: str | Path, setup: str | None = None, n_points: int | str = PUBLISHED_POINTS) -> TrainingSet:
+    """Read a campaign store (directory or ``.jsonl``) or a published-layout table."""
+    path = Path(path)
+    if path.is_dir() or path.suffix == ".jsonl":
+        return read_store_dataset(path, setup=setup)
+    return read_published(path, setup=setup, n_points=n_points)
+
+
+# ----------------------------------------------------------------------------------------------
+# filtering
+# ----------------------------------------------------------------------------------------------
+def _raw_response(ts: TrainingSet) -> np.ndarray:
+    """The stored response before orientation: force (compression) or axial diameter (indentation)."""
+    if ts.setup == "compression":
+        return ts.y
+    d0 = 2.0 * ts.radius_dpd[:, None]
+    return d0 - ts.y
+
+
+def filter_curves(ts: TrainingSet, zero_frac: float = 0.01, max_rel_drop: float = 0.10,
+                  statuses: Sequence[str] = ("ok",)) -> tuple[TrainingSet, FilterReport]:
+    """Drop unusable curves; returns (kept set, report with counts per reason).
+
+    Reasons, checked in order: ``status`` (store status not in ``statuses``), ``non_finite`` (any
+    non-finite parameter, radius, x or y), ``rupture_trailing_zero`` (last raw response <=
+    ``zero_frac`` x the curve's largest |raw response|), ``rupture_drop`` (the response falls
+    below its running maximum by more than ``max_rel_drop`` x the curve's largest |response|).
+    """
+    n = ts.n_curves
+    reason = np.full(n, "", dtype=object)
+    bad_status = ~np.isin(ts.status, list(statuses))
+    reason[bad_status] = "status"
+    finite = (np.all(np.isfinite(ts.params), axis=1) & np.isfinite(ts.radius_dpd)
+              & np.all(np.isfinite(ts.x), axis=1) & np.all(np.isfinite(ts.y), axis=1))
+    reason[(reason == "") & ~finite] = "non_finite"
+    with np.errstate(invalid="ignore"):
+        raw = np.abs(_raw_response(ts))
+        scale = np.max(raw, axis=1)
+        trailing = raw[:, -1] <= zero_frac * scale
+        reason[(reason == "") & trailing] = "rupture_trailing_zero"
+        # order along the loading path (x increasing)
+        order = np.argsort(np.where(np.isfinite(ts.x), ts.x, np.inf), axis=1)
+        y_sorted = np.take_along_axis(ts.y, order, axis=1)
+        running = np.maximum.accumulate(np.nan_to_num(y_sorted, nan=-np.inf), axis=1)
+        drop = np.max(running - y_sorted, axis=1)
+        yscale = np.max(np.abs(ts.y), axis=1)
+        dropped = drop > max_rel_drop * yscale
+    reason[(reason == "") & dropped] = "rupture_drop"
+    keep = reason == ""
+    reasons = ("status", "non_finite", "rupture_trailing_zero", "rupture_drop")
+    counts = {r: int(np.sum(reason == r)) for r in reasons}
+    dropped_ids = {r: ts.curve_id[reason == r].tolist() for r in reasons}
+    report = FilterReport(source=ts.source, n_in=n, n_kept=int(keep.sum()), counts=counts, dropped=dropped_ids,
+                          settings={"zero_frac": zero_frac, "max_rel_drop": max_rel_drop,
+                                    "statuses": list(statuses)})
+    return ts.subset(keep), report

@@ -1,0 +1,62 @@
+"""Pure-JAX forward pass of a standardised tanh MLP over plain weight arrays (no torch, no onnx).
+
+The network maps the 7 standardised inputs ``(ka, kb, b1, b2, a3, a4, x)`` to one standardised
+output; hidden layers use ``tanh``, the output layer is linear:
+
+    z = (u - in_mean) / in_std
+    h_0 = z;  h_{l+1} = tanh(h_l W_l + b_l)  (l < L-1);  out = h_{L-1} W_{L-1} + b_{L-1}
+    y = out * out_std + out_mean
+
+``W_l`` has shape (fan_in, fan_out) (the transpose of torch's ``Linear.weight``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
+           "xavier_uniform_weights"]
+
+
+def standardised_forward(weights: Sequence, biases: Sequence, z):
+    """Forward pass on already standardised inputs ``z[..., n_in]`` -> ``out[..., n_out]``."""
+    h = z
+    last = len(weights) - 1
+    for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
+        h = h @ w + b
+        if i < last:
+            h = jnp.tanh(h)
+    return h
+
+
+def mlp_forward(weights, biases, in_mean, in_std, out_mean, out_std, u):
+    """Full map from raw inputs ``u[..., n_in]`` to raw outputs ``y[..., n_out]``."""
+    z = (u - in_mean) / in_std
+    return standardised_forward(weights, biases, z) * out_std + out_mean
+
+
+def matmul_floor_forward(weights, biases, u):
+    """The same chain of matrix products with no activation or normalisation (throughput floor)."""
+    h = u
+    for w, b in zip(weights, biases, strict=True):
+        h = h @ w + b
+    return h
+
+
+def flops_per_point(layer_sizes: Sequence[int]) -> int:
+    """Floating-point operations of one forward pass (2·fan_in·fan_out per layer, multiply-add)."""
+    return int(sum(2 * a * b for a, b in zip(layer_sizes[:-1], layer_sizes[1:], strict=True)))
+
+
+def xavier_uniform_weights(layer_sizes: Sequence[int], seed: int = 0, dtype=np.float32):
+    """Random Xavier-uniform weights and zero biases (numpy), e.g. for throughput benchmarks."""
+    rng = np.random.default_rng(seed)
+    weights, biases = [], []
+    for fan_in, fan_out in zip(layer_sizes[:-1], layer_sizes[1:], strict=True):
+        bound = np.sqrt(6.0 / (fan_in + fan_out))
+        weights.append(rng.uniform(-bound, bound, size=(fan_in, fan_out)).astype(dtype))
+        biases.append(np.zeros(fan_out, dtype=dtype))
+    return weights, biases

@@ -1,0 +1,79 @@
+"""``bubblecal priors``: show and check the prior/hyperprior TOML files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from bubblecal.data import DEFAULT_UNITS
+from bubblecal.priors import PriorError, available_priors, load_priors
+from bubblecal.priors.spec import PARAMETER_UNITS
+from bubblecal.workflows.console import console, fail, make_table
+
+app = typer.Typer(help="Prior and hyperprior ranges (user-editable TOML files).", no_args_is_help=True)
+
+
+def _physical(name: str, lo: float, hi: float) -> str:
+    """The physical equivalent of a DPD range, with its unit."""
+    u = DEFAULT_UNITS
+    if name == "ka":
+        return f"E {u.ka_to_young(lo) / 1e6:.3g} – {u.ka_to_young(hi) / 1e6:.3g} MPa"
+    if name == "kb":
+        return f"κ {u.kb_to_bending_kBT(lo):.3g} – {u.kb_to_bending_kBT(hi):.3g} k_BT"
+    if name == "d0":
+        return f"{u.dpd_to_nm(lo):.3g} – {u.dpd_to_nm(hi):.3g} nm"
+    return "–"
+
+
+def _range(b) -> str:
+    return "–" if b is None else f"{b.lo:.4g} – {b.hi:.4g}"
+
+
+def priors_table(spec) -> Table:
+    """Rich table of a PriorSpec: one row per parameter, units in every header."""
+    table = make_table(f"{spec.name}: {spec.agent} {spec.setup}, {spec.shell} shell"
+                       f"{' + acoustic' if spec.acoustic else ''}  ({spec.path})",
+                       ("parameter", "unit [DPD]", "prior range [DPD]", "prior range [E MPa | κ k_BT | nm]",
+                        "pooled", "population mean m range [DPD]", "population spread τ range [DPD]"))
+    for name, p in spec.parameters.items():
+        table.add_row(name, PARAMETER_UNITS[name], _range(p.prior), _physical(name, p.prior.lo, p.prior.hi),
+                      "yes" if p.pooled else "no", _range(p.hyper_m), _range(p.hyper_tau))
+    for name, value in spec.fixed.items():
+        table.add_row(name, PARAMETER_UNITS[name], f"fixed = {value:g}", "–", "–", "–", "–")
+    for name, n in spec.noise.items():
+        table.add_row(name, "relative [-]", _range(n.prior), "–", "no (per dataset)", "–", "–")
+    return table
+
+
+@app.command("show")
+def show(name: str = typer.Argument(None, help="Shipped workflow name (e.g. definity_reduced_acoustic) or a "
+                                               "TOML path; omit to list the shipped files.")) -> None:
+    """Print a workflow's prior and hyperprior ranges in DPD and physical units."""
+    if name is None:
+        table = make_table("Shipped prior files (bubblecal priors show NAME)",
+                           ("name", "agent", "setup", "shell", "acoustic", "free parameters", "noise"))
+        for n in available_priors():
+            s = load_priors(n)
+            table.add_row(n, s.agent, s.setup, s.shell, str(s.acoustic).lower(), ", ".join(s.free_names),
+                          ", ".join(s.noise_names))
+        console.print(table)
+        return
+    try:
+        spec = load_priors(name)
+    except PriorError as exc:
+        raise fail(str(exc)) from None
+    console.print(priors_table(spec))
+
+
+@app.command("check")
+def check(file: Path = typer.Argument(..., help="Priors TOML file to validate.")) -> None:
+    """Validate a priors file; exit status 1 with every problem listed if it is invalid."""
+    try:
+        spec = load_priors(file)
+    except PriorError as exc:
+        raise fail(str(exc)) from None
+    console.print(f"[green]ok[/]: {file} is valid ({len(spec.parameters)} free, {len(spec.fixed)} fixed, "
+                  f"{len(spec.noise)} noise parameters)")
+    console.print(priors_table(spec))
