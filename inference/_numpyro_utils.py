@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 from numpyro import handlers
+from numpyro.distributions import constraints
 from numpyro.distributions.transforms import biject_to
 from numpyro.distributions.util import is_identically_one, sum_rightmost
 from numpyro.infer import Predictive
@@ -39,6 +40,13 @@ def _site_log_prob(site) -> jax.Array:
     if scale is not None and not is_identically_one(scale):
         log_prob = scale * log_prob
     return jnp.sum(log_prob)
+
+
+def _elementwise(support):
+    """Strip ``independent`` wrappers: the constraint that acts on single elements."""
+    while isinstance(support, constraints.independent):
+        support = support.base_constraint
+    return support
 
 
 def _model_label(model) -> str:
@@ -80,7 +88,7 @@ class FlatModel:
                 raise ValueError(
                     f"model {self.label!r}: latent site {name!r} is discrete; TMCMC needs continuous latents"
                 )
-            if space == "constrained" and fn.support.event_dim != 0:
+            if space == "constrained" and _elementwise(fn.support).event_dim != 0:
                 raise ValueError(
                     f"model {self.label!r}: site {name!r} has support {fn.support} with event_dim > 0; "
                     "space='constrained' needs elementwise (box-like) supports, use space='unconstrained'"

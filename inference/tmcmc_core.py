@@ -165,22 +165,17 @@ def solve_delta(log_likelihood: Array, beta: Array, target_cov: float) -> tuple[
     The bisection runs in log Δ over [1e-30·(1−β) .. 1−β] so tiny increments keep relative precision.
     """
     dmax = 1.0 - beta
-    cov_full = weights_cov(dmax, log_likelihood)
 
-    def bisect(_):
-        lo = jnp.log(dmax) - 69.0  # ≈ 1e-30 × (1 − β)
-        hi = jnp.log(dmax)
+    def body(_, bounds):
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        too_big = weights_cov(jnp.exp(mid), log_likelihood) > target_cov
+        return jnp.where(too_big, lo, mid), jnp.where(too_big, mid, hi)
 
-        def body(_, bounds):
-            lo, hi = bounds
-            mid = 0.5 * (lo + hi)
-            too_big = weights_cov(jnp.exp(mid), log_likelihood) > target_cov
-            return jnp.where(too_big, lo, mid), jnp.where(too_big, mid, hi)
-
-        lo, hi = lax.fori_loop(0, _BISECTION_ITERS, body, (lo, hi))
-        return jnp.exp(lo)
-
-    delta = lax.cond(cov_full <= target_cov, lambda _: dmax, bisect, None)
+    # lo stays on the side CoV ≤ target, so Δ never overshoots the target
+    log_dmax = jnp.log(dmax)
+    lo, _ = lax.fori_loop(0, _BISECTION_ITERS, body, (log_dmax - 69.0, log_dmax))  # 69 ≈ log 1e30
+    delta = jnp.where(weights_cov(dmax, log_likelihood) <= target_cov, dmax, jnp.exp(lo))
     return delta, weights_cov(delta, log_likelihood)
 
 

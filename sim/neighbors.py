@@ -22,7 +22,6 @@ Lists that overflow their capacity are detected at build time (one host read per
 capacity is grown and the list rebuilt.
 """
 
-from __future__ import annotations
 
 import functools
 
@@ -33,6 +32,8 @@ import warp as wp
 @functools.cache
 def neighbor_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
+    kern = functools.partial(wp.kernel, enable_backward=False,
+                             module=f"bubblecal_nbr_{'f64' if dtype is wp.float64 else 'f32'}")
 
     @wp.func
     def cell_coord(p: dtype, L: dtype, n: wp.int32) -> wp.int32:
@@ -54,7 +55,7 @@ def neighbor_kernels(dtype):
     def finite3(p: vec3) -> wp.bool:
         return wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])
 
-    @wp.kernel(module="unique")
+    @kern
     def compute_cells(x: wp.array(dtype=vec3), rep: wp.array(dtype=wp.int32), box: wp.array(dtype=vec3),
                       ncell: wp.array(dtype=wp.vec3i), cell_offset: wp.array(dtype=wp.int32),
                       keys: wp.array(dtype=wp.int32), vals: wp.array(dtype=wp.int32)):
@@ -76,7 +77,7 @@ def neighbor_kernels(dtype):
         keys[i] = c
         vals[i] = i
 
-    @wp.kernel(module="unique")
+    @kern
     def cell_ranges(keys: wp.array(dtype=wp.int32), n: wp.int32, start: wp.array(dtype=wp.int32),
                     end: wp.array(dtype=wp.int32)):
         k = wp.tid()
@@ -90,12 +91,12 @@ def neighbor_kernels(dtype):
         elif keys[k + 1] != c:
             end[c] = k + 1
 
-    @wp.kernel(module="unique")
+    @kern
     def build_solvent_list(x: wp.array(dtype=vec3), rep: wp.array(dtype=wp.int32), box: wp.array(dtype=vec3),
                            ncell: wp.array(dtype=wp.vec3i), cell_offset: wp.array(dtype=wp.int32),
                            start: wp.array(dtype=wp.int32), end: wp.array(dtype=wp.int32), rlist2: dtype,
                            nbr: wp.array2d(dtype=wp.int32), ncount: wp.array(dtype=wp.int32),
-                           xref: wp.array(dtype=vec3)):
+                           xref: wp.array(dtype=vec3), maxcount: wp.array(dtype=wp.int32)):
         i = wp.tid()
         r = rep[i]
         L = box[r]
@@ -109,28 +110,28 @@ def neighbor_kernels(dtype):
             cy = cell_coord(p[1], L[1], n[1])
             cz = cell_coord(p[2], L[2], n[2])
             off = cell_offset[r]
-            for dx in range(-1, 2):
-                ix = wrap_int(cx + dx, n[0])
-                for dy in range(-1, 2):
-                    iy = wrap_int(cy + dy, n[1])
-                    for dz in range(-1, 2):
-                        iz = wrap_int(cz + dz, n[2])
-                        c = off + (ix * n[1] + iy) * n[2] + iz
-                        for j in range(start[c], end[c]):
-                            if j != i:
-                                d = min_image(p - x[j], L)
-                                if wp.dot(d, d) < rlist2:
-                                    if cnt < cap:
-                                        nbr[cnt, i] = j
-                                    cnt += 1
+            for q in range(27):  # 27 > max_unroll: a real loop (small code, fast compile)
+                ix = wrap_int(cx + q // 9 - 1, n[0])
+                iy = wrap_int(cy + (q // 3) % 3 - 1, n[1])
+                iz = wrap_int(cz + q % 3 - 1, n[2])
+                c = off + (ix * n[1] + iy) * n[2] + iz
+                for j in range(start[c], end[c]):
+                    if j != i:
+                        d = min_image(p - x[j], L)
+                        if wp.dot(d, d) < rlist2:
+                            if cnt < cap:
+                                nbr[cnt, i] = j
+                            cnt += 1
         ncount[i] = cnt
+        wp.atomic_max(maxcount, 0, cnt)
 
-    @wp.kernel(module="unique")
+    @kern
     def build_vertex_list(xv: wp.array(dtype=vec3), vrep: wp.array(dtype=wp.int32), x: wp.array(dtype=vec3),
                           box: wp.array(dtype=vec3), ncell: wp.array(dtype=wp.vec3i),
                           cell_offset: wp.array(dtype=wp.int32), start: wp.array(dtype=wp.int32),
                           end: wp.array(dtype=wp.int32), rlist2: dtype, vnbr: wp.array2d(dtype=wp.int32),
-                          vcount: wp.array(dtype=wp.int32), xvref: wp.array(dtype=vec3)):
+                          vcount: wp.array(dtype=wp.int32), xvref: wp.array(dtype=vec3),
+                          maxcount: wp.array(dtype=wp.int32)):
         i = wp.tid()
         r = vrep[i]
         L = box[r]
@@ -144,22 +145,21 @@ def neighbor_kernels(dtype):
             cy = cell_coord(p[1], L[1], n[1])
             cz = cell_coord(p[2], L[2], n[2])
             off = cell_offset[r]
-            for dx in range(-1, 2):
-                ix = wrap_int(cx + dx, n[0])
-                for dy in range(-1, 2):
-                    iy = wrap_int(cy + dy, n[1])
-                    for dz in range(-1, 2):
-                        iz = wrap_int(cz + dz, n[2])
-                        c = off + (ix * n[1] + iy) * n[2] + iz
-                        for j in range(start[c], end[c]):
-                            d = min_image(p - x[j], L)
-                            if wp.dot(d, d) < rlist2:
-                                if cnt < cap:
-                                    vnbr[cnt, i] = j
-                                cnt += 1
+            for q in range(27):
+                ix = wrap_int(cx + q // 9 - 1, n[0])
+                iy = wrap_int(cy + (q // 3) % 3 - 1, n[1])
+                iz = wrap_int(cz + q % 3 - 1, n[2])
+                c = off + (ix * n[1] + iy) * n[2] + iz
+                for j in range(start[c], end[c]):
+                    d = min_image(p - x[j], L)
+                    if wp.dot(d, d) < rlist2:
+                        if cnt < cap:
+                            vnbr[cnt, i] = j
+                        cnt += 1
         vcount[i] = cnt
+        wp.atomic_max(maxcount, 1, cnt)
 
-    @wp.kernel(module="unique")
+    @kern
     def triangle_candidates(xv: wp.array(dtype=vec3), faces: wp.array(dtype=wp.vec3i),
                             frep: wp.array(dtype=wp.int32), x: wp.array(dtype=vec3), box: wp.array(dtype=vec3),
                             ncell: wp.array(dtype=wp.vec3i), cell_offset: wp.array(dtype=wp.int32),
@@ -206,19 +206,25 @@ def neighbor_kernels(dtype):
                             if fill == 1:
                                 cols[row[j] + slot] = t
 
-    @wp.kernel(module="unique")
+    @kern
+    def csr_close(count: wp.array(dtype=wp.int32), row: wp.array(dtype=wp.int32), n: wp.int32,
+                  total: wp.array(dtype=wp.int32)):
+        row[n] = row[n - 1] + count[n - 1]
+        total[0] = row[n]
+
+    @kern
     def permute_vec(src: wp.array(dtype=vec3), perm: wp.array(dtype=wp.int32), dst: wp.array(dtype=vec3)):
         i = wp.tid()
         dst[i] = src[perm[i]]
 
-    @wp.kernel(module="unique")
+    @kern
     def permute_int(src: wp.array(dtype=wp.int32), perm: wp.array(dtype=wp.int32), dst: wp.array(dtype=wp.int32)):
         i = wp.tid()
         dst[i] = src[perm[i]]
 
     return {"compute_cells": compute_cells, "cell_ranges": cell_ranges, "build_solvent_list": build_solvent_list,
             "build_vertex_list": build_vertex_list, "triangle_candidates": triangle_candidates,
-            "permute_vec": permute_vec, "permute_int": permute_int}
+            "permute_vec": permute_vec, "permute_int": permute_int, "csr_close": csr_close}
 
 
 def grid_for_boxes(boxes: np.ndarray, rlist: float) -> tuple[np.ndarray, np.ndarray, int]:

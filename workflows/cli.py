@@ -25,6 +25,8 @@ app = typer.Typer(
 COMMAND_GROUPS: list[tuple[str, str]] = [
     ("data", "bubblecal.workflows.cli_data"),
     ("priors", "bubblecal.workflows.cli_priors"),
+    ("surrogates", "bubblecal.workflows.cli_surrogates"),
+    ("sim", "bubblecal.workflows.cli_sim"),
 ]
 
 #: Modules that register top-level commands on :data:`app` when imported (``register(app)``).

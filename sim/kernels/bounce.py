@@ -24,7 +24,6 @@ Response (momentum conserving):
 The kick's random numbers come from the particle's persistent id and the step.
 """
 
-from __future__ import annotations
 
 import functools
 
@@ -34,6 +33,8 @@ import warp as wp
 @functools.cache
 def bounce_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
+    kern = functools.partial(wp.kernel, enable_backward=False,
+                             module=f"bubblecal_bounce_{'f64' if dtype is wp.float64 else 'f32'}")
 
     @wp.func
     def min_image(d: vec3, L: vec3) -> vec3:
@@ -45,7 +46,7 @@ def bounce_kernels(dtype):
     def signed_vol(p: vec3, a: vec3, b: vec3, c: vec3) -> dtype:
         return wp.dot(p - a, wp.cross(b - a, c - a))
 
-    @wp.kernel(module="unique")
+    @kern
     def bounce(x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), typ: wp.array(dtype=wp.int32),
                rep: wp.array(dtype=wp.int32), pid: wp.array(dtype=wp.int32),
                row: wp.array(dtype=wp.int32), cols: wp.array(dtype=wp.int32),

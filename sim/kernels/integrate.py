@@ -13,7 +13,6 @@ Every integrate kernel also records, per replica, whether any particle has moved
 displacement and speed (used to schedule the next rebuild).
 """
 
-from __future__ import annotations
 
 import functools
 
@@ -23,8 +22,10 @@ import warp as wp
 @functools.cache
 def integrate_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
+    kern = functools.partial(wp.kernel, enable_backward=False,
+                             module=f"bubblecal_integ_{'f64' if dtype is wp.float64 else 'f32'}")
 
-    @wp.kernel(module="unique")
+    @kern
     def kick_drift_solvent(x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), f: wp.array(dtype=vec3),
                            typ: wp.array(dtype=wp.int32), rep: wp.array(dtype=wp.int32),
                            inv_mass: wp.array(dtype=dtype), status: wp.array(dtype=wp.int32), dt: dtype,
@@ -42,7 +43,7 @@ def integrate_kernels(dtype):
         if wp.dot(d, d) > half_skin2:
             overrun[r] = 1
 
-    @wp.kernel(module="unique")
+    @kern
     def kick_vertices(v: wp.array(dtype=vec3), f: wp.array(dtype=vec3), vrep: wp.array(dtype=wp.int32),
                       inv_mass: wp.array(dtype=dtype), status: wp.array(dtype=wp.int32), dt: dtype,
                       pin: wp.array(dtype=wp.int32), mom: wp.array(dtype=vec3)):
@@ -56,7 +57,7 @@ def integrate_kernels(dtype):
         if pin[r] != 0:
             wp.atomic_add(mom, r, vi)
 
-    @wp.kernel(module="unique")
+    @kern
     def drift_vertices(x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), xold: wp.array(dtype=vec3),
                        vrep: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32), dt: dtype,
                        pin: wp.array(dtype=wp.int32), mom: wp.array(dtype=vec3), nvert: wp.array(dtype=wp.int32),
@@ -77,7 +78,7 @@ def integrate_kernels(dtype):
         if wp.dot(d, d) > half_skin2:
             overrun[r] = 1
 
-    @wp.kernel(module="unique")
+    @kern
     def motion_stats(x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), xref: wp.array(dtype=vec3),
                      rep: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32),
                      disp2: wp.array(dtype=dtype), speed2: wp.array(dtype=dtype)):
@@ -89,12 +90,13 @@ def integrate_kernels(dtype):
         vi = v[i]
         dd = wp.dot(d, d)
         vv = wp.dot(vi, vi)
-        if wp.isfinite(dd):
+        # read before the atomic: most threads skip it (one address, heavy contention otherwise)
+        if wp.isfinite(dd) and dd > disp2[0]:
             wp.atomic_max(disp2, 0, dd)
-        if wp.isfinite(vv):
+        if wp.isfinite(vv) and vv > speed2[0]:
             wp.atomic_max(speed2, 0, vv)
 
-    @wp.kernel(module="unique")
+    @kern
     def increment(step: wp.array(dtype=wp.int32)):
         step[0] = step[0] + 1
 

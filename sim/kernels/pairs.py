@@ -19,7 +19,6 @@ force cancels to round-off). Vertex-solvent forces are evaluated per vertex over
 list; the reaction is atomically added to the solvent particle.
 """
 
-from __future__ import annotations
 
 import functools
 
@@ -50,6 +49,8 @@ def wrap_delta(d: float, L: float) -> float:
 def pair_kernels(dtype):
     """Kernels for one scalar type (``wp.float32`` or ``wp.float64``); cached."""
     vec3 = wp.types.vector(3, dtype)
+    kern = functools.partial(wp.kernel, enable_backward=False,
+                             module=f"bubblecal_pairs_{'f64' if dtype is wp.float64 else 'f32'}")
 
     @wp.func
     def min_image(d: vec3, L: vec3) -> vec3:
@@ -72,7 +73,7 @@ def pair_kernels(dtype):
             out = e * fm
         return out
 
-    @wp.kernel(module="unique")
+    @kern
     def solvent_forces(
         x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), typ: wp.array(dtype=wp.int32),
         rep: wp.array(dtype=wp.int32), pid: wp.array(dtype=wp.int32),
@@ -110,7 +111,7 @@ def pair_kernels(dtype):
                     fi = fi + e * fm
         f[i] = fi
 
-    @wp.kernel(module="unique")
+    @kern
     def vertex_solvent_forces(
         xv: wp.array(dtype=vec3), vv: wp.array(dtype=vec3), vrep: wp.array(dtype=wp.int32),
         x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), typ: wp.array(dtype=wp.int32),
@@ -142,7 +143,7 @@ def pair_kernels(dtype):
                 wp.atomic_sub(f, j, fij)
         fv[i] = fv[i] + fi
 
-    @wp.kernel(module="unique")
+    @kern
     def solvent_virial(
         x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), typ: wp.array(dtype=wp.int32),
         rep: wp.array(dtype=wp.int32), nbr: wp.array2d(dtype=wp.int32), ncount: wp.array(dtype=wp.int32),

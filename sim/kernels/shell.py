@@ -22,7 +22,7 @@ Kernels come in one set per scalar type (``wp.float32`` for CUDA, ``wp.float64``
 checks), built by :func:`_kernels` and cached.
 """
 
-from __future__ import annotations
+# (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)
 
 import functools
 from collections.abc import Sequence
@@ -54,14 +54,15 @@ E_LIM, E_BEND, E_AREA, E_VOL, E_PB, E_SA = range(6)
 def _kernels(dtype):
     """Build (once per scalar type) the shell kernels; returns a dict name -> kernel."""
     T = dtype
-    V = wp.types.vector(3, T)
+    V = wp.vec3d if T is wp.float64 else wp.vec3f
+    V4 = wp.vec4d if T is wp.float64 else wp.vec4f
     module = f"bubblecal_shell_{'f64' if T is wp.float64 else 'f32'}"
     kern = functools.partial(wp.kernel, enable_backward=False, module=module)
     clamp_a = T(AREA_CLAMP)
 
     @kern
     def lim_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i),
-                   ref: wp.array(dtype=wp.types.vector(4, T)), tri_rep: wp.array(dtype=wp.int32),
+                   ref: wp.array(dtype=V4), tri_rep: wp.array(dtype=wp.int32),
                    params: wp.array2d(dtype=T), avr: wp.array2d(dtype=T), use_global: wp.int32,
                    energy: wp.array2d(dtype=T), want_energy: wp.int32):
         t = wp.tid()
@@ -355,7 +356,7 @@ class ShellForceField:
         params_per_replica: list of R :class:`ShellParams` (or one, used for every mesh).
         device: Warp device (``"cpu"``, ``"cuda"``, ``"cuda:0"``).
         dtype: ``wp.float32`` (GPU default) or ``wp.float64`` (CPU checks); the particle arrays
-            passed in must be ``wp.array(dtype=wp.types.vector(3, dtype))``.
+            passed in must be ``wp.array(dtype=wp.vec3f)`` (float32) or ``wp.array(dtype=wp.vec3d)`` (float64).
         offsets: first particle row of each replica's vertices (default: packed from row 0).
 
     Methods add forces (``accumulate_forces``), report energies per replica and term
@@ -392,7 +393,7 @@ class ShellForceField:
         self.n_vertices = nv
         self.n_rows_min = int(np.max(offsets + nv))
         self.dtype = dtype
-        self.vec3 = wp.types.vector(3, dtype)
+        self.vec3 = wp.vec3d if dtype is wp.float64 else wp.vec3f
         self.device = wp.get_device(device)
         self._k = _kernels(dtype)
         npf = np.float64
@@ -440,7 +441,7 @@ class ShellForceField:
         self._gidx = wp.array(gidx.astype(np.int32), dtype=wp.int32, device=dev)
         self._goff = wp.array(offsets.astype(np.int32), dtype=wp.int32, device=dev)
         self._coff = wp.array(coff.astype(np.int32), dtype=wp.int32, device=dev)
-        self._ref = wp.array(ref, dtype=wp.types.vector(4, dtype), device=dev)
+        self._ref = wp.array(ref, dtype=wp.vec4d if dtype is wp.float64 else wp.vec4f, device=dev)
         self._theta0 = wp.array(theta0, dtype=dtype, device=dev)
         self._params = wp.array(table, dtype=dtype, device=dev)
         self._avr = wp.zeros((R, 2), dtype=dtype, device=dev)
@@ -463,8 +464,10 @@ class ShellForceField:
 
     # ------------------------------------------------------------------------------------------
     def _check_array(self, a, name: str) -> None:
-        if a.dtype != self.vec3:
-            raise TypeError(f"{name} must be a wp.array of {self.vec3.__name__}, got {a.dtype}")
+        if not wp.types.types_equal(a.dtype, self.vec3):
+            raise TypeError(f"{name} must be a wp.array of {self.vec3.__name__}, got {a.dtype.__name__}")
+        if a.device != self.device:
+            raise ValueError(f"{name} lives on {a.device}, the shell field on {self.device}")
         if a.shape[0] < self.n_rows_min:
             raise ValueError(f"{name} has {a.shape[0]} rows, the shells need {self.n_rows_min}")
 

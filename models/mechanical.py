@@ -1,0 +1,146 @@
+"""Single-curve mechanical model (AFM force spectroscopy), full or reduced shell, driven by a PriorSpec.
+
+Units: DPD throughout (:mod:`bubblecal.data.units`). Compression curves: x = imposed displacement
+[DPD length], y = plate force [DPD force]; indentation curves: x = applied force [DPD force],
+y = indentation depth [DPD length]. ``ka`` [DPD 2-D modulus], ``kb`` [DPD energy], ``b1, b2, a3, a4``
+[-], ``d0`` [DPD length], ``sigma``/``sigma_mech`` [-].
+
+Model (``shared/docs/inference.md`` §2)::
+
+    Θ_k ~ Uniform(prior_k)              for every free shell parameter k of the spec (sites ka, kb, ..., d0)
+    σ   ~ Uniform(prior_σ)              site 'sigma' ('sigma_mech' in acoustic workflows)
+    compression: ŷ_j = max(0, S(Θ; max(0, x_j − d0)))
+    indentation: ŷ_j = max(0, S(Θ; x_j) + d0)
+    y_j ~ N(ŷ_j, (σ ŷ_j)² + s_floor²)   observed site (default name 'y'); s_floor = 1e-6 · max|y|
+
+Parameters listed under ``[fixed]`` of the spec are not sampled; a reduced spec fixes
+b1 = b2 = a3 = a4 = 0 and evaluates the *same* surrogate at those zeros (:func:`reduced_spec` builds one
+from a full spec). Deterministic sites: ``E_MPa`` (Young's modulus, ν = 1/2) when ``ka`` is free and
+``kappa_kBT`` (continuum bending modulus) when ``kb`` is free.
+
+``surrogate`` is any callable ``(params[..., 6], x[...]) -> y[...]`` (ka, kb, b1, b2, a3, a4 in the last
+axis; leading shape broadcasts with ``x``) written in JAX; if it has a ``setup`` attribute it must
+match the curve's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+
+import jax.numpy as jnp
+import numpy as np
+import numpyro
+import numpyro.distributions as dist
+
+from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.models.likelihood import (
+    SD_FLOOR_REL,
+    SURROGATE_PARAMETERS,
+    noise_sd,
+    predict_mechanical,
+    sd_floor_for,
+)
+from bubblecal.priors.spec import NONLINEAR_PARAMETERS, SHELL_PARAMETERS, PriorSpec
+
+__all__ = [
+    "mechanical_model",
+    "mechanical_prediction",
+    "reduced_spec",
+    "resolve_setup",
+    "shell_params",
+    "derived_sites",
+]
+
+
+def resolve_setup(spec: PriorSpec, surrogate=None, setup: str | None = None, kind: str | None = None) -> str:
+    """The loading protocol, checked for consistency between spec, surrogate, curve kind and argument."""
+    chosen = setup or spec.setup
+    for what, value in (("surrogate.setup", getattr(surrogate, "setup", None)), ("curve kind", kind),
+                        ("spec.setup", spec.setup)):
+        if value is not None and value != chosen:
+            raise ValueError(f"setup mismatch: {what} is {value!r} but the model runs {chosen!r} "
+                             f"(priors {spec.name!r})")
+    if chosen not in ("compression", "indentation"):
+        raise ValueError(f"setup must be 'compression' or 'indentation', got {chosen!r}")
+    return chosen
+
+
+def reduced_spec(spec: PriorSpec) -> PriorSpec:
+    """The reduced shell of ``spec``: b1 = b2 = a3 = a4 fixed at 0, other ranges unchanged."""
+    parameters = {k: v for k, v in spec.parameters.items() if k not in NONLINEAR_PARAMETERS}
+    fixed = dict(spec.fixed)
+    fixed.update({k: 0.0 for k in NONLINEAR_PARAMETERS})
+    return dataclasses.replace(spec, name=f"{spec.name}_reduced" if spec.shell == "full" else spec.name,
+                               shell="reduced", parameters=parameters, fixed=fixed)
+
+
+def shell_params(values: Mapping, spec: PriorSpec):
+    """(params[..., 6], d0[...]) from sampled ``values`` and the spec's fixed parameters.
+
+    ``values`` maps free parameter names to arrays of a common batch shape (scalars for one Θ).
+    """
+    free = [values[k] for k in SHELL_PARAMETERS if k in values]
+    like = jnp.asarray(free[0]) if free else jnp.zeros(())
+    cols = []
+    for k in SURROGATE_PARAMETERS:
+        v = values[k] if k in values else spec.fixed[k]
+        cols.append(jnp.broadcast_to(jnp.asarray(v, dtype=like.dtype), like.shape))
+    d0 = values["d0"] if "d0" in values else spec.fixed["d0"]
+    return jnp.stack(cols, axis=-1), jnp.broadcast_to(jnp.asarray(d0, dtype=like.dtype), like.shape)
+
+
+def derived_sites(values: Mapping, units: UnitSystem = DEFAULT_UNITS, suffix: str = "") -> None:
+    """Record ``E_MPa`` (from ka) and ``kappa_kBT`` (from kb) as deterministic sites when present."""
+    if "ka" in values:
+        numpyro.deterministic("E_MPa" + suffix, values["ka"] * (float(units.ka_to_young(1.0)) * 1e-6))
+    if "kb" in values:
+        numpyro.deterministic("kappa_kBT" + suffix, values["kb"] * float(units.kb_to_bending_kBT(1.0)))
+
+
+def _uniform(bounds):
+    return dist.Uniform(float(bounds.lo), float(bounds.hi))
+
+
+def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str | None = None, obs_name: str = "y",
+                     y_scale: float | None = None, sd_floor_rel: float = SD_FLOOR_REL,
+                     units: UnitSystem = DEFAULT_UNITS):
+    """NumPyro model of one loading curve under uniform priors (module docstring for the equations).
+
+    ``x``, ``y``: the curve in DPD units (``y=None`` samples the observations: prior/posterior
+    predictive). ``y_scale`` sets the noise floor s_floor = ``sd_floor_rel`` · y_scale (default max|y|;
+    pass it explicitly together with ``y=None`` to reproduce the fit's density). Sites: the free
+    shell parameters of ``spec`` by name, the mechanical noise (``spec.mechanical_noise_name``), the
+    observed ``obs_name`` and the deterministic ``E_MPa`` / ``kappa_kBT``.
+    """
+    setup = resolve_setup(spec, surrogate, setup)
+    x = jnp.asarray(np.asarray(x, dtype=float))
+    values = {k: numpyro.sample(k, _uniform(p.prior)) for k, p in spec.parameters.items()}
+    noise_name = spec.mechanical_noise_name
+    if noise_name not in spec.noise:
+        raise ValueError(f"priors {spec.name!r} declare no noise amplitude {noise_name!r}")
+    sigma = numpyro.sample(noise_name, _uniform(spec.noise[noise_name].prior))
+    derived_sites(values, units)
+    params, d0 = shell_params(values, spec)
+    yhat = predict_mechanical(surrogate, setup, params, d0, x)
+    if y_scale is None:
+        y_scale = float(np.max(np.abs(y))) if y is not None else jnp.max(jnp.abs(yhat))
+    sd = noise_sd(yhat, sigma, sd_floor_for(y_scale, sd_floor_rel))
+    numpyro.sample(obs_name, dist.Normal(yhat, sd), obs=None if y is None else jnp.asarray(np.asarray(y, float)))
+
+
+def mechanical_prediction(samples: Mapping, surrogate: Callable, spec: PriorSpec, x, *, y_scale: float,
+                          setup: str | None = None, sd_floor_rel: float = SD_FLOOR_REL, noise_name: str | None = None):
+    """Per-sample predicted curve and noise sd at ``x``: arrays (S, len(x)) each (DPD units of y).
+
+    ``samples`` maps the free parameter names and the noise name to (S,) arrays (posterior draws of
+    :func:`mechanical_model`, or one bubble's slice of the hierarchical model). The pair is what
+    :mod:`bubblecal.inference.predictive` needs for the Gaussian-mixture predictive.
+    """
+    setup = resolve_setup(spec, surrogate, setup)
+    noise_name = noise_name or spec.mechanical_noise_name
+    values = {k: jnp.asarray(samples[k])[:, None] for k in spec.parameters}
+    params, d0 = shell_params(values, spec)  # (S, 1, 6), (S, 1)
+    yhat = predict_mechanical(surrogate, setup, params, d0, jnp.asarray(np.asarray(x, float))[None, :])
+    sigma = jnp.asarray(samples[noise_name])[:, None]
+    return yhat, noise_sd(yhat, sigma, sd_floor_for(y_scale, sd_floor_rel))

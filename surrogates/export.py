@@ -1,0 +1,87 @@
+"""Export trained models: plain-weight ``.npz`` (:mod:`bubblecal.surrogates.bundle` format) and ONNX.
+
+Imports torch (the training side); calibration reads the ``.npz`` with
+:func:`bubblecal.surrogates.load` and never imports this module.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.surrogates.bundle import PARAM_NAMES, save_surrogate
+from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
+from bubblecal.surrogates.train import TrainedMLP
+
+__all__ = ["surrogate_metadata", "export_npz", "export_sweep", "export_onnx"]
+
+PARAM_UNITS = {"ka": "DPD 2-D modulus (k_BT/r_c^2, fscale applied)", "kb": "DPD energy (k_BT, fscale applied)",
+               "b1": "1", "b2": "1", "a3": "1", "a4": "1"}
+HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
+
+
+def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score: float, data_hash: str,
+                       extra_training: dict | None = None) -> dict:
+    """Metadata of a surrogate file (keys: see :mod:`bubblecal.surrogates.bundle`)."""
+    setup = train_set.setup
+    training = model.training_summary()
+    training.update(extra_training or {})
+    return {
+        "setup": setup,
+        "diameter_um": float(train_set.diameter_um),
+        "radius_dpd": float(np.median(train_set.radius_dpd)),
+        "param_names": list(PARAM_NAMES),
+        "input_names": [*PARAM_NAMES, X_INFO[setup][0]],
+        "input_units": [PARAM_UNITS[k] for k in PARAM_NAMES] + [X_INFO[setup][1]],
+        "output_name": Y_INFO[setup][0],
+        "output_units": Y_INFO[setup][1],
+        "param_ranges": {k: list(v) for k, v in train_set.param_ranges().items()},
+        "x_range": list(train_set.x_range()),
+        "holdout_score": float(holdout_score),
+        "holdout_metric": HOLDOUT_METRIC,
+        "data_hash": data_hash,
+        "architecture": {"hidden": list(model.hidden), "activation": "tanh", "output": "linear"},
+        "training": training,
+        "source": train_set.source,
+        "n_curves_train": train_set.n_curves,
+    }
+
+
+def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, holdout_score: float,
+               data_hash: str, extra_training: dict | None = None) -> Path:
+    """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges)."""
+    md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training)
+    return save_surrogate(path, model.weights, model.biases, model.in_mean, model.in_std, model.out_mean,
+                          model.out_std, md)
+
+
+def export_sweep(result, path: str | Path) -> Path:
+    """Write the selected model of a :class:`~bubblecal.surrogates.sweep.SweepResult` as ``.npz``."""
+    extra = {"holdout_seed": result.config.seed, "holdout_frac": result.config.holdout_frac,
+             "n_curves_holdout": result.holdout_set.n_curves,
+             "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median")} for r in result.rows]}
+    return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra)
+
+
+def export_onnx(model: TrainedMLP, path: str | Path) -> Path:
+    """Export the full raw-input -> raw-output map (standardisation included) to ONNX.
+
+    Input ``u`` float32 (n, 7) = (ka, kb, b1, b2, a3, a4, x); output ``y`` float32 (n, 1).
+    """
+    import torch
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mod = model.torch_module(torch.float32)
+    example = torch.zeros((2, model.layer_sizes[0]), dtype=torch.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:  # TorchScript-based exporter: fast and sufficient for an MLP
+            torch.onnx.export(mod, (example,), str(path), dynamo=False, input_names=["u"], output_names=["y"],
+                              dynamic_axes={"u": {0: "n"}, "y": {0: "n"}}, opset_version=17)
+        except (TypeError, RuntimeError, AttributeError):  # pragma: no cover - exporter variants
+            torch.onnx.export(mod, (example,), str(path), input_names=["u"], output_names=["y"],
+                              dynamic_shapes=({0: torch.export.Dim("n")},))
+    return path

@@ -1,0 +1,231 @@
+"""PyTorch (CPU) training of one standardised tanh MLP surrogate. Imports torch.
+
+Recipe (issue 4): tanh hidden layers, Xavier-uniform weights and zero biases; inputs
+``(ka, kb, b1, b2, a3, a4, x)`` and the target standardised with the training points' mean and
+standard deviation (stored with the weights); a seeded 90/10 *pointwise* split of the training
+points for monitoring; Adam on the MSE of the standardised target; the learning rate is divided
+by 10 when the validation loss has not improved by a relative ``min_rel_improvement`` for
+``patience`` epochs; training stops when it stalls again after ``max_reductions`` reductions,
+or at ``max_epochs``. The weights with the best validation loss are returned. Same seed, same
+data and same thread count give bit-identical weights.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+from torch import nn
+
+__all__ = ["TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings (see module docstring)."""
+
+    lr: float = 1e-3
+    batch_size: int = 256
+    max_epochs: int = 3000
+    patience: int = 40
+    lr_factor: float = 0.1
+    max_reductions: int = 3
+    min_rel_improvement: float = 1e-4
+    val_frac: float = 0.1
+    threads: int | None = 1  # torch intra-op threads; 1 is fastest for these small MLPs (None: torch's)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def numpy_forward(weights, biases, in_mean, in_std, out_mean, out_std, u) -> np.ndarray:
+    """float64 numpy forward pass (same maths as :func:`bubblecal.surrogates.mlp.mlp_forward`)."""
+    h = (np.asarray(u, dtype=float) - in_mean) / in_std
+    last = len(weights) - 1
+    for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
+        h = h @ np.asarray(w, dtype=float) + np.asarray(b, dtype=float)
+        if i < last:
+            h = np.tanh(h)
+    return h * out_std + out_mean
+
+
+class NormalisedMLP(nn.Module):
+    """Raw inputs (n, 7) -> raw outputs (n, 1): standardise, tanh MLP, de-standardise (for ONNX)."""
+
+    def __init__(self, layer_sizes: Sequence[int], in_mean, in_std, out_mean, out_std):
+        super().__init__()
+        self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(layer_sizes[:-1], layer_sizes[1:], strict=True))
+        self.register_buffer("in_mean", torch.as_tensor(np.asarray(in_mean), dtype=torch.float32))
+        self.register_buffer("in_std", torch.as_tensor(np.asarray(in_std), dtype=torch.float32))
+        self.register_buffer("out_mean", torch.as_tensor(np.atleast_1d(out_mean), dtype=torch.float32))
+        self.register_buffer("out_std", torch.as_tensor(np.atleast_1d(out_std), dtype=torch.float32))
+
+    def forward(self, u):
+        h = (u - self.in_mean) / self.in_std
+        for i, layer in enumerate(self.layers):
+            h = layer(h)
+            if i < len(self.layers) - 1:
+                h = torch.tanh(h)
+        return h * self.out_std + self.out_mean
+
+
+@dataclass
+class TrainedMLP:
+    """Result of :func:`train_mlp`: plain numpy weights (fan_in, fan_out), statistics, history."""
+
+    hidden: tuple[int, ...]
+    weights: list[np.ndarray]
+    biases: list[np.ndarray]
+    in_mean: np.ndarray
+    in_std: np.ndarray
+    out_mean: np.ndarray
+    out_std: np.ndarray
+    config: TrainConfig
+    seed: int
+    epochs: int
+    stop_reason: str
+    best_val_loss: float
+    wall_s: float
+    history: dict = field(default_factory=dict)
+
+    @property
+    def layer_sizes(self) -> list[int]:
+        return [self.weights[0].shape[0]] + [w.shape[1] for w in self.weights]
+
+    def predict(self, u) -> np.ndarray:
+        """Raw outputs (n,) for raw inputs (n, 7), float64 numpy."""
+        return numpy_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean,
+                             self.out_std, u)[..., 0]
+
+    def torch_module(self, dtype=torch.float32) -> NormalisedMLP:
+        """A torch module with these weights and the standardisation built in."""
+        mod = NormalisedMLP(self.layer_sizes, self.in_mean, self.in_std, self.out_mean, self.out_std)
+        with torch.no_grad():
+            for layer, w, b in zip(mod.layers, self.weights, self.biases, strict=True):
+                layer.weight.copy_(torch.as_tensor(w.T.copy()))
+                layer.bias.copy_(torch.as_tensor(b))
+        return mod.to(dtype).eval()
+
+    def training_summary(self) -> dict:
+        return {"hidden": list(self.hidden), "seed": self.seed, "epochs": self.epochs,
+                "stop_reason": self.stop_reason, "best_val_loss": self.best_val_loss, "wall_s": self.wall_s,
+                "config": self.config.as_dict()}
+
+
+def _build(layer_sizes: Sequence[int], gen: torch.Generator) -> nn.Sequential:
+    mods: list[nn.Module] = []
+    for i, (a, b) in enumerate(zip(layer_sizes[:-1], layer_sizes[1:], strict=True)):
+        lin = nn.Linear(a, b)
+        nn.init.xavier_uniform_(lin.weight, generator=gen)
+        nn.init.zeros_(lin.bias)
+        mods.append(lin)
+        if i < len(layer_sizes) - 2:
+            mods.append(nn.Tanh())
+    return nn.Sequential(*mods)
+
+
+def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: TrainConfig | None = None,
+              seed: int = 0, progress: bool = True, desc: str = "train") -> TrainedMLP:
+    """Train one MLP on raw inputs ``u`` (n, 7) and targets ``y`` (n,) (see module docstring)."""
+    from tqdm.auto import tqdm
+
+    config = config or TrainConfig()
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float).reshape(-1)
+    if u.ndim != 2 or u.shape[0] != y.shape[0]:
+        raise ValueError(f"u must be (n, n_in) and y (n,), got {u.shape} and {y.shape}")
+    if u.shape[0] < 10:
+        raise ValueError(f"too few training points ({u.shape[0]})")
+    old_threads = torch.get_num_threads()
+    if config.threads:
+        torch.set_num_threads(int(config.threads))
+    t0 = time.perf_counter()
+    try:
+        rng = np.random.default_rng(seed)
+        perm = rng.permutation(u.shape[0])
+        n_val = max(1, int(round(config.val_frac * u.shape[0])))
+        val_idx, tr_idx = perm[:n_val], perm[n_val:]
+        in_mean = u[tr_idx].mean(axis=0)
+        in_std = u[tr_idx].std(axis=0)
+        out_mean = np.array([y[tr_idx].mean()])
+        out_std = np.array([y[tr_idx].std()])
+        zero = np.flatnonzero(in_std <= 0)
+        if zero.size:
+            raise ValueError(f"input column(s) {zero.tolist()} have zero variance in the training points")
+        if out_std[0] <= 0:
+            raise ValueError("target has zero variance in the training points")
+        z = torch.as_tensor((u - in_mean) / in_std, dtype=torch.float32)
+        t = torch.as_tensor(((y - out_mean[0]) / out_std[0])[:, None], dtype=torch.float32)
+        z_tr, t_tr = z[tr_idx], t[tr_idx]
+        z_va, t_va = z[val_idx], t[val_idx]
+
+        gen = torch.Generator().manual_seed(int(seed))
+        sizes = [u.shape[1], *[int(h) for h in hidden], 1]
+        model = _build(sizes, gen)
+        opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+        loss_fn = nn.MSELoss()
+        lr = config.lr
+        best = math.inf
+        best_state = {k: v.clone() for k, v in model.state_dict().items()}
+        wait = 0
+        reductions = 0
+        stop_reason = "max_epochs"
+        hist_train, hist_val, hist_lr = [], [], []
+        n_tr = z_tr.shape[0]
+        bs = min(config.batch_size, n_tr)
+        bar = tqdm(range(config.max_epochs), desc=desc, disable=not progress, leave=False, mininterval=0.5)
+        epoch = 0
+        for epoch in bar:
+            model.train()
+            order = torch.randperm(n_tr, generator=gen)
+            total = 0.0
+            for start in range(0, n_tr, bs):
+                idx = order[start:start + bs]
+                opt.zero_grad(set_to_none=True)
+                loss = loss_fn(model(z_tr[idx]), t_tr[idx])
+                loss.backward()
+                opt.step()
+                total += loss.item() * idx.shape[0]
+            model.eval()
+            with torch.no_grad():
+                val = float(loss_fn(model(z_va), t_va))
+            hist_train.append(total / n_tr)
+            hist_val.append(val)
+            hist_lr.append(lr)
+            if not math.isfinite(val):
+                stop_reason = "non-finite validation loss"
+                break
+            if val < best * (1.0 - config.min_rel_improvement):
+                best = val
+                best_state = {k: v.clone() for k, v in model.state_dict().items()}
+                wait = 0
+            else:
+                wait += 1
+                if wait >= config.patience:
+                    if reductions >= config.max_reductions:
+                        stop_reason = f"plateau after {reductions} lr reductions"
+                        break
+                    reductions += 1
+                    lr *= config.lr_factor
+                    for g in opt.param_groups:
+                        g["lr"] = lr
+                    wait = 0
+            if progress and epoch % 10 == 0:
+                bar.set_postfix(train=f"{hist_train[-1]:.3g}", val=f"{val:.3g}", lr=f"{lr:.0e}")
+        bar.close()
+        model.load_state_dict(best_state)
+        linears = [m for m in model if isinstance(m, nn.Linear)]
+        weights = [m.weight.detach().numpy().T.copy() for m in linears]
+        biases = [m.bias.detach().numpy().copy() for m in linears]
+    finally:
+        if config.threads:
+            torch.set_num_threads(old_threads)
+    return TrainedMLP(hidden=tuple(int(h) for h in hidden), weights=weights, biases=biases, in_mean=in_mean,
+                      in_std=in_std, out_mean=out_mean, out_std=out_std, config=config, seed=int(seed),
+                      epochs=epoch + 1, stop_reason=stop_reason, best_val_loss=float(best),
+                      wall_s=time.perf_counter() - t0,
+                      history={"train_loss": hist_train, "val_loss": hist_val, "lr": hist_lr})

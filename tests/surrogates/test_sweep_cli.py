@@ -1,0 +1,88 @@
+"""Architecture sweep (grouped holdout, report) and the `bubblecal surrogates train` command."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from bubblecal.surrogates.dataset import write_published
+from bubblecal.surrogates.sweep import SweepConfig, grouped_holdout, run_sweep
+from bubblecal.surrogates.synthetic import make_synthetic
+from bubblecal.surrogates.train import TrainConfig
+
+pytest.importorskip("torch")
+TINY = TrainConfig(max_epochs=6, patience=2, max_reductions=1, batch_size=128)
+
+
+def test_grouped_holdout_is_seeded_and_disjoint():
+    tr, ho = grouped_holdout(50, 0.1, seed=3)
+    assert len(ho) == 5 and len(tr) == 45 and not set(tr) & set(ho)
+    tr2, ho2 = grouped_holdout(50, 0.1, seed=3)
+    assert np.array_equal(ho, ho2)
+    assert not np.array_equal(ho, grouped_holdout(50, 0.1, seed=4)[1])
+
+
+def test_sweep_selects_lowest_and_writes_report(tmp_path):
+    ts = make_synthetic(24, "indentation", radius_dpd=6.38, noise=0.01, seed=1)
+    res = run_sweep(ts, SweepConfig(widths=(4, 16), depths=(1, 2), train=TINY), progress=False)
+    assert len(res.rows) == 4
+    scores = [r["holdout_median"] for r in res.rows]
+    assert res.score == min(scores) == res.best["holdout_median"]
+    # holdout curves are whole curves that training never saw
+    assert not set(res.holdout_set.curve_id) & set(res.train_set.curve_id)
+    assert res.holdout_set.n_curves + res.train_set.n_curves == 24
+    # score = median of per-curve relative L2 on the held-out curves
+    err = np.linalg.norm(res.holdout_pred - res.holdout_set.y, axis=1) / np.linalg.norm(res.holdout_set.y, axis=1)
+    assert res.score == pytest.approx(np.median(err))
+    paths = res.write_report(tmp_path)
+    report = json.loads(paths["json"].read_text())
+    assert report["selected"]["holdout_median"] == pytest.approx(res.score)
+    assert len(report["holdout_curve_ids"]) == res.holdout_set.n_curves
+    assert "(selected)" in paths["markdown"].read_text()
+    assert paths["plot"].stat().st_size > 1000
+
+
+def test_cli_train_sweep_exports_validated_surrogate(tmp_path):
+    from bubblecal.surrogates import load
+    from bubblecal.workflows.cli_surrogates import app
+
+    ts = make_synthetic(25, "compression", noise=0.01, seed=7)
+    ts.y[0, -2:] = 0.0  # one ruptured curve, filtered and reported
+    data = write_published(ts, tmp_path / "F_Delta.csv")
+    out = tmp_path / "out"
+    r = CliRunner().invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "2.1", "--sweep",
+                                 "--widths", "4,8", "--depths", "1", "--max-epochs", "4", "--patience", "2",
+                                 "--out", str(out), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert "rupture_trailing_zero" in r.output and "24 kept" in r.output
+    summary = json.loads((out / "train_summary.json").read_text())
+    assert summary["parity"]["jax_vs_torch_max_rel_diff"] < 1e-5
+    assert summary["parity"]["onnx_vs_jax_max_rel_diff"] < 1e-5
+    sur = load(out / "compression_2.1um.npz")
+    assert sur.holdout_score == pytest.approx(summary["holdout_score"])
+    for name in ("sweep_report.md", "sweep_report.json", "heldout_curve.png", "filter_report.json",
+                 "compression_2.1um.onnx"):
+        assert (out / name).exists(), name
+
+
+def test_cli_errors_are_clear(tmp_path):
+    from bubblecal.workflows.cli_surrogates import app
+
+    ts = make_synthetic(10, "compression", noise=0.01, seed=7)
+    data = write_published(ts, tmp_path / "small.csv")
+    runner = CliRunner()
+    r = runner.invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "2.1", "--sweep",
+                            "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "small.csv: 10 curve(s)" in r.output and "at least 20" in r.output
+    r = runner.invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "3.0",
+                            "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "radius_dpd" in r.output
+
+
+def test_surrogates_group_registered():
+    from bubblecal.workflows import cli
+
+    assert ("surrogates", "bubblecal.workflows.cli_surrogates") in cli.COMMAND_GROUPS

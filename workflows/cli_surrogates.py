@@ -1,0 +1,154 @@
+"""``bubblecal surrogates``: train, inspect and generate data for the mechanical surrogates.
+
+Heavy imports (torch, jax) happen inside the commands so that ``bubblecal --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, export, inspection.",
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+
+
+def _ints(text: str, name: str) -> tuple[int, ...]:
+    try:
+        vals = tuple(int(v) for v in text.replace(" ", "").split(",") if v)
+    except ValueError as exc:
+        raise typer.BadParameter(f"{name} must be comma-separated integers, got {text!r}") from exc
+    if not vals or any(v < 1 for v in vals):
+        raise typer.BadParameter(f"{name} must be positive integers, got {text!r}")
+    return vals
+
+
+def _fail(msg: str, code: int = 2):
+    typer.echo(f"error: {msg}", err=True)
+    raise typer.Exit(code)
+
+
+@app.command("train")
+def train(
+    dataset: Path = typer.Argument(..., help="Published-layout table (.csv/.dat) or campaign store (dir/.jsonl)."),
+    setup: str = typer.Option(..., "--setup", help="compression | indentation"),
+    diameter: float = typer.Option(..., "--diameter", help="Bubble diameter [um]; must match the data's radius."),
+    out: Path = typer.Option(..., "--out", help="Output directory (surrogate .npz, reports, plot)."),
+    sweep: bool = typer.Option(False, "--sweep/--no-sweep", help="Sweep widths x depths (else one architecture)."),
+    widths: str = typer.Option("32,64,128,256", help="Sweep widths (comma separated)."),
+    depths: str = typer.Option("2,3,4", help="Sweep depths (comma separated)."),
+    width: int = typer.Option(64, help="Width without --sweep."),
+    depth: int = typer.Option(3, help="Depth (hidden layers) without --sweep."),
+    holdout_frac: float = typer.Option(0.1, help="Fraction of curves held out (grouped)."),
+    seed: int = typer.Option(0, help="Seed of the holdout split, the pointwise split and the weights."),
+    max_epochs: int = typer.Option(3000),
+    patience: int = typer.Option(40, help="Epochs without validation improvement before lr /= 10."),
+    max_reductions: int = typer.Option(3, help="Stop at the next stall after this many lr reductions."),
+    batch_size: int = typer.Option(256),
+    lr: float = typer.Option(1e-3),
+    jobs: int = typer.Option(1, help="Architectures trained in parallel processes (1 torch thread each)."),
+    zero_frac: float = typer.Option(0.01, help="Rupture: last raw response <= this fraction of the curve max."),
+    max_drop: float = typer.Option(0.10, help="Rupture: drop below the running max > this fraction of the max."),
+    n_points: str = typer.Option("15", help="Loading points per row of a published table ('auto': infer)."),
+    onnx: bool = typer.Option(True, "--onnx/--no-onnx", help="Also export ONNX and check onnxruntime parity."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
+) -> None:
+    """Train (optionally sweep) a surrogate on DATASET and export it with a report."""
+    import numpy as np
+
+    from bubblecal.surrogates.bundle import load
+    from bubblecal.surrogates.dataset import DatasetError, filter_curves, read_dataset
+    from bubblecal.surrogates.export import export_onnx, export_sweep
+    from bubblecal.surrogates.onnx_check import onnx_parity, scaled_max_rel_diff
+    from bubblecal.surrogates.sweep import MIN_SWEEP_CURVES, SweepConfig, run_sweep
+    from bubblecal.surrogates.train import TrainConfig
+
+    if setup not in ("compression", "indentation"):
+        raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
+    try:
+        raw = read_dataset(dataset, setup=setup, n_points="auto" if n_points == "auto" else int(n_points))
+        if raw.setup != setup:
+            _fail(f"{dataset}: holds {raw.setup} data, --setup is {setup}")
+        ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop)
+        typer.echo(str(report))
+        if ts.n_curves and abs(ts.diameter_um - diameter) > 0.01:
+            _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, --diameter is {diameter:g}")
+        train_cfg = TrainConfig(lr=lr, batch_size=batch_size, max_epochs=max_epochs, patience=patience,
+                                max_reductions=max_reductions, threads=1)
+        if sweep:
+            cfg = SweepConfig(widths=_ints(widths, "--widths"), depths=_ints(depths, "--depths"),
+                              holdout_frac=holdout_frac, seed=seed, jobs=jobs, train=train_cfg,
+                              min_curves=MIN_SWEEP_CURVES)
+        else:
+            cfg = SweepConfig(widths=(width,), depths=(depth,), holdout_frac=holdout_frac, seed=seed, jobs=1,
+                              train=train_cfg, min_curves=2)
+        result = run_sweep(ts, cfg, progress=not quiet)
+    except (DatasetError, FileNotFoundError) as exc:
+        _fail(str(exc))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "filter_report.json").write_text(json.dumps(report.as_dict(), indent=2))
+    paths = result.write_report(out)
+    npz = export_sweep(result, out / f"{ts.setup}_{ts.diameter_um:g}um.npz")
+    sur = load(npz)
+    # parity: the exported JAX function against torch on the held-out points
+    import torch
+
+    u, _, _ = result.holdout_set.points()
+    with torch.no_grad():
+        y_torch = result.best_model.torch_module(torch.float64)(torch.as_tensor(u, dtype=torch.float64)).numpy()[:, 0]
+    y_jax = np.asarray(sur(u[:, :6], u[:, 6]))
+    checks = {"jax_vs_torch_max_rel_diff": scaled_max_rel_diff(y_jax, y_torch)}
+    if onnx:
+        onnx_path = export_onnx(result.best_model, out / f"{ts.setup}_{ts.diameter_um:g}um.onnx")
+        checks["onnx_vs_jax_max_rel_diff"] = onnx_parity(onnx_path, sur, u)["max_rel_diff"]
+    summary = {"surrogate": str(npz), "selected": result.best, "holdout_score": result.score,
+               "data_hash": result.data_hash, "filter": report.as_dict(), "parity": checks,
+               "reports": {k: str(v) for k, v in paths.items()}, "sweep_wall_s": result.wall_s}
+    (out / "train_summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    typer.echo(result.markdown())
+    typer.echo(f"wrote {npz}")
+    for k, v in checks.items():
+        typer.echo(f"{k}: {v:.2e}")
+    if any(v > 1e-5 for v in checks.values()):
+        _fail("exported surrogate disagrees with the trained model beyond 1e-5 (see train_summary.json)", code=1)
+
+
+@app.command("info")
+def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle directory.")) -> None:
+    """Print the metadata of a surrogate file or the contents of a bundle."""
+    from bubblecal.surrogates.bundle import SurrogateFormatError, load, load_bundle
+
+    try:
+        if path.is_dir():
+            b = load_bundle(path)
+            for key in b.keys():
+                typer.echo(repr(b.surrogates[key]))
+            for name, ac in b.acoustic.items():
+                typer.echo(f"acoustic {name}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
+        else:
+            sur = load(path)
+            typer.echo(repr(sur))
+            typer.echo(json.dumps({k: sur.metadata[k] for k in ("param_ranges", "x_range", "input_names",
+                                                                 "input_units", "output_units", "source")}, indent=2))
+    except (SurrogateFormatError, FileNotFoundError) as exc:
+        _fail(str(exc))
+
+
+@app.command("synthetic")
+def synthetic(
+    out: Path = typer.Argument(..., help="Output CSV in the published row layout."),
+    setup: str = typer.Option("compression", "--setup"),
+    n_curves: int = typer.Option(400, "--n-curves"),
+    diameter: float = typer.Option(2.1, "--diameter", help="Bubble diameter [um]."),
+    noise: float = typer.Option(0.01, help="Relative (multiplicative) Gaussian noise per point."),
+    seed: int = typer.Option(0),
+) -> None:
+    """Write a known-answer synthetic training set (closed-form shell force law + noise)."""
+    from bubblecal.data.units import radius_dpd_from_diameter_um
+    from bubblecal.surrogates.dataset import write_published
+    from bubblecal.surrogates.synthetic import make_synthetic
+
+    ts = make_synthetic(n_curves, setup, radius_dpd=radius_dpd_from_diameter_um(diameter), noise=noise, seed=seed)
+    write_published(ts, out)
+    typer.echo(f"wrote {ts.n_curves} {setup} curves to {out}")
