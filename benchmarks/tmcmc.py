@@ -39,10 +39,16 @@ def _parse():
     p.add_argument("--steps", type=int, default=10, help="MH steps per stage")
     p.add_argument("--repeats", type=int, default=3, help="timed runs after the compile run")
     p.add_argument("--replicas", type=int, default=0, help="independent runs for time-to-accuracy (0: skip)")
-    p.add_argument("--moves", default="rw", help="comma list of bubblecal moves: rw, hmc")
+    p.add_argument(
+        "--moves",
+        default="rw",
+        help="comma list of bubblecal moves: rw (box), rw-u (logit space), hmc (logit space)",
+    )
+    p.add_argument("--hmc-steps", type=int, default=3, help="HMC transitions per stage for --moves hmc")
     p.add_argument("--no-blackjax", action="store_true", help="skip BlackJAX")
     p.add_argument("--chunk-size", type=int, default=None)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--problem", choices=("surrogate", "ridge"), default="surrogate")
     return p.parse_args()
 
 
@@ -70,8 +76,12 @@ def make_problem(seed: int = 0, n_points: int = 24):
     sizes = [7, 128, 128, 128, 128, 1]
     params = []
     for fin, fout in zip(sizes[:-1], sizes[1:], strict=True):
-        params.append((rng.normal(0, 1.0 / math.sqrt(fin), (fin, fout)).astype(np.float32),
-                       rng.normal(0, 0.1, fout).astype(np.float32)))
+        params.append(
+            (
+                rng.normal(0, 1.0 / math.sqrt(fin), (fin, fout)).astype(np.float32),
+                rng.normal(0, 0.1, fout).astype(np.float32),
+            )
+        )
     params = [(jnp.asarray(w), jnp.asarray(b)) for w, b in params]
     x = jnp.linspace(0.0, 1.0, n_points, dtype=jnp.float32)
     lo, hi = jnp.asarray(LO, jnp.float32), jnp.asarray(HI, jnp.float32)
@@ -102,8 +112,50 @@ def make_problem(seed: int = 0, n_points: int = 24):
     return log_prior, log_likelihood, theta_true
 
 
+def make_ridge_problem(width: float = 0.02):
+    """A curved narrow k_a–k_b ridge (k_a ≈ k_b², width ``width``) plus 6 well-identified parameters,
+    on the same 8-parameter box: to compare random-walk and gradient moves."""
+    lo, hi = jnp.asarray(LO, jnp.float32), jnp.asarray(HI, jnp.float32)
+    log_vol = float(np.log(HI - LO).sum())
+    centre = jnp.asarray(LO + 0.6 * (HI - LO), jnp.float32)
+    spread = jnp.asarray(0.1 * (HI - LO), jnp.float32)
+
+    def log_prior(theta):
+        inside = jnp.all((theta >= lo) & (theta <= hi))
+        return jnp.where(inside, -log_vol, -jnp.inf)
+
+    def log_likelihood(theta):
+        ka, kb = theta[0], theta[1]
+        ridge = -0.5 * ((ka - kb**2 + 0.3) / width) ** 2 - 0.5 * ((ka + kb) / 0.6) ** 2
+        rest = -0.5 * jnp.sum(((theta[2:] - centre[2:]) / spread[2:]) ** 2)
+        return ridge + rest
+
+    return log_prior, log_likelihood, None
+
+
+def unconstrained(log_likelihood):
+    """The same problem in u = logit((θ − lo)/(hi − lo)): (log prior incl. log|J|, log L, u ↦ θ, θ ↦ u)."""
+    lo, width = jnp.asarray(LO, jnp.float32), jnp.asarray(HI - LO, jnp.float32)
+
+    def to_theta(u):
+        return lo + width * jax.nn.sigmoid(u)
+
+    def to_u(theta):
+        p = jnp.clip((theta - lo) / width, 1e-7, 1 - 1e-7)
+        return jnp.log(p) - jnp.log1p(-p)
+
+    def log_prior_u(u):  # uniform box: density 1/vol times |dθ/du|
+        return jnp.sum(jnp.log(width) + jax.nn.log_sigmoid(u) + jax.nn.log_sigmoid(-u)) - jnp.sum(
+            jnp.log(width)
+        )
+
+    return log_prior_u, lambda u: log_likelihood(to_theta(u)), to_theta, to_u
+
+
 def prior_draws(key, n):
-    return jax.random.uniform(key, (n, D), jnp.float32, jnp.asarray(LO, jnp.float32), jnp.asarray(HI, jnp.float32))
+    return jax.random.uniform(
+        key, (n, D), jnp.float32, jnp.asarray(LO, jnp.float32), jnp.asarray(HI, jnp.float32)
+    )
 
 
 def _block(x):
@@ -113,13 +165,17 @@ def _block(x):
 # ------------------------------------------------------------------------------------------------
 
 
-def bubblecal_runner(log_prior, log_lik, n, steps, move_name, chunk_size):
-    if move_name == "rw":
+def bubblecal_runner(log_prior, log_lik, n, steps, move_name, chunk_size, hmc_steps):
+    """'rw': RW in the box (as BlackJAX); 'rw-u': RW in logit space; 'hmc': NumPyro HMC in logit space."""
+    to_theta = None
+    if move_name in ("rw-u", "hmc"):
+        log_prior, log_lik, to_theta, to_u = unconstrained(log_lik)
+    if move_name in ("rw", "rw-u"):
         move = core.RandomWalk(num_steps=steps, init_scale2=0.04, adapt=True)
     elif move_name == "hmc":
         from bubblecal.inference.moves import hmc_move
 
-        move = hmc_move(num_steps=1, trajectory_length=1.5)
+        move = hmc_move(num_steps=hmc_steps, trajectory_length=1.5)
     else:
         raise ValueError(f"unknown move {move_name!r}")
     alg = core.tmcmc(log_prior, log_lik, move, core.TMCMCConfig(target_cov=1.0, chunk_size=chunk_size), 200)
@@ -127,8 +183,11 @@ def bubblecal_runner(log_prior, log_lik, n, steps, move_name, chunk_size):
     @jax.jit
     def whole(key):
         k0, k1 = jax.random.split(key)
-        state = alg.init(prior_draws(k0, n))
+        x0 = prior_draws(k0, n)
+        state = alg.init(x0 if to_theta is None else jax.vmap(to_u)(x0))
         final, infos, status = alg.run(k1, state)
+        if to_theta is not None:
+            final = final._replace(position=jax.vmap(to_theta)(final.position))
         return final, infos, status
 
     def run(key):
@@ -173,7 +232,9 @@ def blackjax_runner(log_prior, log_lik, n, steps):
         mcmc_init_fn=rw_init,
         resampling_fn=resampling.systematic,
         mcmc_parameter_update_fn=update,
-        initial_parameter_value=extend_params({"chol": 0.2 * jnp.diag(jnp.asarray(HI - LO, jnp.float32)) / math.sqrt(12)}),
+        initial_parameter_value=extend_params(
+            {"chol": 0.2 * jnp.diag(jnp.asarray(HI - LO, jnp.float32)) / math.sqrt(12)}
+        ),
         num_mcmc_steps=steps,
         target_ess=0.5,
     )
@@ -239,11 +300,15 @@ def accuracy(run, seed, replicas, t_run):
 
 
 def main(args):
-    log_prior, log_lik, _ = make_problem(args.seed)
+    if args.problem == "surrogate":
+        log_prior, log_lik, _ = make_problem(args.seed)
+    else:
+        log_prior, log_lik, _ = make_ridge_problem()
     n = args.n
     dev = jax.devices()[0]
     out = {
         "benchmark": "tmcmc",
+        "problem": args.problem,
         "n": n,
         "steps": args.steps,
         "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}",
@@ -268,7 +333,9 @@ def main(args):
 
     runners = {}
     for mv in [m.strip() for m in args.moves.split(",") if m.strip()]:
-        runners[f"bubblecal-{mv}"] = bubblecal_runner(log_prior, log_lik, n, args.steps, mv, args.chunk_size)
+        runners[f"bubblecal-{mv}"] = bubblecal_runner(
+            log_prior, log_lik, n, args.steps, mv, args.chunk_size, args.hmc_steps
+        )
     if not args.no_blackjax:
         runners["blackjax"] = blackjax_runner(log_prior, log_lik, n, args.steps)
 
@@ -294,26 +361,35 @@ def main(args):
         out["rows"][name] = row
 
     if "blackjax" in out["rows"]:
-        for name, row in out["rows"].items():
+        for row in out["rows"].values():
             row["ratio_vs_blackjax"] = row["wall_s"] / out["rows"]["blackjax"]["wall_s"]
             if "accuracy" in row and "accuracy" in out["rows"]["blackjax"]:
                 row["tta_ratio_vs_blackjax"] = (
-                    row["accuracy"]["time_to_accuracy_s"] / out["rows"]["blackjax"]["accuracy"]["time_to_accuracy_s"]
+                    row["accuracy"]["time_to_accuracy_s"]
+                    / out["rows"]["blackjax"]["accuracy"]["time_to_accuracy_s"]
                 )
 
-    print(f"TMCMC benchmark: N = {n}, {args.steps} MH steps/stage, device {out['device']}, "
-          f"one vmapped evaluation of all particles {t_eval * 1e3:.2f} ms")
+    print(
+        f"TMCMC benchmark: N = {n}, {args.steps} MH steps/stage, device {out['device']}, "
+        f"one vmapped evaluation of all particles {t_eval * 1e3:.2f} ms"
+    )
     hdr = f"{'sampler':>14s} {'wall s':>8s} {'stages':>6s} {'evals':>10s} {'evals/s':>10s} {'floor s':>8s} {'x floor':>7s} {'vs BJ':>6s} {'log Z':>9s}"
-    extra = f" {'sdZ/run':>8s} {'ESSmin/run':>10s} {'TTA s':>8s} {'TTA vs BJ':>9s}" if args.replicas >= 2 else ""
+    extra = (
+        f" {'sdZ/run':>8s} {'ESSmin/run':>10s} {'TTA s':>8s} {'TTA vs BJ':>9s}" if args.replicas >= 2 else ""
+    )
     print(hdr + extra)
     for name, row in out["rows"].items():
-        line = (f"{name:>14s} {row['wall_s']:8.3f} {row['stages']:6d} {row['evaluations']:10d} "
-                f"{row['evals_per_s']:10.3g} {row['floor_s']:8.3f} {row['x_floor']:7.2f} "
-                f"{row.get('ratio_vs_blackjax', float('nan')):6.2f} {np.mean(row['log_z']):9.3f}")
+        line = (
+            f"{name:>14s} {row['wall_s']:8.3f} {row['stages']:6d} {row['evaluations']:10d} "
+            f"{row['evals_per_s']:10.3g} {row['floor_s']:8.3f} {row['x_floor']:7.2f} "
+            f"{row.get('ratio_vs_blackjax', float('nan')):6.2f} {np.mean(row['log_z']):9.3f}"
+        )
         if "accuracy" in row:
             a = row["accuracy"]
-            line += (f" {a['log_z_sd_per_run']:8.3f} {a['ess_per_run_min']:10.1f} {a['time_to_accuracy_s']:8.2f}"
-                     f" {row.get('tta_ratio_vs_blackjax', float('nan')):9.2f}")
+            line += (
+                f" {a['log_z_sd_per_run']:8.3f} {a['ess_per_run_min']:10.1f} {a['time_to_accuracy_s']:8.2f}"
+                f" {row.get('tta_ratio_vs_blackjax', float('nan')):9.2f}"
+            )
         print(line)
     print(json.dumps(out))
     return out

@@ -61,7 +61,9 @@ class FlatModel:
     themselves (Korali's behaviour on box priors); the prior is −∞ outside each site's support.
     """
 
-    def __init__(self, model: Callable, model_args=(), model_kwargs=None, space="unconstrained", rng_key=None):
+    def __init__(
+        self, model: Callable, model_args=(), model_kwargs=None, space="unconstrained", rng_key=None
+    ):
         if space not in ("unconstrained", "constrained"):
             raise ValueError(f"space must be 'unconstrained' or 'constrained', got {space!r}")
         self.model = model
@@ -188,4 +190,3 @@ class FlatModel:
         pred = Predictive(self.model, num_samples=num, return_sites=self.latent, parallel=True)
         draws = pred(rng_key, *self.args, **self.kwargs)
         return jax.vmap(self.flatten)(draws)
-

@@ -37,7 +37,7 @@ class Comparison:
     thresholds: dict
 
     def __str__(self) -> str:
-        head = f"{'parameter':>16s} " + " ".join(f"dq{int(q * 100):02d}" .rjust(7) for q in QUANTILES)
+        head = f"{'parameter':>16s} " + " ".join(f"dq{int(q * 100):02d}".rjust(7) for q in QUANTILES)
         lines = [head + "      KS  pass"]
         for row in self.table:
             dq = " ".join(f"{row[f'dq_{int(q * 100):02d}']:7.3f}" for q in QUANTILES)

@@ -5,7 +5,9 @@ kernel built by ``factory(potential_fn, step_size, inverse_mass_matrix)``, where
 ``potential_fn(x) = −(log prior(x) + β log L(x))`` at the stage's exponent.  The chains of all particles
 are one vmapped (or chunked ``lax.map``) computation inside the compiled stage.  Between stages the
 step size is adapted toward ``target_accept`` from the population's mean acceptance, and the inverse
-mass matrix is the weighted particle covariance of the stage.
+mass matrix is the weighted particle covariance of the stage.  For kernels whose state carries
+``adapt_state.step_size`` (HMC, NUTS) the step size is also adapted between the ``num_steps``
+transitions inside a stage (all particles share it; it is carried to the next stage).
 
 :func:`hmc_move` and :func:`nuts_move` build the two gradient moves from NumPyro's ``HMC``/``NUTS``;
 the random-walk move is :class:`bubblecal.inference.tmcmc_core.RandomWalk`.
@@ -69,46 +71,57 @@ class KernelMove:
             lp, ll = one(x)
             return -tempered(lp, ll, beta)
 
+        # a little relative jitter keeps the mass matrix positive definite after heavy resampling
+        cov = cov + 1e-6 * jnp.diag(jnp.diag(cov))
         kernel = self.factory(potential_fn, step_size, cov)
         field = getattr(kernel, "sample_field", "z")
-
-        def chain(args):
-            key, x = args
-            st = kernel.init(key, 0, x, (), {})
-
-            def body(_, carry):
-                st, acc, nev = carry
-                st = kernel.sample(st, (), {})
-                acc = acc + getattr(st, "accept_prob", jnp.nan)
-                nev = nev + jnp.asarray(getattr(st, "num_steps", 1), jnp.int32)
-                return st, acc, nev
-
-            st, acc, nev = lax.fori_loop(
-                0, self.num_steps, body, (st, jnp.zeros((), x.dtype), jnp.ones((), jnp.int32))
-            )
-            return getattr(st, field), acc / self.num_steps, nev
-
-        keys = jax.random.split(rng_key, n)
         chunk = self.chunk_size if self.chunk_size is not None else evaluate.chunk_size
-        x, acc, nev = chunked_vmap(chain, chunk)((keys, position))
-        lp, ll = evaluate(x)
-        mean_acc = jnp.mean(acc)
-        new_log_eps = params[0]
-        if self.adapt_step_size:
+        keys = jax.random.split(rng_key, n)
+        states = chunked_vmap(lambda a: kernel.init(a[0], 0, a[1], (), {}), chunk)((keys, position))
+        sample = chunked_vmap(lambda st: kernel.sample(st, (), {}), chunk)
+        tunable = hasattr(states, "adapt_state") and hasattr(states.adapt_state, "step_size")
+
+        def body(_, carry):
+            # one transition of every particle, then (HMC/NUTS) the step size of all particles moves
+            # toward the target acceptance from the population's mean acceptance
+            states, log_eps, acc, nev = carry
+            states = sample(states)
+            rate = jnp.mean(getattr(states, "accept_prob", jnp.full((n,), jnp.nan)))
+            nev = nev + jnp.sum(jnp.asarray(getattr(states, "num_steps", jnp.ones((n,))), jnp.int32))
+            if self.adapt_step_size and tunable:
+                log_eps = log_eps + self.adapt_rate * (jnp.nan_to_num(rate) - self.target_accept)
+                eps = jnp.broadcast_to(jnp.exp(log_eps), states.adapt_state.step_size.shape)
+                states = states._replace(
+                    adapt_state=states.adapt_state._replace(
+                        step_size=eps.astype(states.adapt_state.step_size.dtype)
+                    )
+                )
+            return states, log_eps, acc + rate, nev
+
+        states, new_log_eps, acc, nev = lax.fori_loop(
+            0,
+            self.num_steps,
+            body,
+            (states, params[0], jnp.zeros((), position.dtype), jnp.asarray(n, jnp.int32)),
+        )
+        x = getattr(states, field)
+        mean_acc = acc / self.num_steps
+        if self.adapt_step_size and not tunable:
             new_log_eps = params[0] + self.adapt_rate * (jnp.nan_to_num(mean_acc) - self.target_accept)
+        lp, ll = evaluate(x)
         return MoveResult(
             position=x,
             log_prior=lp,
             log_likelihood=ll,
             acceptance=mean_acc,
-            num_evaluations=(jnp.sum(nev) + n).astype(jnp.int32),
+            num_evaluations=(nev + n).astype(jnp.int32),
             params=jnp.reshape(new_log_eps, (1,)),
             scale=step_size,
         )
 
 
 def hmc_move(
-    num_steps: int = 1,
+    num_steps: int = 3,
     trajectory_length: float = 1.5,
     init_step_size: float | None = None,
     target_accept: float = 0.8,
@@ -133,7 +146,7 @@ def hmc_move(
 
 
 def nuts_move(
-    num_steps: int = 1,
+    num_steps: int = 2,
     max_tree_depth: int = 6,
     init_step_size: float | None = None,
     target_accept: float = 0.8,

@@ -225,7 +225,9 @@ class TMCMC:
                 seconds = time.perf_counter() - t0
                 k = int(state.stage)
                 for i in range(k):
-                    rows.append(self._row(i + 1, jax.tree_util.tree_map(lambda a, i=i: a[i], infos), seconds / k))
+                    rows.append(
+                        self._row(i + 1, jax.tree_util.tree_map(lambda a, i=i: a[i], infos), seconds / k)
+                    )
             else:
                 status = core.STATUS_RUNNING
                 key_loop = k_run
@@ -412,8 +414,11 @@ class TMCMC:
         idata.posterior.attrs.update(attrs)
         idata.sample_stats.attrs.update(attrs)
         table = self.stage_info
-        ds = xr.Dataset({c: ("stage", table[c].to_numpy()) for c in table.columns if c != "stage"},
-                        coords={"stage": table["stage"].to_numpy()}, attrs=attrs)
+        ds = xr.Dataset(
+            {c: ("stage", table[c].to_numpy()) for c in table.columns if c != "stage"},
+            coords={"stage": table["stage"].to_numpy()},
+            attrs=attrs,
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             idata.add_groups({"tmcmc_stages": ds})

@@ -5,7 +5,8 @@
 - :func:`acoustic_model` — one acoustic dataset (resonance frequency in MHz vs diameter);
 - :func:`hierarchical_model` — the joint population model of one agent;
 - :mod:`bubblecal.models.likelihood` — pure-JAX log densities (relative noise with its floor,
-  truncated-normal population prior, the staged-hierarchy importance sums).
+  truncated-normal population prior, the staged-hierarchy importance sums, population-predictive
+  draws); ``population=`` on the single-dataset models gives the phase-3 target of the staged hierarchy.
 
 Surrogates are duck-typed: any JAX callable ``(params[..., 6], x[...]) -> y[...]`` (mechanics) or
 ``(ka, diameter_um) -> MHz`` (acoustics).
@@ -20,12 +21,20 @@ from bubblecal.models.likelihood import (
     population_log_prob,
     population_predictive_log_density,
     relative_normal_loglik,
+    sample_population_predictive,
     staged_log_likelihood,
 )
-from bubblecal.models.mechanical import mechanical_model, mechanical_prediction, reduced_spec
+from bubblecal.models.mechanical import (
+    mechanical_model,
+    mechanical_prediction,
+    nuts_init_values,
+    population_factor,
+    reduced_spec,
+)
 
 __all__ = [
     "mechanical_model", "mechanical_prediction", "reduced_spec", "acoustic_model", "acoustic_prediction",
     "hierarchical_model", "TruncatedNormalPopulation", "SD_FLOOR_REL", "relative_normal_loglik", "log_truncnorm",
     "population_log_prob", "population_predictive_log_density", "staged_log_likelihood", "importance_ess",
+    "sample_population_predictive", "population_factor", "nuts_init_values",
 ]

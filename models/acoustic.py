@@ -14,7 +14,7 @@ Model (``shared/docs/inference.md`` §3)::
     ka       ~ Uniform(prior_ka)               site 'ka'
     sigma_ac ~ Uniform(prior_sigma_ac)         site 'sigma_ac'
     f̂_j = f_res(ka, D_j)                        [MHz]
-    f_j ~ N(f̂_j, (σ_ac f̂_j)² + s_floor²)       observed site (default 'f'); s_floor = 1e-6 · max f
+    f_j ~ N(f̂_j, (σ_ac f̂_j)² + s_floor²)       observed site (default 'f'); s_floor = 1e-4 · max f
 
 ``f_res`` is any JAX callable ``(ka[...], diameter_um: float) -> f[...]`` (elementwise in ``ka``; the
 diameter is passed as a concrete Python float, one call per observed diameter, so a per-diameter
@@ -34,6 +34,7 @@ import numpyro.distributions as dist
 
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 from bubblecal.models.likelihood import SD_FLOOR_REL, noise_sd, sd_floor_for
+from bubblecal.models.mechanical import population_factor
 from bubblecal.priors.spec import PriorSpec
 
 __all__ = ["acoustic_model", "acoustic_prediction", "as_fres", "predict_frequency"]
@@ -58,11 +59,12 @@ def predict_frequency(f_res, ka, diameter_um):
 
 def acoustic_model(diameter_um, frequency_MHz, f_res, spec: PriorSpec, *, obs_name: str = "f",
                    f_scale: float | None = None, sd_floor_rel: float = SD_FLOOR_REL,
-                   units: UnitSystem = DEFAULT_UNITS):
+                   units: UnitSystem = DEFAULT_UNITS, population=None):
     """NumPyro model of one acoustic dataset (module docstring for the equations).
 
     ``diameter_um`` [µm] and ``frequency_MHz`` [MHz] are arrays of equal length (``frequency_MHz=None``
-    samples the observations); ``spec`` provides the priors of ``ka`` and ``sigma_ac``.
+    samples the observations); ``spec`` provides the priors of ``ka`` and ``sigma_ac``. ``population``:
+    phase-3 population prior of ``ka`` (see :func:`bubblecal.models.mechanical.population_factor`).
     """
     if "sigma_ac" not in spec.noise:
         raise ValueError(f"priors {spec.name!r} declare no 'sigma_ac' (use an acoustic workflow's priors)")
@@ -72,6 +74,8 @@ def acoustic_model(diameter_um, frequency_MHz, f_res, spec: PriorSpec, *, obs_na
     b = spec.parameters["ka"].prior
     ka = numpyro.sample("ka", dist.Uniform(float(b.lo), float(b.hi)))
     numpyro.deterministic("E_MPa", ka * (float(units.ka_to_young(1.0)) * 1e-6))
+    if population is not None:
+        population_factor({"ka": ka}, spec, population)
     b = spec.noise["sigma_ac"].prior
     sigma_ac = numpyro.sample("sigma_ac", dist.Uniform(float(b.lo), float(b.hi)))
     fhat = predict_frequency(f_res, ka, diameter_um)

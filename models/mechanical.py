@@ -11,12 +11,25 @@ Model (``shared/docs/inference.md`` §2)::
     σ   ~ Uniform(prior_σ)              site 'sigma' ('sigma_mech' in acoustic workflows)
     compression: ŷ_j = max(0, S(Θ; max(0, x_j − d0)))
     indentation: ŷ_j = max(0, S(Θ; x_j) + d0)
-    y_j ~ N(ŷ_j, (σ ŷ_j)² + s_floor²)   observed site (default name 'y'); s_floor = 1e-6 · max|y|
+    y_j ~ N(ŷ_j, (σ ŷ_j)² + s_floor²)   observed site (default name 'y'); s_floor = 1e-4 · max|y|
 
 Parameters listed under ``[fixed]`` of the spec are not sampled; a reduced spec fixes
 b1 = b2 = a3 = a4 = 0 and evaluates the *same* surrogate at those zeros (:func:`reduced_spec` builds one
 from a full spec). Deterministic sites: ``E_MPa`` (Young's modulus, ν = 1/2) when ``ka`` is free and
 ``kappa_kBT`` (continuum bending modulus) when ``kb`` is free.
+
+Phase 3 of the staged hierarchy (``inference.md`` §4): pass ``population=(m_samples, tau_samples)``
+(dicts name -> (S,) arrays of phase-2 hyperparameter samples) and the model adds the factor site
+``population_prior`` = log mean_s p(θ_pooled | ψ_s) − log p0(θ_pooled), i.e. the learned population
+prior replaces the uniform prior of the pooled parameters (p0 is divided out, not multiplied twice).
+Being a factor, a TMCMC tempers it together with the likelihood; the tempered path differs but the
+final posterior (β = 1) and the evidence ∫ p(D | θ) p(θ | data_pop) dθ are the same as with the
+population prior as the starting distribution.
+
+Gradient-based samplers: where x_j < d0 (compression) the prediction is clamped to 0 and the log
+density is flat in d0 (a plateau about −(y_j / s_floor)² / 2 below the good region); a NUTS chain
+started there cannot find its way out. Start NUTS with d0 below the first displacement, e.g.
+``NUTS(model, init_strategy=init_to_value(values=nuts_init_values(spec)))``. TMCMC is unaffected.
 
 ``surrogate`` is any callable ``(params[..., 6], x[...]) -> y[...]`` (ka, kb, b1, b2, a3, a4 in the last
 axis; leading shape broadcasts with ``x``) written in JAX; if it has a ``setup`` attribute it must
@@ -38,12 +51,15 @@ from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
     SURROGATE_PARAMETERS,
     noise_sd,
+    population_predictive_log_density,
     predict_mechanical,
     sd_floor_for,
 )
 from bubblecal.priors.spec import NONLINEAR_PARAMETERS, SHELL_PARAMETERS, PriorSpec
 
 __all__ = [
+    "nuts_init_values",
+    "population_factor",
     "mechanical_model",
     "mechanical_prediction",
     "reduced_spec",
@@ -98,20 +114,60 @@ def derived_sites(values: Mapping, units: UnitSystem = DEFAULT_UNITS, suffix: st
         numpyro.deterministic("kappa_kBT" + suffix, values["kb"] * float(units.kb_to_bending_kBT(1.0)))
 
 
+def nuts_init_values(spec: PriorSpec, n_curves: int | None = None) -> dict:
+    """Initial values that keep NUTS off the clamped plateau (see the module docstring).
+
+    d0 near the bottom of its prior for compression (lo + 2% of the width), 0 (clipped into the prior)
+    for indentation; with ``n_curves`` the per-bubble arrays of :func:`bubblecal.models.hierarchical_model`
+    plus ``m_d0`` and, for the non-centred form, ``d0_u``. Empty if d0 is fixed. Pass to
+    ``numpyro.infer.init_to_value(values=...)``; other sites keep NumPyro's default initialisation.
+    """
+    if "d0" not in spec.parameters:
+        return {}
+    p = spec.parameters["d0"]
+    lo, hi = p.prior.lo, p.prior.hi
+    d0 = lo + 0.02 * (hi - lo) if spec.setup == "compression" else min(max(0.0, lo), hi)
+    if n_curves is None:
+        return {"d0": d0}
+    out = {"d0": np.full(n_curves, d0)}
+    if p.pooled:
+        out["m_d0"] = float(np.clip(d0, p.hyper_m.lo + 1e-3 * p.hyper_m.width, p.hyper_m.hi))
+        out["d0_u"] = np.full(n_curves, 0.1)
+    return out
+
+
+def population_factor(values: Mapping, spec: PriorSpec, population, site: str = "population_prior") -> None:
+    """Add log mean_s p(θ | ψ_s) − log p0(θ) over the pooled parameters present in ``values`` as a factor.
+
+    ``population`` = (m_samples, tau_samples): dicts name -> (S,) arrays (phase-2 samples of ψ).
+    """
+    m_samples, tau_samples = population
+    names = [k for k in spec.pooled_names if k in values and k in m_samples]
+    if not names:
+        raise ValueError("population samples share no pooled parameter with the model")
+    bounds = {k: spec.parameters[k].prior.as_tuple() for k in names}
+    theta = {k: values[k] for k in names}
+    log_pop = population_predictive_log_density(theta, {k: m_samples[k] for k in names},
+                                                {k: tau_samples[k] for k in names}, bounds)
+    log_p0 = -sum(float(np.log(bounds[k][1] - bounds[k][0])) for k in names)
+    numpyro.factor(site, log_pop - log_p0)
+
+
 def _uniform(bounds):
     return dist.Uniform(float(bounds.lo), float(bounds.hi))
 
 
 def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str | None = None, obs_name: str = "y",
                      y_scale: float | None = None, sd_floor_rel: float = SD_FLOOR_REL,
-                     units: UnitSystem = DEFAULT_UNITS):
+                     units: UnitSystem = DEFAULT_UNITS, population=None):
     """NumPyro model of one loading curve under uniform priors (module docstring for the equations).
 
     ``x``, ``y``: the curve in DPD units (``y=None`` samples the observations: prior/posterior
     predictive). ``y_scale`` sets the noise floor s_floor = ``sd_floor_rel`` · y_scale (default max|y|;
     pass it explicitly together with ``y=None`` to reproduce the fit's density). Sites: the free
     shell parameters of ``spec`` by name, the mechanical noise (``spec.mechanical_noise_name``), the
-    observed ``obs_name`` and the deterministic ``E_MPa`` / ``kappa_kBT``.
+    observed ``obs_name`` and the deterministic ``E_MPa`` / ``kappa_kBT``. ``population``: phase-3
+    population prior (module docstring), adds the factor site ``population_prior``.
     """
     setup = resolve_setup(spec, surrogate, setup)
     x = jnp.asarray(np.asarray(x, dtype=float))
@@ -121,6 +177,8 @@ def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str |
         raise ValueError(f"priors {spec.name!r} declare no noise amplitude {noise_name!r}")
     sigma = numpyro.sample(noise_name, _uniform(spec.noise[noise_name].prior))
     derived_sites(values, units)
+    if population is not None:
+        population_factor(values, spec, population)
     params, d0 = shell_params(values, spec)
     yhat = predict_mechanical(surrogate, setup, params, d0, x)
     if y_scale is None:

@@ -147,10 +147,10 @@ def check_zero_force_reference(quick: bool = True, device: str = "cpu") -> Check
     if "float32" in out:
         rel32 = out["float32"][0] / fscale
         details["max_force_rel_float32"] = rel32
-        passed = passed and rel32 < 1e-4
+        passed = passed and rel32 < 1e-3
     details["seconds"] = time.perf_counter() - t0
     return CheckResult(name="zero_force_reference", expected="0 (stress-free reference)", measured=rel64,
-                       tolerance="max|F| / (ka 0.01 l_min) < 1e-10 (float64), < 1e-4 (float32)",
+                       tolerance="max|F| / (ka 0.01 l_min) < 1e-10 (float64), < 1e-3 (float32 round-off of positions)",
                        passed=passed, details=details)
 
 

@@ -111,7 +111,7 @@ def _health_kernels(dtype):
         elif dist < rmin[r]:
             inside = True
         else:
-            wsum = float(0.0)
+            wsum = float(0.0)  # noqa: UP018 (a typed, mutable Warp loop variable)
             for k in range(face_off[r], face_off[r] + face_cnt[r]):
                 f = faces[k]
                 a = xv[f[0]] - p

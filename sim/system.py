@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
@@ -44,7 +44,7 @@ from .kernels.pairs import pair_kernels
 from .neighbors import grid_for_boxes, neighbor_kernels
 from .particles import GAS, N_TYPES, VERTEX, WALL, WATER, PairTable
 
-__all__ = ["ReplicaSpec", "ParticleSystem", "resolve_dtype", "inside_convex_mesh"]
+__all__ = ["ReplicaSpec", "ParticleSystem", "resolve_dtype", "inside_convex_mesh", "bubble_spec"]
 
 
 def resolve_dtype(dtype) -> type:
@@ -56,15 +56,25 @@ def resolve_dtype(dtype) -> type:
 
 
 def inside_convex_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, chunk: int = 4096) -> np.ndarray:
-    """Boolean mask of points strictly inside a convex, outward-oriented triangulation."""
+    """Boolean mask of points strictly inside a convex, outward-oriented triangulation.
+
+    Points outside the vertices' bounding sphere are outside and points inside the inscribed sphere
+    (distance to the nearest face plane) are inside; only the band between is tested face by face.
+    """
     pts = np.asarray(points, dtype=np.float64)
     a = vertices[faces[:, 0]]
     n = np.cross(vertices[faces[:, 1]] - a, vertices[faces[:, 2]] - a)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
     off = np.einsum("ij,ij->i", n, a)
-    out = np.empty(len(pts), dtype=bool)
-    for s in range(0, len(pts), chunk):
-        p = pts[s:s + chunk]
-        out[s:s + chunk] = np.all(p @ n.T - off[None, :] < 0.0, axis=1)
+    c = vertices.mean(axis=0)
+    r_out = np.linalg.norm(vertices - c, axis=1).max()
+    r_in = float(np.min(off - n @ c))  # > 0 when c is inside the convex mesh
+    d = np.linalg.norm(pts - c, axis=1)
+    out = d < r_in
+    band = np.nonzero((d >= r_in) & (d <= r_out))[0]
+    for s in range(0, len(band), chunk):
+        idx = band[s:s + chunk]
+        out[idx] = np.all(pts[idx] @ n.T - off[None, :] < 0.0, axis=1)
     return out
 
 
@@ -174,7 +184,8 @@ class ParticleSystem:
 
     def __init__(self, replicas: Sequence[ReplicaSpec], dt: float = 1e-4, device: str = "cpu",
                  dtype="float32", skin: float = 0.3, chunk: int = 20, use_graph: bool | None = None,
-                 bounce_eps: float | None = None, nbr_capacity: int = 48, vnbr_capacity: int = 64):
+                 bounce_eps: float | None = None, nbr_capacity: int = 48, vnbr_capacity: int = 64,
+                 safety: float = 1.5):
         wp.init()
         self.specs = list(replicas)
         if not self.specs:
@@ -188,6 +199,9 @@ class ParticleSystem:
         self.skin = float(skin)
         self.rlist = 1.0 + self.skin
         self.chunk = int(chunk)
+        #: factor on (max speed x dt x chunk) when predicting whether the lists survive a chunk; a
+        #: particle that still moves more than skin/2 sets the overrun flag (counted, forces a rebuild)
+        self.safety = float(safety)
         self.use_graph = (self.device.is_cuda if use_graph is None else bool(use_graph)) and self.device.is_cuda
         self.bounce_eps = (2e-5 if self.dtype is wp.float64 else 1e-4) if bounce_eps is None else float(bounce_eps)
         self.kp = pair_kernels(self.dtype)
@@ -343,6 +357,8 @@ class ParticleSystem:
             self.shell_field = ShellForceField(meshes, shell_params, device=str(dev), dtype=self.dtype,
                                                offsets=vert_off)
             self.ref_area_tri = np.concatenate([np.asarray(m.A0, dtype=np.float64) for m in meshes])
+        # shell forces are skipped when every shell is frozen (vertex inverse mass 0)
+        self.shell_active = bool(any(inv_mass[r, VERTEX] > 0 for r in self.shell_replicas))
         self._need_rebuild = True
 
     # ------------------------------------------------------------------------------------------
@@ -428,7 +444,8 @@ class ParticleSystem:
                       inputs=[self.xv, self.vv, self.vrep, self.x, self.v, self.typ, self.pid, self.vnbr,
                               self.vcount, self.box, self.tab_a, self.tab_g, self.tab_s, self.tab_sig, self.seeds,
                               self.step_counter, inv_sqrt_dt, self.fv, self.f], device=dev)
-            self.shell_field.accumulate_forces(self.xv, self.fv, self.vv)
+            if self.shell_active:
+                self.shell_field.accumulate_forces(self.xv, self.fv, self.vv)
         for cb in self.force_callbacks:
             cb(self)
 
@@ -499,7 +516,7 @@ class ParticleSystem:
             self.n_overruns += 1
             self.overrun.zero_()
             self._need_rebuild = True
-        if disp + 2.0 * vmax * self.dt * self.chunk > 0.5 * self.skin:
+        if disp + self.safety * vmax * self.dt * self.chunk > 0.5 * self.skin:
             self._need_rebuild = True
 
     def _next_chunk(self, remaining: int) -> int:
@@ -508,7 +525,7 @@ class ParticleSystem:
         vmax = getattr(self, "_vmax", None)
         k = self.chunk
         if vmax is not None and vmax > 0:
-            k_safe = int(0.5 * self.skin / (2.0 * vmax * self.dt))
+            k_safe = int(0.5 * self.skin / (self.safety * vmax * self.dt))
             k = max(1, min(k, k_safe))
         return min(k, remaining)
 
@@ -622,3 +639,32 @@ class ParticleSystem:
                 if isinstance(val, wp.array):
                     total += val.capacity
         return int(total)
+
+
+def bubble_spec(diameter_um: float = 3.0, subdivisions: int | None = None, box=None, seed: int = 0,
+                ka: float = 5584.0, kb: float = 389.23, p_back: float = 91.0, gas_density: float = 3.0,
+                protocol: str = "compression", rho_shell_kg_m3: float | None = None, mass_factor: float = 1.0,
+                a_vertex_water: float | None = None, kbt: float = 1.0, **shell_kwargs) -> ReplicaSpec:
+    """A bubble at the published parameters (physics.md sections 2-3) in explicit water and gas.
+
+    Icosphere for the diameter (subdivision 4, 5 above 5 um), box ``(2R+5, 2R+5, 2R+10)`` by default
+    (17 x 17 x 22 for 3 um), published pair table with gamma_fsi from the mesh's vertex density,
+    vertex mass rho_shell h A / N_v x ``mass_factor`` (rho_shell 1100 kg/m^3 for compression, x5 for
+    indentation), k_a = 5,584 (E = 10 MPa), mu = k_a/3, k_b = 389.23, back pressure p_b = 91 and
+    an ideal gas of number density ``gas_density`` (*choice*, default 3) inside.
+    """
+    from .kernels.shell import ShellParams
+    from .mesh import mesh_for_diameter
+    from .particles import RHO_SHELL_KG_M3, published_pair_table
+
+    mesh = mesh_for_diameter(diameter_um, subdivisions)
+    R = mesh.radius_dpd
+    if box is None:
+        box = (2 * R + 5.0, 2 * R + 5.0, 2 * R + 10.0)
+    if rho_shell_kg_m3 is None:
+        rho_shell_kg_m3 = RHO_SHELL_KG_M3 * (5.0 if protocol == "indentation" else 1.0)
+    m_v = mesh.vertex_mass(rho_shell_kg_m3, mass_factor=mass_factor)
+    tab = published_pair_table(mesh.n_vertices / mesh.area(), protocol, m_vertex=m_v,
+                               rho_gas_number=gas_density, a_vertex_water=a_vertex_water)
+    return ReplicaSpec(box=box, pairs=tab, kbt=kbt, seed=seed, water_density=3.0, gas_density=gas_density,
+                       mesh=mesh, shell=ShellParams(ka=ka, kb=kb, p_back=p_back, **shell_kwargs))

@@ -85,6 +85,8 @@ def main(quick: bool = True, device: str = "cpu", only: Sequence[str] | None = N
     from rich.console import Console
 
     console = Console()
+    if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
+        console = Console(width=160)
     t0 = time.perf_counter()
 
     def progress(res: CheckResult, sec: float) -> None:

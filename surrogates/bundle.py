@@ -20,8 +20,9 @@ One ``.npz`` (``numpy.savez``, no pickles) per (setup, diameter) with the keys
 ``metadata``       0-d str: JSON object, see below
 =================  ==============================================================================
 
-``metadata`` keys (all required): ``setup`` ('compression'|'indentation'), ``diameter_um``,
-``radius_dpd``, ``param_names`` (["ka","kb","b1","b2","a3","a4"]), ``input_names`` (param names +
+``metadata`` keys (all required): ``setup`` ('compression'|'indentation'), ``diameter_um``
+(= 2 x 0.25 um x radius_dpd of the data; optional ``nominal_diameter_um``: the name used, e.g. 3.2
+for data of radius 6.38), ``radius_dpd``, ``param_names`` (["ka","kb","b1","b2","a3","a4"]), ``input_names`` (param names +
 the loading coordinate name), ``input_units``, ``output_name``, ``output_units``, ``param_ranges``
 ({name: [lo, hi]} seen in training), ``x_range`` ([lo, hi]), ``holdout_score`` (median over
 held-out curves of ||y_hat - y||_2/||y||_2), ``holdout_metric``, ``data_hash`` (sha256 of the
@@ -152,6 +153,7 @@ class Surrogate:
         md = self.metadata
         self.setup: str = md["setup"]
         self.diameter_um: float = float(md["diameter_um"])
+        self.nominal_diameter_um: float = float(md.get("nominal_diameter_um", self.diameter_um))
         self.radius_dpd: float = float(md["radius_dpd"])
         self.param_names: tuple[str, ...] = tuple(md["param_names"])
         self.input_names: tuple[str, ...] = tuple(md["input_names"])
@@ -378,11 +380,19 @@ class Bundle:
     surrogates: dict[tuple[str, float], Surrogate] = field(default_factory=dict)
     acoustic: dict[str, object] = field(default_factory=dict)
 
-    def get(self, setup: str, diameter_um: float, atol: float = 1e-6) -> Surrogate:
-        """The surrogate for ``setup`` at ``diameter_um`` (matched within ``atol`` um)."""
+    def get(self, setup: str, diameter_um: float, atol: float = 0.025) -> Surrogate:
+        """The surrogate for ``setup`` nearest ``diameter_um``, within ``atol`` um of its data diameter
+        or its nominal one (the "3.2 um" SonoVue set has data diameter 3.19 um)."""
+        best, best_gap = None, math.inf
         for (s, d), sur in self.surrogates.items():
-            if s == setup and abs(d - float(diameter_um)) <= atol:
-                return sur
+            if s != setup:
+                continue
+            nominal = float(sur.metadata.get("nominal_diameter_um", d))
+            gap = min(abs(d - float(diameter_um)), abs(nominal - float(diameter_um)))
+            if gap < best_gap:
+                best, best_gap = sur, gap
+        if best is not None and best_gap <= atol:
+            return best
         have = ", ".join(f"{s} {d:g} um" for s, d in sorted(self.surrogates))
         raise KeyError(f"bundle {self.path} has no {setup} surrogate at {diameter_um:g} um (has: {have or 'none'})")
 

@@ -23,14 +23,19 @@ HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
 
 
 def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score: float, data_hash: str,
-                       extra_training: dict | None = None) -> dict:
-    """Metadata of a surrogate file (keys: see :mod:`bubblecal.surrogates.bundle`)."""
+                       extra_training: dict | None = None, nominal_diameter_um: float | None = None) -> dict:
+    """Metadata of a surrogate file (keys: see :mod:`bubblecal.surrogates.bundle`).
+
+    ``diameter_um`` is the data's (2 x 0.25 um x median radius_dpd, e.g. 3.19 for the "3.2 um"
+    SonoVue set); ``nominal_diameter_um`` the name the user gave (defaults to the same).
+    """
     setup = train_set.setup
     training = model.training_summary()
     training.update(extra_training or {})
     return {
         "setup": setup,
         "diameter_um": float(train_set.diameter_um),
+        "nominal_diameter_um": float(train_set.diameter_um if nominal_diameter_um is None else nominal_diameter_um),
         "radius_dpd": float(np.median(train_set.radius_dpd)),
         "param_names": list(PARAM_NAMES),
         "input_names": [*PARAM_NAMES, X_INFO[setup][0]],
@@ -50,19 +55,20 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
 
 
 def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, holdout_score: float,
-               data_hash: str, extra_training: dict | None = None) -> Path:
+               data_hash: str, extra_training: dict | None = None, nominal_diameter_um: float | None = None) -> Path:
     """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges)."""
-    md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training)
+    md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um)
     return save_surrogate(path, model.weights, model.biases, model.in_mean, model.in_std, model.out_mean,
                           model.out_std, md)
 
 
-def export_sweep(result, path: str | Path) -> Path:
+def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = None) -> Path:
     """Write the selected model of a :class:`~bubblecal.surrogates.sweep.SweepResult` as ``.npz``."""
     extra = {"holdout_seed": result.config.seed, "holdout_frac": result.config.holdout_frac,
              "n_curves_holdout": result.holdout_set.n_curves,
              "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median")} for r in result.rows]}
-    return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra)
+    return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra,
+                      nominal_diameter_um)
 
 
 def export_onnx(model: TrainedMLP, path: str | Path) -> Path:

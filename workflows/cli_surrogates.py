@@ -10,6 +10,9 @@ from pathlib import Path
 
 import typer
 
+#: Nominal vs data diameter tolerance: the "3.2 um" SonoVue data have radius 6.38 (3.19 um).
+DIAMETER_ATOL_UM = 0.025
+
 app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, export, inspection.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
 
@@ -33,7 +36,8 @@ def _fail(msg: str, code: int = 2):
 def train(
     dataset: Path = typer.Argument(..., help="Published-layout table (.csv/.dat) or campaign store (dir/.jsonl)."),
     setup: str = typer.Option(..., "--setup", help="compression | indentation"),
-    diameter: float = typer.Option(..., "--diameter", help="Bubble diameter [um]; must match the data's radius."),
+    diameter: float = typer.Option(..., "--diameter", help="Nominal bubble diameter [um] (names the files); must "
+                                   "match the data's 2 x 0.25 um x median radius_dpd within 0.025 um."),
     out: Path = typer.Option(..., "--out", help="Output directory (surrogate .npz, reports, plot)."),
     sweep: bool = typer.Option(False, "--sweep/--no-sweep", help="Sweep widths x depths (else one architecture)."),
     widths: str = typer.Option("32,64,128,256", help="Sweep widths (comma separated)."),
@@ -72,7 +76,7 @@ def train(
             _fail(f"{dataset}: holds {raw.setup} data, --setup is {setup}")
         ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop)
         typer.echo(str(report))
-        if ts.n_curves and abs(ts.diameter_um - diameter) > 0.01:
+        if ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
             _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, --diameter is {diameter:g}")
         train_cfg = TrainConfig(lr=lr, batch_size=batch_size, max_epochs=max_epochs, patience=patience,
                                 max_reductions=max_reductions, threads=1)
@@ -89,7 +93,7 @@ def train(
     out.mkdir(parents=True, exist_ok=True)
     (out / "filter_report.json").write_text(json.dumps(report.as_dict(), indent=2))
     paths = result.write_report(out)
-    npz = export_sweep(result, out / f"{ts.setup}_{ts.diameter_um:g}um.npz")
+    npz = export_sweep(result, out / f"{ts.setup}_{diameter:g}um.npz", nominal_diameter_um=diameter)
     sur = load(npz)
     # parity: the exported JAX function against torch on the held-out points
     import torch
@@ -100,7 +104,7 @@ def train(
     y_jax = np.asarray(sur(u[:, :6], u[:, 6]))
     checks = {"jax_vs_torch_max_rel_diff": scaled_max_rel_diff(y_jax, y_torch)}
     if onnx:
-        onnx_path = export_onnx(result.best_model, out / f"{ts.setup}_{ts.diameter_um:g}um.onnx")
+        onnx_path = export_onnx(result.best_model, out / f"{ts.setup}_{diameter:g}um.onnx")
         checks["onnx_vs_jax_max_rel_diff"] = onnx_parity(onnx_path, sur, u)["max_rel_diff"]
     summary = {"surrogate": str(npz), "selected": result.best, "holdout_score": result.score,
                "data_hash": result.data_hash, "filter": report.as_dict(), "parity": checks,

@@ -30,14 +30,44 @@ SQRT3 = 1.7320508075688772
 
 
 @wp.func
-def pair_uniform(seed: wp.int32, step: wp.int32, i: wp.int32, j: wp.int32) -> float:
+def step_key(seed: wp.int32, step: wp.int32) -> wp.int32:
+    """Hash of (seed, step), computed once per thread."""
+    return wp.int32(wp.rand_init(seed, step))
+
+
+@wp.func
+def pair_uniform_keyed(key: wp.int32, i: wp.int32, j: wp.int32) -> float:
     """Uniform [0, 1) number shared by the pair (i, j) at this step (symmetric in i, j)."""
     lo = wp.min(i, j)
     hi = wp.max(i, j)
-    s0 = wp.rand_init(seed, step)
-    s1 = wp.rand_init(wp.int32(s0), lo)
+    s1 = wp.rand_init(key, lo)
     s2 = wp.rand_init(wp.int32(s1), hi)
     return wp.randf(s2)
+
+
+@wp.func
+def pair_uniform(seed: wp.int32, step: wp.int32, i: wp.int32, j: wp.int32) -> float:
+    """Uniform [0, 1) number shared by the pair (i, j) at this step: hash of (seed, step, min, max)."""
+    return pair_uniform_keyed(step_key(seed, step), i, j)
+
+
+@wp.func
+def weight_pow(wc: wp.float32, s: wp.float32) -> wp.float32:
+    """(1 - r)^s with fast paths for the published exponents 1/2 and 1/4."""
+    if s == wp.float32(0.5):
+        return wp.sqrt(wc)
+    if s == wp.float32(0.25):
+        return wp.sqrt(wp.sqrt(wc))
+    return wp.pow(wc, s)
+
+
+@wp.func
+def weight_pow(wc: wp.float64, s: wp.float64) -> wp.float64:  # noqa: F811 (float64 overload)
+    if s == wp.float64(0.5):
+        return wp.sqrt(wc)
+    if s == wp.float64(0.25):
+        return wp.sqrt(wp.sqrt(wc))
+    return wp.pow(wc, s)
 
 
 @wp.func
@@ -68,7 +98,7 @@ def pair_kernels(dtype):
             r = wp.sqrt(r2)
             e = d / r
             wc = dtype(1.0) - r
-            wd = wp.pow(wc, s)
+            wd = weight_pow(wc, s)
             fm = a * wc - g * wd * wd * wp.dot(e, dv) + sig * wd * theta * inv_sqrt_dt
             out = e * fm
         return out
@@ -89,8 +119,7 @@ def pair_kernels(dtype):
         vi = v[i]
         base = r * 16 + typ[i] * 4
         pi = pid[i]
-        sd = seeds[r]
-        st = step[0]
+        key = step_key(seeds[r], step[0])
         fi = vec3(dtype(0.0), dtype(0.0), dtype(0.0))
         n = ncount[i]
         for k in range(n):
@@ -105,8 +134,8 @@ def pair_kernels(dtype):
                     rr = wp.sqrt(r2)
                     e = d / rr
                     wc = dtype(1.0) - rr
-                    wd = wp.pow(wc, tab_s[idx])
-                    theta = dtype(SQRT3) * (dtype(2.0) * dtype(pair_uniform(sd, st, pi, pid[j])) - dtype(1.0))
+                    wd = weight_pow(wc, tab_s[idx])
+                    theta = dtype(SQRT3) * (dtype(2.0) * dtype(pair_uniform_keyed(key, pi, pid[j])) - dtype(1.0))
                     fm = a * wc - g * wd * wd * wp.dot(e, vi - v[j]) + tab_sig[idx] * wd * theta * inv_sqrt_dt
                     fi = fi + e * fm
         f[i] = fi
@@ -127,8 +156,7 @@ def pair_kernels(dtype):
         vi = vv[i]
         base = r * 16 + 2 * 4  # type VERTEX = 2
         pi = i + VERTEX_ID_OFFSET
-        sd = seeds[r]
-        st = step[0]
+        key = step_key(seeds[r], step[0])
         fi = vec3(dtype(0.0), dtype(0.0), dtype(0.0))
         for k in range(vcount[i]):
             j = vnbr[k, i]
@@ -137,7 +165,7 @@ def pair_kernels(dtype):
             g = tab_g[idx]
             if a != dtype(0.0) or g != dtype(0.0):
                 d = min_image(xi - x[j], L)
-                theta = dtype(SQRT3) * (dtype(2.0) * dtype(pair_uniform(sd, st, pi, pid[j])) - dtype(1.0))
+                theta = dtype(SQRT3) * (dtype(2.0) * dtype(pair_uniform_keyed(key, pi, pid[j])) - dtype(1.0))
                 fij = dpd_pair(d, vi - v[j], a, g, tab_s[idx], tab_sig[idx], theta, inv_sqrt_dt)
                 fi = fi + fij
                 wp.atomic_sub(f, j, fij)

@@ -25,6 +25,7 @@ checks), built by :func:`_kernels` and cached.
 # (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)
 
 import functools
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -60,14 +61,10 @@ def _kernels(dtype):
     kern = functools.partial(wp.kernel, enable_backward=False, module=module)
     clamp_a = T(AREA_CLAMP)
 
-    @kern
-    def lim_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i),
-                   ref: wp.array(dtype=V4), tri_rep: wp.array(dtype=wp.int32),
-                   params: wp.array2d(dtype=T), avr: wp.array2d(dtype=T), use_global: wp.int32,
-                   energy: wp.array2d(dtype=T), want_energy: wp.int32):
-        t = wp.tid()
-        r = tri_rep[t]
-        idx = tri[t]
+    @wp.func
+    def lim_triangle(x: wp.array(dtype=V), idx: wp.vec3i, rf: V4, params: wp.array2d(dtype=T), r: wp.int32,
+                     avr: wp.array2d(dtype=T), use_global: wp.int32):
+        """Lim (+ global area/volume, back pressure) forces on the 3 corners of one triangle, and W."""
         x0 = x[idx[0]]
         x12 = x[idx[1]] - x0
         x13 = x[idx[2]] - x0
@@ -76,7 +73,6 @@ def _kernels(dtype):
         half = T(0.5)
         area_raw = half * nn
         area = wp.max(area_raw, clamp_a)
-        rf = ref[t]
         l1sq = rf[0]
         l2sq = rf[1]
         d0 = rf[2]
@@ -122,12 +118,23 @@ def _kernels(dtype):
         f1 = -(coef_a * ga1 + cb * gn1 + cv * n)
         f2 = -(coef_a * ga2 + cb * gn2 + cv * n)
         f0 = -(coef_a * ga0 - cb * (gn1 + gn2) + cv * n)
+        w = a0 * (half * ka * (alpha2 + a3 * alpha2 * alpha + a4 * alpha2 * alpha2)
+                  + mu * (beta + b1 * alpha * beta + b2 * beta * beta))
+        return f0, f1, f2, w
+
+    @kern
+    def lim_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i),
+                   ref: wp.array(dtype=V4), tri_rep: wp.array(dtype=wp.int32),
+                   params: wp.array2d(dtype=T), avr: wp.array2d(dtype=T), use_global: wp.int32,
+                   energy: wp.array2d(dtype=T), want_energy: wp.int32):
+        t = wp.tid()
+        r = tri_rep[t]
+        idx = tri[t]
+        f0, f1, f2, w = lim_triangle(x, idx, ref[t], params, r, avr, use_global)
         wp.atomic_add(f, idx[0], f0)
         wp.atomic_add(f, idx[1], f1)
         wp.atomic_add(f, idx[2], f2)
         if want_energy != 0:
-            w = a0 * (half * ka * (alpha2 + a3 * alpha2 * alpha + a4 * alpha2 * alpha2)
-                      + mu * (beta + b1 * alpha * beta + b2 * beta * beta))
             wp.atomic_add(energy, r, E_LIM, w)
 
     @wp.func
@@ -169,6 +176,52 @@ def _kernels(dtype):
         wp.atomic_add(f, q[3], coef * gd)
         if want_energy != 0:
             wp.atomic_add(energy, r, E_BEND, kb * (T(1.0) - wp.cos(dt)))
+
+    @kern
+    def vertex_gather_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), gidx: wp.array(dtype=wp.int32),
+                             vrep: wp.array(dtype=wp.int32), tri: wp.array(dtype=wp.vec3i),
+                             ref: wp.array(dtype=V4), tri_start: wp.array(dtype=wp.int32),
+                             tri_slot: wp.array(dtype=wp.int32), dih: wp.array(dtype=wp.vec4i),
+                             theta0: wp.array(dtype=T), dih_start: wp.array(dtype=wp.int32),
+                             dih_slot: wp.array(dtype=wp.int32), params: wp.array2d(dtype=T),
+                             avr: wp.array2d(dtype=T), use_global: wp.int32, do_kantor: wp.int32):
+        """Lim (+ constraints) and Kantor forces gathered per vertex: no atomics, one write per vertex.
+
+        ``tri_slot`` / ``dih_slot`` encode (element id) * 4 + (the vertex's corner / role).
+        """
+        s = wp.tid()
+        r = vrep[s]
+        fi = V()
+        for k in range(tri_start[s], tri_start[s + 1]):
+            code = tri_slot[k]
+            t = code >> 2
+            corner = code & 3
+            f0, f1, f2, w = lim_triangle(x, tri[t], ref[t], params, r, avr, use_global)
+            if corner == 0:
+                fi = fi + f0
+            elif corner == 1:
+                fi = fi + f1
+            else:
+                fi = fi + f2
+        kb = params[r, P_KB_KANTOR]
+        if do_kantor != 0 and kb != T(0.0):
+            for k in range(dih_start[s], dih_start[s + 1]):
+                code = dih_slot[k]
+                e = code >> 2
+                role = code & 3
+                q = dih[e]
+                theta, ga, gb, gc, gd = dihedral(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
+                coef = -kb * wp.sin(theta - theta0[e])
+                if role == 0:
+                    fi = fi + coef * ga
+                elif role == 1:
+                    fi = fi + coef * gb
+                elif role == 2:
+                    fi = fi + coef * gc
+                else:
+                    fi = fi + coef * gd
+        g = gidx[s]
+        f[g] = f[g] + fi
 
     @kern
     def jul_accum_edges(x: wp.array(dtype=V), dih: wp.array(dtype=wp.vec4i), edge_rep: wp.array(dtype=wp.int32),
@@ -286,9 +339,15 @@ def _kernels(dtype):
         wp.atomic_add(avr, r, 1, wp.dot(x0, wp.cross(x1, x2)) / T(6.0))
 
     @kern
-    def gather_kernel(x: wp.array(dtype=V), gidx: wp.array(dtype=wp.int32), xs: wp.array(dtype=wp.vec3)):
+    def gather_kernel(x: wp.array(dtype=V), gidx: wp.array(dtype=wp.int32), vrep: wp.array(dtype=wp.int32),
+                      anchor: wp.array(dtype=wp.vec2i), slot: wp.array(dtype=wp.vec3), xs: wp.array(dtype=wp.vec3)):
+        # shell vertices relative to their replica's centre (midpoint of an antipodal vertex pair,
+        # exact under rigid motions), moved to the replica's own slot of the search grid
         s = wp.tid()
-        xs[s] = wp.vec3(x[gidx[s]])
+        r = vrep[s]
+        ab = anchor[r]
+        c = T(0.5) * (x[ab[0]] + x[ab[1]])
+        xs[s] = wp.vec3(x[gidx[s]] - c) + slot[r]
 
     @kern
     def self_avoid_kernel(grid: wp.uint64, xs: wp.array(dtype=wp.vec3), x: wp.array(dtype=V),
@@ -336,6 +395,31 @@ def _kernels(dtype):
         wp.atomic_add(f, q[0], fa)
         wp.atomic_sub(f, q[1], fa)
 
+    @kern
+    def health_tris(x: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i), ref: wp.array(dtype=V4),
+                    tri_rep: wp.array(dtype=wp.int32), out: wp.array2d(dtype=T)):
+        t = wp.tid()
+        r = tri_rep[t]
+        idx = tri[t]
+        x0 = x[idx[0]]
+        ratio = T(0.5) * wp.length(wp.cross(x[idx[1]] - x0, x[idx[2]] - x0)) / ref[t][3]
+        wp.atomic_max(out, r, 0, wp.abs(ratio - T(1.0)))
+        wp.atomic_min(out, r, 1, ratio)
+
+    @kern
+    def health_edges(x: wp.array(dtype=V), dih: wp.array(dtype=wp.vec4i), theta0: wp.array(dtype=T),
+                     edge_rep: wp.array(dtype=wp.int32), out: wp.array2d(dtype=T)):
+        e = wp.tid()
+        q = dih[e]
+        theta, ga, gb, gc, gd = dihedral(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
+        d = theta - theta0[e]
+        # wrap to (-pi, pi]
+        if d > T(3.141592653589793):
+            d = d - T(6.283185307179586)
+        if d < T(-3.141592653589793):
+            d = d + T(6.283185307179586)
+        wp.atomic_max(out, edge_rep[e], 2, wp.abs(d))
+
     return {k: v for k, v in locals().items() if isinstance(v, wp.Kernel)}
 
 
@@ -358,14 +442,21 @@ class ShellForceField:
         dtype: ``wp.float32`` (GPU default) or ``wp.float64`` (CPU checks); the particle arrays
             passed in must be ``wp.array(dtype=wp.vec3f)`` (float32) or ``wp.array(dtype=wp.vec3d)`` (float64).
         offsets: first particle row of each replica's vertices (default: packed from row 0).
+        force_mode: ``"gather"`` (Lim and Kantor forces summed per vertex by one thread, no
+            atomics; each element is evaluated by each of its vertices: 1.5-1.7x faster on an
+            H100), ``"scatter"`` (one thread per triangle / edge with atomics: 3x faster on CPU)
+            or ``"auto"`` (default: gather on CUDA, scatter on CPU).  Energies always use scatter.
 
     Methods add forces (``accumulate_forces``), report energies per replica and term
-    (``energies``, columns :data:`ENERGY_TERMS`) and total areas / volumes (``areas_volumes``).
+    (``energies``, columns :data:`ENERGY_TERMS`), total areas / volumes (``areas_volumes``) and
+    per-replica health indicators (``health``: area strain, dihedral change).
     """
 
     def __init__(self, meshes_or_mesh: ShellMesh | Sequence[ShellMesh],
                  params_per_replica: ShellParams | Sequence[ShellParams], device: str | None = "cpu",
-                 dtype=wp.float32, offsets: Sequence[int] | None = None):
+                 dtype=wp.float32, offsets: Sequence[int] | None = None, force_mode: str = "auto"):
+        if force_mode not in ("auto", "gather", "scatter"):
+            raise ValueError(f"force_mode must be 'auto', 'gather' or 'scatter', got {force_mode!r}")
         if dtype not in (wp.float32, wp.float64):
             raise ValueError(f"dtype must be wp.float32 or wp.float64, got {dtype!r}")
         n_rep = len(params_per_replica) if isinstance(params_per_replica, (list, tuple)) else (
@@ -395,6 +486,9 @@ class ShellForceField:
         self.dtype = dtype
         self.vec3 = wp.vec3d if dtype is wp.float64 else wp.vec3f
         self.device = wp.get_device(device)
+        if force_mode == "auto":
+            force_mode = "gather" if self.device.is_cuda else "scatter"
+        self.force_mode = force_mode
         self._k = _kernels(dtype)
         npf = np.float64
 
@@ -430,7 +524,6 @@ class ShellForceField:
         self.use_constraints_av = bool(np.any(table[:, [P_KATOT, P_KVTOT]] != 0))
         self.use_self_avoid = bool(np.any(table[:, P_SA_EPS] != 0))
         self.use_viscosity = bool(np.any(table[:, P_ETA] != 0))
-        self.sa_query_radius = float(np.max(table[:, P_SA_RC]))
 
         dev = self.device
         self._tri = wp.array(tri.astype(np.int32), dtype=wp.vec3i, device=dev)
@@ -445,6 +538,7 @@ class ShellForceField:
         self._theta0 = wp.array(theta0, dtype=dtype, device=dev)
         self._params = wp.array(table, dtype=dtype, device=dev)
         self._avr = wp.zeros((R, 2), dtype=dtype, device=dev)
+        self._health = wp.zeros((R, 3), dtype=dtype, device=dev)
         self._energy = wp.zeros((R, len(ENERGY_TERMS)), dtype=dtype, device=dev)
         self._dummy_energy = wp.zeros((1, len(ENERGY_TERMS)), dtype=dtype, device=dev)
         n_shell = int(nv.sum())
@@ -453,9 +547,13 @@ class ShellForceField:
         self._avert = wp.zeros(n_shell, dtype=dtype, device=dev)
         self._xs = wp.zeros(n_shell, dtype=wp.vec3, device=dev)
         self._grid = None
-        if self.use_self_avoid:
-            dim = int(min(128, max(8, round(n_shell ** (1 / 3) * 2))))
-            self._grid = wp.HashGrid(dim, dim, dim, device=dev)
+        self._setup_self_avoid_grid(offsets)
+        # vertex -> incident elements (CSR) for the gather kernel; codes = element * 4 + corner/role
+        rep_of_t = tri_rep
+        comp_t = tri - offsets[rep_of_t][:, None] + coff[rep_of_t][:, None]
+        comp_d = dih - offsets[edge_rep][:, None] + coff[edge_rep][:, None]
+        self._tri_start, self._tri_slot = self._csr(comp_t, n_shell, dev)
+        self._dih_start, self._dih_slot = self._csr(comp_d, n_shell, dev)
         self.n_triangles = tri.shape[0]
         self.n_edges = dih.shape[0]
         # NumPy <-> Warp staging for the NumPy convenience interface (CPU / tests / minimiser)
@@ -463,6 +561,50 @@ class ShellForceField:
         self._scratch_f = None
 
     # ------------------------------------------------------------------------------------------
+    @staticmethod
+    def _csr(elements: np.ndarray, n_vertices: int, device):
+        n_el, k = elements.shape
+        vert = elements.reshape(-1)
+        code = (np.repeat(np.arange(n_el, dtype=np.int64), k) * 4 + np.tile(np.arange(k), n_el))
+        order = np.argsort(vert, kind="stable")
+        start = np.zeros(n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(vert, minlength=n_vertices), out=start[1:])
+        if code.max(initial=0) >= 2**31:
+            raise ValueError("too many shell elements for 32-bit element codes")
+        return (wp.array(start.astype(np.int32), dtype=wp.int32, device=device),
+                wp.array(code[order].astype(np.int32), dtype=wp.int32, device=device))
+
+    def _setup_self_avoid_grid(self, offsets) -> None:
+        """Search grid of the self-avoidance: every replica gets its own slot of a 3-D lattice.
+
+        Replicas usually share coordinates (each in its own box), so their vertices are moved into
+        disjoint slots (centre = midpoint of an antipodal vertex pair, slot width 3 R_max + 2 cells,
+        room for 50 % deformation); the hash grid (cell = 2 x the largest cut-off, at most 128 cells
+        per axis) then rarely aliases two replicas into one cell.  Aliasing only costs time: pairs
+        are filtered by replica and by the true distance.
+        """
+        R = self.n_replicas
+        anchors = np.zeros((R, 2), dtype=np.int32)
+        ext = 0.0
+        for r, (m, o) in enumerate(zip(self.meshes, offsets, strict=True)):
+            v = m.vertices
+            b = int(np.argmax(np.linalg.norm(v - v[0], axis=1)))
+            anchors[r] = (o, o + b)
+            c = 0.5 * (v[0] + v[b])
+            ext = max(ext, float(np.max(np.abs(v - c))))
+        self.sa_query_radius = float(np.max(self.param_table[:, P_SA_RC])) * 1.001
+        self.sa_cell = 2.0 * self.sa_query_radius
+        n_axis = int(math.ceil(R ** (1.0 / 3.0) - 1e-9))
+        slot_cells = int(math.ceil((3.0 * ext) / self.sa_cell)) + 2
+        width = slot_cells * self.sa_cell
+        ijk = np.stack(np.unravel_index(np.arange(R), (n_axis, n_axis, n_axis)), axis=1)
+        self._anchor = wp.array(anchors, dtype=wp.vec2i, device=self.device)
+        self._slot = wp.array((ijk + 0.5) * width, dtype=wp.vec3, device=self.device)
+        if self.use_self_avoid:
+            used = [int(ijk[:, k].max()) + 1 for k in range(3)]
+            dims = [int(min(128, max(4, u * slot_cells))) for u in used]
+            self._grid = wp.HashGrid(*dims, device=self.device)
+
     def _check_array(self, a, name: str) -> None:
         if not wp.types.types_equal(a.dtype, self.vec3):
             raise TypeError(f"{name} must be a wp.array of {self.vec3.__name__}, got {a.dtype.__name__}")
@@ -477,13 +619,19 @@ class ShellForceField:
             self._avr.zero_()
             wp.launch(k["area_volume_kernel"], dim=self.n_triangles,
                       inputs=[x, self._tri, self._tri_rep, self._goff, self._avr], device=dev)
-        wp.launch(k["lim_kernel"], dim=self.n_triangles,
-                  inputs=[x, f, self._tri, self._ref, self._tri_rep, self._params, self._avr,
-                          int(self.use_global), energy, want_energy], device=dev)
-        if self.use_kantor:
-            wp.launch(k["kantor_kernel"], dim=self.n_edges,
-                      inputs=[x, f, self._dih, self._theta0, self._edge_rep, self._params, energy, want_energy],
-                      device=dev)
+        if self.force_mode == "gather" and not want_energy:
+            wp.launch(k["vertex_gather_kernel"], dim=self.n_shell_vertices,
+                      inputs=[x, f, self._gidx, self._vrep, self._tri, self._ref, self._tri_start, self._tri_slot,
+                              self._dih, self._theta0, self._dih_start, self._dih_slot, self._params, self._avr,
+                              int(self.use_global), int(self.use_kantor)], device=dev)
+        else:
+            wp.launch(k["lim_kernel"], dim=self.n_triangles,
+                      inputs=[x, f, self._tri, self._ref, self._tri_rep, self._params, self._avr,
+                              int(self.use_global), energy, want_energy], device=dev)
+            if self.use_kantor:
+                wp.launch(k["kantor_kernel"], dim=self.n_edges,
+                          inputs=[x, f, self._dih, self._theta0, self._edge_rep, self._params, energy,
+                                  want_energy], device=dev)
         if self.use_juelicher:
             self._msum.zero_()
             self._avert.zero_()
@@ -500,8 +648,9 @@ class ShellForceField:
                 wp.launch(k["jul_energy"], dim=self.n_shell_vertices,
                           inputs=[self._vrep, self._params, self._msum, self._avert, energy], device=dev)
         if self.use_self_avoid:
-            wp.launch(k["gather_kernel"], dim=self.n_shell_vertices, inputs=[x, self._gidx, self._xs], device=dev)
-            self._grid.build(self._xs, self.sa_query_radius)
+            wp.launch(k["gather_kernel"], dim=self.n_shell_vertices,
+                      inputs=[x, self._gidx, self._vrep, self._anchor, self._slot, self._xs], device=dev)
+            self._grid.build(self._xs, self.sa_cell)
             wp.launch(k["self_avoid_kernel"], dim=self.n_shell_vertices,
                       inputs=[self._grid.id, self._xs, x, f, self._gidx, self._vrep, self._params,
                               self.sa_query_radius, energy, want_energy], device=dev)
@@ -528,6 +677,27 @@ class ShellForceField:
                   inputs=[x, self._tri, self._tri_rep, self._goff, self._avr], device=self.device)
         avr = self._avr.numpy().astype(np.float64)
         return avr[:, 0].copy(), avr[:, 1].copy()
+
+    def health(self, x: wp.array) -> dict[str, np.ndarray]:
+        """Per-replica shell health indicators (synchronises); thresholds are the caller's choice.
+
+        ``max_area_strain`` max_t |A_t/A0_t - 1| (rupture / over-stretch), ``min_area_ratio``
+        min_t A_t/A0_t (collapse; <= 0 never happens as areas are unsigned, so also watch
+        ``max_dihedral_change``), ``max_dihedral_change`` max_e |theta_e - theta0_e| in radians
+        (a triangle folded over its neighbour, i.e. an inversion, gives values near pi).
+        Non-finite positions give NaN or meaningless values: test positions for NaN first.
+        """
+        self._check_array(x, "x")
+        init = np.zeros((self.n_replicas, 3))
+        init[:, 1] = np.inf if self.dtype is wp.float64 else np.finfo(np.float32).max
+        self._health.assign(init)
+        wp.launch(self._k["health_tris"], dim=self.n_triangles,
+                  inputs=[x, self._tri, self._ref, self._tri_rep, self._health], device=self.device)
+        wp.launch(self._k["health_edges"], dim=self.n_edges,
+                  inputs=[x, self._dih, self._theta0, self._edge_rep, self._health], device=self.device)
+        h = self._health.numpy().astype(np.float64)
+        return {"max_area_strain": h[:, 0].copy(), "min_area_ratio": h[:, 1].copy(),
+                "max_dihedral_change": h[:, 2].copy()}
 
     def energies(self, x: wp.array) -> np.ndarray:
         """Energy per replica and term [R, 6], columns :data:`ENERGY_TERMS` (synchronises).

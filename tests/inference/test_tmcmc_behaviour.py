@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import jax
 import jax.numpy as jnp
@@ -60,7 +59,7 @@ def test_model_not_callable():
 
 def test_results_before_run():
     with pytest.raises(RuntimeError, match="call TMCMC.run"):
-        TMCMC(model_simple, num_particles=10).log_evidence
+        _ = TMCMC(model_simple, num_particles=10).log_evidence
 
 
 def test_discrete_latent_rejected():
@@ -95,6 +94,7 @@ def test_likelihood_is_observed_plus_factor_without_jacobian():
     np.testing.assert_allclose(lp, expect_lp, rtol=1e-6)
 
 
+@pytest.mark.filterwarnings("ignore:Out-of-support values")
 def test_constrained_space_prior_is_minus_inf_outside_support():
     flat = FlatModel(model_simple, space="constrained")
     assert np.isfinite(flat.log_prior(jnp.array([0.5])))
@@ -136,7 +136,10 @@ def test_all_particles_minus_inf_names_the_model():
         x = numpyro.sample("x", dist.Normal(0.0, 1.0))
         numpyro.factor("never", jnp.where(x > 100.0, 0.0, -jnp.inf))
 
-    with pytest.raises(ValueError, match=r"all 50 prior draws of model 'test_all_particles_minus_inf_names_the_model.<locals>.model_impossible'.*non-finite"):
+    with pytest.raises(
+        ValueError,
+        match=r"all 50 prior draws of model 'test_all_particles_minus_inf_names_the_model.<locals>.model_impossible'.*non-finite",
+    ):
         TMCMC(model_impossible, num_particles=50).run(jax.random.PRNGKey(0))
 
 
@@ -180,8 +183,21 @@ def test_samples_stage_table_and_exports():
     np.testing.assert_allclose(s["x2"], 2 * s["x"], rtol=1e-6)
     assert np.all((s["x"] > 0) & (s["x"] < 1))
     table = tm.stage_info
-    for col in ("beta", "delta", "cov", "ess", "log_z_increment", "log_evidence", "acceptance",
-                "unique_fraction", "scale", "max_log_likelihood", "num_nonfinite", "num_evaluations", "seconds"):
+    for col in (
+        "beta",
+        "delta",
+        "cov",
+        "ess",
+        "log_z_increment",
+        "log_evidence",
+        "acceptance",
+        "unique_fraction",
+        "scale",
+        "max_log_likelihood",
+        "num_nonfinite",
+        "num_evaluations",
+        "seconds",
+    ):
         assert col in table.columns
     assert table["beta"].iloc[-1] == 1.0
     np.testing.assert_allclose(table["log_z_increment"].sum(), tm.log_evidences[0], atol=1e-4)
@@ -202,14 +218,3 @@ def test_chunked_and_compiled_match_plain():
     for other in (chunked, compiled):
         np.testing.assert_allclose(other.log_evidence, base.log_evidence, atol=1e-4)
         np.testing.assert_allclose(other.get_samples()["x"], base.get_samples()["x"], atol=1e-5)
-
-
-def test_same_model_runs_under_numpyro_nuts():
-    from numpyro.infer import MCMC, NUTS
-
-    mcmc = MCMC(NUTS(model_simple), num_warmup=100, num_samples=100, progress_bar=False)
-    mcmc.run(jax.random.PRNGKey(0))
-    assert mcmc.get_samples()["x"].shape == (100,)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        TMCMC(model_simple, num_particles=100).run(jax.random.PRNGKey(0))

@@ -84,9 +84,7 @@ def test_korali_preset_matches_numpy_reference():
     tm.run(jax.random.PRNGKey(0))
     assert tm.space == "constrained" and tm.resampling == "multinomial"
     assert tm.status == "converged"
-    ours_x = np.concatenate([
-        np.asarray(tm._results[r]["state"].position) for r in range(reps)
-    ])
+    ours_x = np.concatenate([np.asarray(tm._results[r]["state"].position) for r in range(reps)])
     ours_z = tm.log_evidences
 
     # same tempering schedule length and Korali's fixed scale (s² = 0.04 → s = 0.2)

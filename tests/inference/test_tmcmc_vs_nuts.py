@@ -28,8 +28,9 @@ def model_5d(x, y=None):
 
 
 def test_tmcmc_agrees_with_nuts_5d():
-    nuts = run_nuts(model_5d, X, y=Y, rng_key=jax.random.PRNGKey(1), num_warmup=500, num_samples=1000,
-                    num_chains=2)
+    nuts = run_nuts(
+        model_5d, X, y=Y, rng_key=jax.random.PRNGKey(1), num_warmup=500, num_samples=1000, num_chains=2
+    )
     assert nuts.max_r_hat < 1.02
     assert nuts.min_n_eff > 400
     tm = TMCMC(model_5d, num_particles=4000, compiled=True).run(jax.random.PRNGKey(2), X, y=Y)

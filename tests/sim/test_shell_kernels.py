@@ -197,3 +197,45 @@ def test_cuda_float32_matches_reference_and_graph_capture():
         ff.accumulate_forces(xw, fw)
     wp.capture_launch(cap.graph)
     np.testing.assert_allclose(fw.numpy(), f, rtol=1e-5, atol=1e-3)
+
+
+def test_health_indicators():
+    m = icosphere(2.0, 2)
+    ff = ShellForceField([m, m.translated([9.0, 0, 0])], [ShellParams(ka=1.0)] * 2, device="cpu", dtype=wp.float64)
+    x = np.concatenate([m.vertices, m.vertices + 9.0 * np.array([1.0, 0, 0])])
+    x[m.n_vertices:] = 9.0 * np.array([1.0, 0, 0]) + 1.1 * m.vertices  # replica 1 stretched by 10 %
+    x[0] = -0.2 * m.vertices[0]                                          # replica 0: vertex pushed through
+    h = ff.health(wp.array(x, dtype=wp.vec3d, device="cpu"))
+    assert h["max_area_strain"][1] == pytest.approx(0.21, rel=1e-9)
+    assert h["min_area_ratio"][1] == pytest.approx(1.21, rel=1e-9)
+    assert h["max_dihedral_change"][1] < 1e-9
+    assert h["max_dihedral_change"][0] > 1.0  # folded triangles
+
+
+def test_replicas_sharing_coordinates_do_not_interact():
+    """Replicas in their own boxes share coordinates; self-avoidance must stay within one shell."""
+    m = icosphere(2.0, 2)
+    rng = np.random.default_rng(7)
+    p = ShellParams(ka=10.0, kb=3.0, self_avoid_cutoff=1.0, self_avoid_epsilon=0.5)
+    xa = m.vertices + 0.05 * rng.standard_normal(m.vertices.shape)
+    xb = 1.9 * m.vertices + 0.05 * rng.standard_normal(m.vertices.shape)  # far outside its grid slot
+    ff = ShellForceField([m, m, m], [p, p, p], device="cpu", dtype=wp.float64)
+    e, f = ff.energy_forces_numpy(np.concatenate([xa, xb, xa]))
+    n = m.n_vertices
+    for r, xr in enumerate([xa, xb, xa]):
+        fr = sr.shell_forces(xr, m, p)
+        assert np.abs(f[r * n:(r + 1) * n] - fr).max() / np.abs(fr).max() < 1e-12
+        assert e[r, 5] == pytest.approx(sr.self_avoid_energy(xr, m, p), rel=1e-12)
+    assert e[0, 5] > 0
+
+
+@pytest.mark.parametrize("dtype,tol", [(wp.float64, 1e-12), (wp.float32, 1e-5)])
+def test_gather_and_scatter_modes_agree(dtype, tol):
+    m, ff, x, offsets = two_replicas(dtype)
+    assert ff.force_mode == "scatter"  # auto on CPU
+    ff.force_mode = "gather"
+    _, f_gather = ff.energy_forces_numpy(x, with_energy=False)
+    _, f_scatter = ff.energy_forces_numpy(x, with_energy=True)  # energies use the scatter kernels
+    assert np.abs(f_gather - f_scatter).max() / np.abs(f_scatter).max() < tol
+    with pytest.raises(ValueError, match="force_mode"):
+        ShellForceField(m, [P_KANTOR], device="cpu", force_mode="both")

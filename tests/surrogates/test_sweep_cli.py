@@ -82,6 +82,21 @@ def test_cli_errors_are_clear(tmp_path):
     assert r.exit_code == 2 and "radius_dpd" in r.output
 
 
+def test_cli_published_indentation_head_nominal_diameter(shared_reference, tmp_path):
+    """The published 3.2 um SonoVue head (radius 6.38, i.e. 3.19 um) through reader, filter, train, export."""
+    from bubblecal.surrogates import load
+    from bubblecal.workflows.cli_surrogates import app
+
+    out = tmp_path / "o"
+    r = CliRunner().invoke(app, ["train", str(shared_reference / "training_head_indentation_3.2um.csv"),
+                                 "--setup", "indentation", "--diameter", "3.2", "--width", "4", "--depth", "1",
+                                 "--max-epochs", "2", "--no-onnx", "--out", str(out), "--quiet"])
+    assert r.exit_code == 0, r.output
+    sur = load(out / "indentation_3.2um.npz")
+    assert sur.diameter_um == pytest.approx(3.19) and sur.nominal_diameter_um == 3.2
+    assert sur.input_names[-1] == "force" and sur.x_range == pytest.approx((0.0, 6000.0))
+
+
 def test_surrogates_group_registered():
     from bubblecal.workflows import cli
 

@@ -181,6 +181,9 @@ def test_bundle_roundtrip(trained, tmp_path):
     sur = b.get("compression", 2.1)
     assert sur.data_hash == load(path).data_hash
     assert float(b.acoustic["definity"].f_res(1e4, 4.68)) == pytest.approx(np.sqrt(0.5 + 2.0), rel=1e-5)
+    assert b.get("compression", 2.11) is sur  # nearest within 0.025 um
+    with pytest.raises(KeyError, match="no compression surrogate at 2.2 um"):
+        b.get("compression", 2.2)
     with pytest.raises(KeyError, match="no indentation surrogate at 3.2 um"):
         b.get("indentation", 3.2)
     manifest = json.loads((bdir / "manifest.json").read_text())

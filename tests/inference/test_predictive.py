@@ -1,0 +1,116 @@
+"""Predictive metrics against analytic answers: Gaussian quantiles, Gaussian CRPS, mixture CRPS by quadrature."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from bubblecal.inference.predictive import (
+    coverage,
+    crps_ensemble,
+    gaussian_crps,
+    map_estimate,
+    map_index,
+    mixture_cdf,
+    mixture_quantile,
+    predictive_band,
+    predictive_crps,
+)
+
+
+def test_single_component_gives_gaussian_quantiles():
+    mu = np.array([[0.0, 5.0, -3.0, 1e3]])
+    sd = np.array([[1.0, 0.1, 2.0, 50.0]])
+    band = predictive_band(mu, sd, level=0.9)
+    np.testing.assert_allclose(band.median, mu[0], atol=1e-7 * 1e3)
+    np.testing.assert_allclose(band.lower, stats.norm.ppf(0.05, mu[0], sd[0]), rtol=1e-8, atol=1e-7)
+    np.testing.assert_allclose(band.upper, stats.norm.ppf(0.95, mu[0], sd[0]), rtol=1e-8, atol=1e-7)
+    # many identical components: same answer
+    band2 = predictive_band(np.repeat(mu, 50, axis=0), np.repeat(sd, 50, axis=0))
+    np.testing.assert_allclose(band2.upper, band.upper, rtol=1e-8)
+
+
+def test_mixture_quantiles_invert_the_cdf():
+    rng = np.random.default_rng(0)
+    mu = rng.normal(size=(300, 6)) * [1, 10, 0.1, 5, 1, 100]
+    sd = rng.uniform(0.05, 2.0, size=(300, 6)) * [1, 10, 0.1, 5, 1, 100]
+    q = mixture_quantile(mu, sd, [0.05, 0.5, 0.95])
+    assert q.shape == (3, 6)
+    np.testing.assert_allclose(mixture_cdf(q, mu, sd), np.repeat([[0.05], [0.5], [0.95]], 6, axis=1), atol=1e-8)
+    # symmetric two-component mixture: median at the centre, quantiles mirrored
+    mu2 = np.array([[-2.0], [2.0]])
+    sd2 = np.array([[0.5], [0.5]])
+    band = predictive_band(mu2, sd2)
+    assert band.median[0] == pytest.approx(0.0, abs=1e-8)
+    assert band.lower[0] == pytest.approx(-band.upper[0], rel=1e-8)
+    # weights: all weight on one component
+    qw = mixture_quantile(mu2, sd2, 0.5, weights=[1.0, 0.0])
+    assert qw[0] == pytest.approx(-2.0, abs=1e-8)
+
+
+def test_coverage_and_band_membership():
+    band = predictive_band(np.zeros((1, 4)), np.ones((1, 4)))
+    y = np.array([0.0, 1.0, 2.0, -1.6])
+    assert coverage(y, band.lower, band.upper) == pytest.approx(0.75)
+    assert band.coverage(y) == pytest.approx(0.75)
+    # nominal coverage on draws from the predictive itself
+    rng = np.random.default_rng(1)
+    y = rng.normal(size=20000)
+    b = predictive_band(np.zeros((1, y.size)), np.ones((1, y.size)))
+    assert abs(coverage(y, b.lower, b.upper) - 0.9) < 4 * np.sqrt(0.09 / y.size)
+
+
+def test_crps_ensemble_matches_brute_force():
+    rng = np.random.default_rng(2)
+    z = rng.normal(size=(40, 3))
+    y = np.array([0.3, -1.0, 2.0])
+    pair = np.abs(z[:, None, :] - z[None, :, :]).sum(axis=(0, 1))
+    for fair, denom in ((False, 2 * 40 * 40), (True, 2 * 40 * 39)):
+        want = np.abs(z - y).mean(axis=0) - pair / denom
+        np.testing.assert_allclose(crps_ensemble(z, y, fair=fair), want, rtol=1e-12)
+
+
+def test_crps_of_a_gaussian_matches_closed_form_within_mc_error():
+    mu, sd = 1.0, 2.0
+    y = np.array([1.0, 2.5, -3.0, 7.0])
+    S = 4000
+    res = predictive_crps(np.full((S, y.size), mu), np.full((S, y.size), sd), y, replicates=5, seed=3, fair=True)
+    exact = gaussian_crps(mu, sd, y)
+    assert res.replicates.shape == (5,)
+    # MC standard error of the point-averaged score from the replicate spread (plus a floor)
+    se = max(res.mc_error, 1e-3)
+    assert abs(res.mean - exact.mean()) < 5 * se
+    np.testing.assert_allclose(res.per_point, exact, rtol=0.1)
+    # the default (empirical-CDF) estimator is biased upward by E|X - X'| / (2M) = sd / (sqrt(pi) M)
+    res_nrg = predictive_crps(np.full((S, y.size), mu), np.full((S, y.size), sd), y, replicates=5, seed=3)
+    assert res_nrg.mean - res.mean == pytest.approx(sd / np.sqrt(np.pi) / S, rel=0.2)
+
+
+def test_crps_of_a_mixture_matches_quadrature():
+    rng = np.random.default_rng(4)
+    mu = rng.normal(0.0, 2.0, size=(400, 2))
+    sd = rng.uniform(0.5, 1.5, size=(400, 2))
+    y = np.array([0.5, 3.0])
+    z = np.linspace(-15, 15, 6001)
+    F = mixture_cdf(np.repeat(z[:, None], 2, axis=1), mu, sd)
+    exact = [np.trapezoid((F[:, p] - (z >= y[p])) ** 2, z) for p in range(2)]
+    res = predictive_crps(np.tile(mu, (10, 1)), np.tile(sd, (10, 1)), y, replicates=5, seed=5, fair=True)
+    np.testing.assert_allclose(res.per_point, exact, rtol=0.05)
+
+
+def test_map():
+    lp = np.array([-3.0, np.nan, -1.0, -np.inf, -2.0])
+    assert map_index(lp) == 2
+    est = map_estimate({"ka": np.arange(5.0), "kb": np.arange(5.0) * 10}, lp)
+    assert est == {"ka": 2.0, "kb": 20.0}
+    np.testing.assert_array_equal(map_estimate(np.arange(10.0).reshape(5, 2), lp), [4.0, 5.0])
+    with pytest.raises(ValueError):
+        map_index([np.nan, -np.inf])
+
+
+def test_bad_inputs():
+    with pytest.raises(ValueError):
+        predictive_band(np.zeros((3, 2)), -np.ones((3, 2)))
+    with pytest.raises(ValueError):
+        mixture_quantile(np.zeros((3, 2)), np.ones((3, 2)), 1.0)
+    with pytest.raises(ValueError):
+        predictive_crps(np.zeros((3, 2)), np.ones((3, 2)), np.zeros(3))
