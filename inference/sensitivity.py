@@ -127,19 +127,34 @@ def sobol_indices(problem_bounds, Y, *, calc_second_order: bool = False, num_res
 
 def sobol_along(fn: Callable, bounds, x, *, N: int = 2048, x_range: tuple[float, float] | None = None,
                 num_resamples: int = 100, conf_level: float = 0.95, seed: int | None = 0,
-                batch_size: int | None = None) -> SobolResult:
+                batch_size: int | None = None, order: tuple[str, ...] | None = None,
+                fixed: Mapping[str, float] | None = None) -> SobolResult:
     """First-order and total Sobol indices of ``fn`` pointwise along ``x`` and averaged over ``x_range``.
 
     ``fn(params, x)`` is called with ``params`` of shape (n, 1, D) and ``x`` of shape (1, P) and must
     return (n, P) (the broadcasting convention of the surrogates); ``bounds`` maps the D input names
     (in ``fn``'s order) to (lo, hi), or is (names, lo, hi). ``x_range`` defaults to [min x, max x].
-    ``batch_size`` limits the design rows per call.
+    ``batch_size`` limits the design rows per call. ``order`` (``fn``'s input names) with ``fixed``
+    (name -> value) varies only the names of ``bounds`` and holds the others constant, e.g. a reduced
+    shell: ``order=("ka", "kb", "b1", "b2", "a3", "a4")``, ``fixed={"b1": 0, "b2": 0, "a3": 0, "a4": 0}``.
     """
     problem = _problem(bounds)
     names = tuple(problem["names"])
     x = np.atleast_1d(np.asarray(x, dtype=float))
     X = saltelli_design(bounds, N, seed=seed)
     rows = X.shape[0]
+    if order is not None:
+        fixed = dict(fixed or {})
+        missing = [n for n in order if n not in names and n not in fixed]
+        extra = [n for n in names if n not in order]
+        if missing or extra:
+            raise ValueError(f"order {order}: no value for {missing} (give bounds or fixed); unknown {extra}")
+        full = np.empty((rows, len(order)))
+        for j, n in enumerate(order):
+            full[:, j] = X[:, names.index(n)] if n in names else float(fixed[n])
+        X = full
+    elif fixed:
+        raise ValueError("fixed values need order= (the function's input names)")
     step = rows if batch_size is None else int(batch_size)
     chunks = []
     for start in range(0, rows, step):

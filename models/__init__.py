@@ -6,7 +6,8 @@
 - :func:`hierarchical_model` — the joint population model of one agent;
 - :mod:`bubblecal.models.likelihood` — pure-JAX log densities (relative noise with its floor,
   truncated-normal population prior, the staged-hierarchy importance sums, population-predictive
-  draws); ``population=`` on the single-dataset models gives the phase-3 target of the staged hierarchy.
+  draws); ``population=`` on the single-dataset models gives the phase-3 target of the staged hierarchy;
+- :func:`phase2_model` — phase 2 of the staged hierarchy (hyperparameters from phase-1 samples).
 
 Surrogates are duck-typed: any JAX callable ``(params[..., 6], x[...]) -> y[...]`` (mechanics) or
 ``(ka, diameter_um) -> MHz`` (acoustics).
@@ -31,10 +32,11 @@ from bubblecal.models.mechanical import (
     population_factor,
     reduced_spec,
 )
+from bubblecal.models.staged import hyperprior_sites, phase2_model
 
 __all__ = [
     "mechanical_model", "mechanical_prediction", "reduced_spec", "acoustic_model", "acoustic_prediction",
     "hierarchical_model", "TruncatedNormalPopulation", "SD_FLOOR_REL", "relative_normal_loglik", "log_truncnorm",
     "population_log_prob", "population_predictive_log_density", "staged_log_likelihood", "importance_ess",
-    "sample_population_predictive", "population_factor", "nuts_init_values",
+    "sample_population_predictive", "population_factor", "nuts_init_values", "phase2_model", "hyperprior_sites",
 ]

@@ -89,6 +89,12 @@ def pair_kernels(dtype):
                     d[2] - L[2] * wp.round(d[2] / L[2]))
 
     @wp.func
+    def min_image_inv(d: vec3, L: vec3, invL: vec3) -> vec3:
+        return vec3(d[0] - L[0] * wp.round(d[0] * invL[0]),
+                    d[1] - L[1] * wp.round(d[1] * invL[1]),
+                    d[2] - L[2] * wp.round(d[2] * invL[2]))
+
+    @wp.func
     def dpd_pair(d: vec3, dv: vec3, a: dtype, g: dtype, s: dtype, sig: dtype, theta: dtype,
                  inv_sqrt_dt: dtype) -> vec3:
         """Force on i from j given d = x_i - x_j (min image), dv = v_i - v_j; zero beyond r_c = 1."""
@@ -115,6 +121,7 @@ def pair_kernels(dtype):
         i = wp.tid()
         r = rep[i]
         L = box[r]
+        invL = vec3(dtype(1.0) / L[0], dtype(1.0) / L[1], dtype(1.0) / L[2])
         xi = x[i]
         vi = v[i]
         base = r * 16 + typ[i] * 4
@@ -124,7 +131,7 @@ def pair_kernels(dtype):
         n = ncount[i]
         for k in range(n):
             j = nbr[k, i]
-            d = min_image(xi - x[j], L)
+            d = min_image_inv(xi - x[j], L, invL)
             r2 = wp.dot(d, d)
             if r2 < dtype(1.0) and r2 > dtype(1.0e-12):
                 idx = base + typ[j]

@@ -19,7 +19,13 @@ Geometry conventions: :mod:`bubblecal.sim.mesh`; the float64 NumPy ground truth 
 construction; nothing is allocated per step (except Warp's own HashGrid reservation on first build).
 
 Kernels come in one set per scalar type (``wp.float32`` for CUDA, ``wp.float64`` selectable for CPU
-checks), built by :func:`_kernels` and cached.
+checks and also usable on CUDA), built by :func:`_kernels` and cached.
+
+Measured on one H100 (float32, R = 6 icosphere s4 = 2,562 vertices per replica, CUDA graph replay,
+Lim + Kantor + self-avoidance at the published set-up): 64 replicas 212 us per force evaluation
+(per-vertex Lim+Kantor gather 77 us, self-avoidance query 63 us, position gather 7 us, HashGrid
+build ~65 us); without self-avoidance 68 us (gather) vs 103 us (scatter: Lim 43 + Kantor 66 us);
+256 replicas 551 us (216 us without self-avoidance); one replica 73 us (latency bound).
 """
 
 # (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)

@@ -114,3 +114,10 @@ def test_bad_inputs():
         mixture_quantile(np.zeros((3, 2)), np.ones((3, 2)), 1.0)
     with pytest.raises(ValueError):
         predictive_crps(np.zeros((3, 2)), np.ones((3, 2)), np.zeros(3))
+
+
+def test_point_mass_component():
+    """A zero-sd component is a point mass: the CDF jumps from 0.25 to 0.75 at 0, so the median is 0."""
+    q = mixture_quantile(np.array([[0.0], [0.0]]), np.array([[0.0], [1.0]]), [0.5, 0.95])
+    assert q[0, 0] == pytest.approx(0.0, abs=1e-9)
+    assert q[1, 0] == pytest.approx(stats.norm.ppf(0.9), rel=1e-8)  # 0.5 + 0.5 Phi(z) = 0.95

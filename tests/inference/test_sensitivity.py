@@ -70,3 +70,14 @@ def test_design_and_bad_input():
         saltelli_design(BOX, 1000)
     with pytest.raises(ValueError, match="lo < hi"):
         saltelli_design({"a": (1.0, 1.0)}, 64)
+
+
+def test_fixed_inputs_with_order():
+    """Vary x1, x2 of Ishigami with x3 held at 0: V = V1' + V2 with V1' = 1/2, S1 = (1/2, A^2/8) / V."""
+    res = sobol_along(ishigami, {"x2": BOX["x2"], "x1": BOX["x1"]}, np.array([1.0]), N=1024, num_resamples=20,
+                      order=("x1", "x2", "x3"), fixed={"x3": 0.0})
+    v = 0.5 + A**2 / 8
+    np.testing.assert_allclose(res.S1_mean, [A**2 / 8 / v, 0.5 / v], atol=0.06)
+    assert res.names == ("x2", "x1")
+    with pytest.raises(ValueError, match="no value"):
+        sobol_along(ishigami, {"x1": BOX["x1"]}, np.array([1.0]), N=64, order=("x1", "x2", "x3"))

@@ -68,8 +68,8 @@ def test_bounce_conserves_momentum_with_mobile_shell():
 def test_momentum_round_off_in_float64_fluid_and_bubble():
     """float64 on CPU: pairs (symmetric random numbers), shell, vertex-solvent pairs and bounce-back
     together conserve each replica's total momentum to round-off."""
-    from bubblecal.sim.system import bubble_spec
     from bubblecal.sim.particles import fluid_pair_table
+    from bubblecal.sim.system import bubble_spec
 
     specs = [ReplicaSpec(box=(5.0, 5.0, 5.0), pairs=fluid_pair_table(25.0, 4.5, 0.5), seed=1),
              bubble_spec(1.0, 2, box=(6.0, 6.0, 6.0), seed=2)]

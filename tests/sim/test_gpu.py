@@ -33,9 +33,8 @@ def test_graph_and_plain_launches_agree(cuda):
 
 
 def test_bubble_batch_on_gpu_no_leaks(cuda):
-    from bubblecal.sim.system import bubble_spec
     from bubblecal.sim.health import HealthMonitor
-    from bubblecal.sim.system import ParticleSystem
+    from bubblecal.sim.system import ParticleSystem, bubble_spec
 
     specs = [bubble_spec(1.5, 3, box=(9.0, 9.0, 9.0), seed=k) for k in range(4)]
     ps = ParticleSystem(specs, dt=1e-4, device=cuda, skin=0.4, chunk=10)

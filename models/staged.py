@@ -1,0 +1,77 @@
+"""NumPyro models of the staged (Korali-style) hierarchy: phase 2 over ψ, phase 3 per dataset.
+
+Phase 1 is every dataset's single-level model (:func:`bubblecal.models.mechanical.mechanical_model`,
+:func:`bubblecal.models.acoustic.acoustic_model`) under its uniform prior p0. Phase 2 samples the
+population hyperparameters ψ = (m_k, τ_k) of the pooled parameters with the importance-sampling
+likelihood of ``shared/docs/inference.md`` section 4::
+
+    log L(ψ) = Σ_i [ logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k)) − log N_i ]
+
+(:func:`phase2_model`). Phase 3 re-weights one dataset by the learned population: pass
+``population=(m_samples, tau_samples)`` to its single-level model (a factor
+log mean_s p(θ | ψ_s) − log p0(θ); p0 is constant on the box, so the prior is not counted twice).
+
+Units: DPD for shell parameters (see :mod:`bubblecal.data.units`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import jax.numpy as jnp
+import numpyro
+import numpyro.distributions as dist
+
+from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
+from bubblecal.priors.spec import PriorSpec
+
+__all__ = ["hyperprior_sites", "phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name"]
+
+#: Name of the factor site that carries log L(ψ) (TMCMC tempers it as the likelihood).
+PHASE2_FACTOR = "population_likelihood"
+
+
+def ess_site_name(name: str) -> str:
+    """Deterministic site holding dataset ``name``'s importance-sampling ESS in phase 2."""
+    return f"is_ess_{name}"
+
+
+def pooled_bounds(spec: PriorSpec) -> dict[str, tuple[float, float]]:
+    """Prior range (DPD) of every pooled parameter."""
+    return {k: spec.parameters[k].prior.as_tuple() for k in spec.pooled_names}
+
+
+def hyperprior_sites(spec: PriorSpec) -> tuple[dict, dict]:
+    """Sample ψ: ``m_<k>`` ~ U(hyper_m_k), ``tau_<k>`` ~ U(hyper_tau_k) for the pooled k; returns (m, tau)."""
+    m, tau = {}, {}
+    for k in spec.pooled_names:
+        p = spec.parameters[k]
+        m[k] = numpyro.sample(f"m_{k}", dist.Uniform(p.hyper_m.lo, p.hyper_m.hi))
+        tau[k] = numpyro.sample(f"tau_{k}", dist.Uniform(p.hyper_tau.lo, p.hyper_tau.hi))
+    return m, tau
+
+
+def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: PriorSpec,
+                 names: Sequence[str] | None = None):
+    """Phase 2 of the staged hierarchy: hyperparameters ψ of ``spec`` given phase-1 posterior samples.
+
+    ``phase1_samples[i]`` maps parameter names to dataset i's (N_i,) phase-1 posterior draws (DPD);
+    datasets that sampled only some pooled parameters (acoustic datasets: only ``ka``) contribute
+    those. Sites: ``m_<k>``, ``tau_<k>``, the factor :data:`PHASE2_FACTOR` and deterministic
+    :func:`ess_site_name` (IS effective sample size per dataset; small values mean phase 1 did not
+    cover what ψ proposes).
+    """
+    names = [f"dataset{i}" for i in range(len(phase1_samples))] if names is None else list(names)
+    if len(names) != len(phase1_samples):
+        raise ValueError(f"{len(phase1_samples)} phase-1 sample sets but {len(names)} names")
+    if not phase1_samples:
+        raise ValueError("phase2_model needs the phase-1 samples of at least one dataset")
+    bounds = pooled_bounds(spec)
+    m, tau = hyperprior_sites(spec)
+    datasets = [{k: jnp.asarray(v) for k, v in s.items() if k in bounds} for s in phase1_samples]
+    for name, samples in zip(names, datasets, strict=True):
+        if not samples:
+            raise ValueError(f"phase-1 samples of {name!r} contain none of the pooled parameters "
+                             f"{', '.join(bounds)}")
+        numpyro.deterministic(ess_site_name(name), importance_ess(importance_log_weights(m, tau, samples, bounds)))
+    numpyro.factor(PHASE2_FACTOR, staged_log_likelihood(m, tau, datasets, bounds))

@@ -1,0 +1,102 @@
+"""Staged hierarchy (phases 1-2-3 with TMCMC) on a normal-normal model with a quadrature answer.
+
+ȳ_i | θ_i ~ N(θ_i, s_i²), θ_i | m, τ ~ N(m, τ²) (truncated to a wide box), m ~ U(-3, 3), τ ~ U(0.05, 3):
+the marginal p(ȳ_i | m, τ) = N(ȳ_i | m, τ² + s_i²), so the ψ posterior is a 2-D quadrature
+(shared/docs/inference.md section 6).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import numpyro
+import numpyro.distributions as dist
+import pytest
+from scipy.stats import norm
+
+from bubblecal.inference.hierarchical import Dataset, compare_staged_joint, ess_table, run_staged
+from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
+
+BOX = (-10.0, 10.0)
+Y = np.array([-0.8, 0.1, 0.6, 1.3])
+S = np.array([0.5, 0.4, 0.6, 0.5])
+M_RANGE, TAU_RANGE = (-3.0, 3.0), (0.05, 3.0)
+
+
+def phase1_model(y, s):
+    theta = numpyro.sample("theta", dist.Uniform(*BOX))
+    numpyro.sample("y", dist.Normal(theta, s), obs=y)
+
+
+def phase2_factory(samples, names):
+    bounds = {"theta": BOX}
+    data = [{"theta": jnp.asarray(d["theta"])} for d in samples]
+
+    def model():
+        m = numpyro.sample("m_theta", dist.Uniform(*M_RANGE))
+        tau = numpyro.sample("tau_theta", dist.Uniform(*TAU_RANGE))
+        for name, d in zip(names, data, strict=True):
+            lw = importance_log_weights({"theta": m}, {"theta": tau}, d, bounds)
+            numpyro.deterministic(f"is_ess_{name}", importance_ess(lw))
+        numpyro.factor("population_likelihood", staged_log_likelihood({"theta": m}, {"theta": tau}, data, bounds))
+
+    return model
+
+
+def phase3_factory(i, m_samples, tau_samples):
+    from bubblecal.models.likelihood import population_predictive_log_density
+
+    def model():
+        theta = numpyro.sample("theta", dist.Uniform(*BOX))
+        log_pop = population_predictive_log_density({"theta": theta}, m_samples, tau_samples, {"theta": BOX})
+        numpyro.factor("population_prior", log_pop + np.log(BOX[1] - BOX[0]))
+        numpyro.sample("y", dist.Normal(theta, S[i]), obs=Y[i])
+
+    return model
+
+
+def quadrature_psi():
+    m = np.linspace(*M_RANGE, 601)
+    tau = np.linspace(*TAU_RANGE, 600)
+    mm, tt = np.meshgrid(m, tau, indexing="ij")
+    logp = sum(norm.logpdf(y, mm, np.sqrt(tt**2 + s**2)) for y, s in zip(Y, S, strict=True))
+    p = np.exp(logp - logp.max())
+    p /= p.sum()
+    mean_m, mean_tau = (p * mm).sum(), (p * tt).sum()
+    sd_m = np.sqrt((p * (mm - mean_m) ** 2).sum())
+    return mean_m, sd_m, mean_tau
+
+
+def test_staged_matches_quadrature_and_reuses_phases():
+    datasets = [Dataset(f"b{i}", phase1_model, (float(Y[i]), float(S[i]))) for i in range(len(Y))]
+    store = {}
+    options = {"num_particles": 2000, "target_cov": 0.6}
+    result = run_staged(datasets, phase2_factory, phase3_factory, jax.random.PRNGKey(0),
+                        phase1_options=options, phase2_options=options, phase3_options=options,
+                        phase2_max_samples=1000, save=lambda r: store.__setitem__(r.name, r), load=store.get)
+    mean_m, sd_m, mean_tau = quadrature_psi()
+    m = result.phase2.samples["m_theta"]
+    # N = 2000 particles: Monte-Carlo error on the mean ~ sd/sqrt(ESS ~ 1000) plus IS error; 0.15 sd is ~5 sigma
+    assert abs(m.mean() - mean_m) < 0.15 * sd_m + 0.02
+    assert m.std() == pytest.approx(sd_m, rel=0.15)
+    assert result.phase2.samples["tau_theta"].mean() == pytest.approx(mean_tau, rel=0.15)
+    table = ess_table(result.phase2.samples, {r.name: 1000 for r in result.phase1})
+    assert list(table["dataset"]) == ["b0", "b1", "b2", "b3"]
+    assert (table["ess_median"] > 50).all()
+    # phase 3 shrinks each theta toward the population mean: |E[theta_i] - m| < |y_i - m|
+    for i, r in enumerate(result.phase3):
+        assert abs(r.samples["theta"].mean() - mean_m) < abs(Y[i] - mean_m) + 0.05
+    # every phase was saved; a rerun reuses them all (no TMCMC: identical objects come back)
+    assert sorted(store) == sorted([f"phase1_b{i}" for i in range(4)] + ["phase2"] + [f"phase3_b{i}" for i in range(4)])
+    again = run_staged(datasets, phase2_factory, phase3_factory, jax.random.PRNGKey(1), load=store.get)
+    assert again.phase2 is result.phase2
+    # staged vs itself through the comparison report
+    report = compare_staged_joint(result, result.phase2.samples)
+    assert report["psi"].passed
+
+
+def test_bad_inputs():
+    with pytest.raises(ValueError, match="at least one dataset"):
+        run_staged([], phase2_factory, phase3_factory, jax.random.PRNGKey(0))
+    d = Dataset("a", phase1_model, (0.0, 1.0))
+    with pytest.raises(ValueError, match="unique"):
+        run_staged([d, d], phase2_factory, phase3_factory, jax.random.PRNGKey(0))
