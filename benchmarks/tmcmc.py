@@ -264,17 +264,13 @@ def blackjax_runner(log_prior, log_lik, n, steps):
     return run
 
 
-def time_runs(run, seed, repeats):
-    t0 = time.perf_counter()
-    first = run(jax.random.PRNGKey(seed + 1000))
-    compile_s = time.perf_counter() - t0
-    times, results = [], []
-    for r in range(repeats):
+def time_eval(ev, x, reps=5):
+    ts = []
+    for _ in range(reps):
         t0 = time.perf_counter()
-        res = run(jax.random.PRNGKey(seed + r))
-        times.append(time.perf_counter() - t0)
-        results.append(res)
-    return first, compile_s, times, results
+        _block(ev(x))
+        ts.append(time.perf_counter() - t0)
+    return float(np.median(ts))
 
 
 def accuracy(run, seed, replicas, t_run):
@@ -316,20 +312,14 @@ def main(args):
         "jax": jax.__version__,
         "python": platform.python_version(),
         "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+        "load_average_at_start": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
         "rows": {},
     }
 
-    # floor: one jitted vmapped evaluation of all particles
+    # floor: one jitted vmapped evaluation of all particles (median of 5, re-measured every repeat)
     x = prior_draws(jax.random.PRNGKey(99), n)
     ev = jax.jit(jax.vmap(log_lik))
     _block(ev(x))
-    ts = []
-    for _ in range(10):
-        t0 = time.perf_counter()
-        _block(ev(x))
-        ts.append(time.perf_counter() - t0)
-    t_eval = float(np.median(ts))
-    out["t_eval_all_particles_s"] = t_eval
 
     runners = {}
     for mv in [m.strip() for m in args.moves.split(",") if m.strip()]:
@@ -339,20 +329,37 @@ def main(args):
     if not args.no_blackjax:
         runners["blackjax"] = blackjax_runner(log_prior, log_lik, n, args.steps)
 
+    # compile every runner, then interleave the timed repeats (and the floor measurement) so that a
+    # changing background load on the machine hits every sampler alike
+    compile_s, times, results = {}, {k: [] for k in runners}, {k: [] for k in runners}
     for name, run in runners.items():
-        first, compile_s, times, results = time_runs(run, args.seed, args.repeats)
-        t = float(np.median(times))
-        evals = results[0]["evals"]
+        t0 = time.perf_counter()
+        run(jax.random.PRNGKey(args.seed + 1000))
+        compile_s[name] = time.perf_counter() - t0
+    eval_times = []
+    for r in range(args.repeats):
+        eval_times.append(time_eval(ev, x))
+        for name, run in runners.items():
+            t0 = time.perf_counter()
+            results[name].append(run(jax.random.PRNGKey(args.seed + r)))
+            times[name].append(time.perf_counter() - t0)
+    t_eval = float(np.median(eval_times))
+    out["t_eval_all_particles_s"] = t_eval
+
+    for name, run in runners.items():
+        compile_first, ts, res = compile_s[name], times[name], results[name]
+        t = float(np.median(ts))
+        evals = res[0]["evals"]
         row = {
             "wall_s": t,
-            "wall_all_s": times,
-            "first_run_incl_compile_s": compile_s,
-            "stages": results[0]["stages"],
+            "wall_all_s": ts,
+            "first_run_incl_compile_s": compile_first,
+            "stages": res[0]["stages"],
             "evaluations": evals,
             "evals_per_s": evals / t,
-            "log_z": [r["log_z"] for r in results],
-            "status": results[0]["status"],
-            "mean_acceptance": results[0]["acceptance"],
+            "log_z": [r["log_z"] for r in res],
+            "status": res[0]["status"],
+            "mean_acceptance": res[0]["acceptance"],
             "floor_s": (evals / n) * t_eval,
         }
         row["x_floor"] = t / row["floor_s"]

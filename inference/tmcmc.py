@@ -333,7 +333,13 @@ class TMCMC:
 
     @property
     def stage_info(self):
-        """Per-stage table (pandas DataFrame) of the first replica; row 0 is the prior draws."""
+        """Per-stage table (pandas DataFrame) of the first replica; row 0 is the prior draws.
+
+        Columns: stage, beta, delta, cov (achieved), ess, log_z_increment, log_evidence (running
+        total), acceptance, unique_fraction, scale, max_log_likelihood, num_nonfinite,
+        num_evaluations, seconds.  The first replica's row 0 and stage 1 (``compiled=False``; every
+        row with ``compiled=True``) include the compilation time.
+        """
         return self.replica_stage_info(0)
 
     def replica_stage_info(self, replica: int):

@@ -211,8 +211,7 @@ def _infer_setup(header: list[str] | None, path: Path) -> str:
                        "pass setup='compression' or 'indentation'")
 
 
-def read_published(path: str | Path, setup: str | None = None, n_points: int | str = PUBLISHED_POINTS,
-                   units=DEFAULT_UNITS) -> TrainingSet:
+def read_published(path: str | Path, setup: str | None = None, n_points: int | str = PUBLISHED_POINTS) -> TrainingSet:
     """Read a table in the published row layout (CSV with header or whitespace ``.dat``).
 
     ``n_points`` is the number of loading points per row (15 in the published layout: 38 columns);
@@ -263,9 +262,8 @@ def read_published(path: str | Path, setup: str | None = None, n_points: int | s
         x, y = second, d0 - first
         extra["initial_diameter_dpd"] = np.full(len(rows), d0)
     curve_id = np.array([f"{path.stem}:{lineno}" for lineno, _ in rows])
-    ts = TrainingSet(setup=setup, params=params, radius_dpd=radius, x=x, y=y, curve_id=curve_id,
-                     source=str(path), extra=extra)
-    return ts
+    return TrainingSet(setup=setup, params=params, radius_dpd=radius, x=x, y=y, curve_id=curve_id,
+                       source=str(path), extra=extra)
 
 
 def write_published(ts: TrainingSet, path: str | Path, units=DEFAULT_UNITS) -> Path:
@@ -330,14 +328,13 @@ def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSe
         return a
 
     params = np.array([[r["params"][k] for k in PARAM_NAMES] for r in records], dtype=float)
-    ts = TrainingSet(
+    return TrainingSet(
         setup=setups.pop(), params=params, radius_dpd=[r["radius_dpd"] for r in records],
         x=np.array([_arr(r["x"]) for r in records]), y=np.array([_arr(r["y"]) for r in records]),
         curve_id=[r["curve_id"] for r in records], status=[r["status"] for r in records], source=str(path),
         extra={"seed": np.array([r.get("seed", -1) for r in records]),
                "tier": np.array([str(r.get("tier", "")) for r in records])},
     )
-    return ts
 
 
 def read_dataset(path: str | Path, setup: str | None = None, n_points: int | str = PUBLISHED_POINTS) -> TrainingSet:

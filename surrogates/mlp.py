@@ -21,21 +21,24 @@ __all__ = ["mlp_forward", "standardised_forward", "matmul_floor_forward", "flops
            "xavier_uniform_weights"]
 
 
-def standardised_forward(weights: Sequence, biases: Sequence, z):
-    """Forward pass on already standardised inputs ``z[..., n_in]`` -> ``out[..., n_out]``."""
+def standardised_forward(weights: Sequence, biases: Sequence, z, xp=jnp):
+    """Forward pass on already standardised inputs ``z[..., n_in]`` -> ``out[..., n_out]``.
+
+    ``xp`` is the array module: ``jax.numpy`` (default) or ``numpy`` (float64 reference on the host).
+    """
     h = z
     last = len(weights) - 1
     for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
         h = h @ w + b
         if i < last:
-            h = jnp.tanh(h)
+            h = xp.tanh(h)
     return h
 
 
-def mlp_forward(weights, biases, in_mean, in_std, out_mean, out_std, u):
+def mlp_forward(weights, biases, in_mean, in_std, out_mean, out_std, u, xp=jnp):
     """Full map from raw inputs ``u[..., n_in]`` to raw outputs ``y[..., n_out]``."""
     z = (u - in_mean) / in_std
-    return standardised_forward(weights, biases, z) * out_std + out_mean
+    return standardised_forward(weights, biases, z, xp=xp) * out_std + out_mean
 
 
 def matmul_floor_forward(weights, biases, u):

@@ -21,6 +21,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from bubblecal.surrogates.mlp import mlp_forward
+
 __all__ = ["TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"]
 
 
@@ -43,14 +45,9 @@ class TrainConfig:
 
 
 def numpy_forward(weights, biases, in_mean, in_std, out_mean, out_std, u) -> np.ndarray:
-    """float64 numpy forward pass (same maths as :func:`bubblecal.surrogates.mlp.mlp_forward`)."""
-    h = (np.asarray(u, dtype=float) - in_mean) / in_std
-    last = len(weights) - 1
-    for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
-        h = h @ np.asarray(w, dtype=float) + np.asarray(b, dtype=float)
-        if i < last:
-            h = np.tanh(h)
-    return h * out_std + out_mean
+    """float64 numpy evaluation of :func:`bubblecal.surrogates.mlp.mlp_forward`."""
+    return mlp_forward([np.asarray(w, dtype=float) for w in weights], [np.asarray(b, dtype=float) for b in biases],
+                       in_mean, in_std, out_mean, out_std, np.asarray(u, dtype=float), xp=np)
 
 
 class NormalisedMLP(nn.Module):

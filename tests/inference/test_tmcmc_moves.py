@@ -38,6 +38,22 @@ def test_hmc_move_evidence_and_step_size_adaptation():
     assert table["num_evaluations"].iloc[1:].min() > 2 * 1000
 
 
+def test_any_numpyro_kernel_barker():
+    """A kernel with no mass-matrix argument (NumPyro's BarkerMH) plugs in through the same factory."""
+    from numpyro.infer import BarkerMH
+
+    def factory(potential_fn, step_size, cov):
+        return BarkerMH(
+            potential_fn=potential_fn, step_size=step_size, adapt_step_size=False, adapt_mass_matrix=False
+        )
+
+    move = KernelMove(factory, num_steps=5, target_accept=0.4)
+    tm = TMCMC(model_ridge, num_particles=1000, move=move, compiled=True).run(jax.random.PRNGKey(3))
+    assert tm.status == "converged"
+    assert abs(tm.log_evidence - EXACT) < 0.3
+    assert 0.2 < tm.stage_info["acceptance"].iloc[-1] < 0.6
+
+
 @pytest.mark.slow
 def test_nuts_move_evidence():
     tm = TMCMC(model_ridge, num_particles=2000, num_replicas=2, move=nuts_move(), compiled=True)
