@@ -23,7 +23,7 @@ import jax.numpy as jnp
 from jax import lax
 from numpyro.infer import HMC, NUTS
 
-from .tmcmc_core import MoveResult, chunked_vmap, tempered
+from bubblecal.inference.tmcmc_core import MoveResult, chunked_vmap, tempered
 
 
 class KernelMove:

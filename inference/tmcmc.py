@@ -40,9 +40,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import tmcmc_core as core
-from ._numpyro_utils import FlatModel
-from .tmcmc_core import (  # noqa: F401  (re-exported: the pure core is part of this module's API)
+from bubblecal.inference import tmcmc_core as core
+from bubblecal.inference._numpyro_utils import FlatModel
+from bubblecal.inference.tmcmc_core import (  # noqa: F401  (re-exported: the pure core is part of this module's API)
     STATUS_NAMES,
     RandomWalk,
     StageInfo,
