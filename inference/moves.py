@@ -120,6 +120,24 @@ class KernelMove:
         )
 
 
+def _gradient_move(kernel_cls, name: str, num_steps: int, init_step_size, target_accept: float,
+                   dense_mass: bool, chunk_size, **kernel_options) -> KernelMove:
+    """A NumPyro gradient kernel as a TMCMC move; the particle covariance is its (inverse) mass matrix."""
+
+    def factory(potential_fn, step_size, cov):
+        return kernel_cls(
+            potential_fn=potential_fn,
+            step_size=step_size,
+            inverse_mass_matrix=cov if dense_mass else jnp.diag(cov),
+            adapt_step_size=False,
+            adapt_mass_matrix=False,
+            dense_mass=dense_mass,
+            **kernel_options,
+        )
+
+    return KernelMove(factory, num_steps, init_step_size, target_accept, chunk_size=chunk_size, name=name)
+
+
 def hmc_move(
     num_steps: int = 3,
     trajectory_length: float = 1.5,
@@ -129,20 +147,8 @@ def hmc_move(
     chunk_size: int | None = None,
 ) -> KernelMove:
     """NumPyro HMC (fixed trajectory length in units of the particle covariance) as a TMCMC move."""
-
-    def factory(potential_fn, step_size, cov):
-        imm = cov if dense_mass else jnp.diag(cov)
-        return HMC(
-            potential_fn=potential_fn,
-            step_size=step_size,
-            inverse_mass_matrix=imm,
-            adapt_step_size=False,
-            adapt_mass_matrix=False,
-            dense_mass=dense_mass,
-            trajectory_length=trajectory_length,
-        )
-
-    return KernelMove(factory, num_steps, init_step_size, target_accept, chunk_size=chunk_size, name="hmc")
+    return _gradient_move(HMC, "hmc", num_steps, init_step_size, target_accept, dense_mass, chunk_size,
+                          trajectory_length=trajectory_length)
 
 
 def nuts_move(
@@ -154,17 +160,5 @@ def nuts_move(
     chunk_size: int | None = None,
 ) -> KernelMove:
     """NumPyro NUTS as a TMCMC move (per-particle trees; the vmapped tree runs to the deepest one)."""
-
-    def factory(potential_fn, step_size, cov):
-        imm = cov if dense_mass else jnp.diag(cov)
-        return NUTS(
-            potential_fn=potential_fn,
-            step_size=step_size,
-            inverse_mass_matrix=imm,
-            adapt_step_size=False,
-            adapt_mass_matrix=False,
-            dense_mass=dense_mass,
-            max_tree_depth=max_tree_depth,
-        )
-
-    return KernelMove(factory, num_steps, init_step_size, target_accept, chunk_size=chunk_size, name="nuts")
+    return _gradient_move(NUTS, "nuts", num_steps, init_step_size, target_accept, dense_mass, chunk_size,
+                          max_tree_depth=max_tree_depth)

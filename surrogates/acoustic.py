@@ -434,18 +434,11 @@ class AcousticSurrogate:
 
     @classmethod
     def load(cls, path: str | Path) -> AcousticSurrogate:
+        from bubblecal.surrogates.bundle import read_versioned_json
+
         path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"acoustic surrogate file not found: {path}")
-        try:
-            d = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise AcousticFormatError(f"{path}: not valid JSON ({exc})") from exc
-        if d.get("format") != ACOUSTIC_FORMAT:
-            raise AcousticFormatError(f"{path}: field 'format' is {d.get('format')!r}, expected {ACOUSTIC_FORMAT!r}")
-        if d.get("format_version") != ACOUSTIC_FORMAT_VERSION:
-            raise AcousticFormatError(f"{path}: field 'format_version' is {d.get('format_version')!r}, this code "
-                                      f"reads version {ACOUSTIC_FORMAT_VERSION}")
+        d = read_versioned_json(path, ACOUSTIC_FORMAT, ACOUSTIC_FORMAT_VERSION, AcousticFormatError,
+                                "acoustic surrogate file")
         if d.get("frequency_units") != "MHz":
             raise AcousticFormatError(f"{path}: field 'frequency_units' must be 'MHz'")
         fits = []

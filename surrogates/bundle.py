@@ -400,23 +400,29 @@ class Bundle:
         return sorted(self.surrogates)
 
 
+def read_versioned_json(path: Path, fmt: str, version: int, error: type[Exception], what: str) -> dict:
+    """Read a JSON file whose 'format'/'format_version' fields must equal ``fmt``/``version``."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} not found: {path}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}: not valid JSON ({exc})") from exc
+    if data.get("format") != fmt:
+        raise error(f"{path}: field 'format' is {data.get('format')!r}, expected {fmt!r}")
+    if data.get("format_version") != version:
+        raise error(f"{path}: field 'format_version' is {data.get('format_version')!r}, this code reads version {version}")
+    return data
+
+
 def load_bundle(path: str | Path) -> Bundle:
     """Load a bundle directory (``manifest.json`` + files); checks each file's data hash."""
     from bubblecal.surrogates.acoustic import AcousticSurrogate
 
     path = Path(path)
     mpath = path / "manifest.json"
-    if not mpath.is_file():
-        raise FileNotFoundError(f"bundle manifest not found: {mpath}")
-    try:
-        manifest = json.loads(mpath.read_text())
-    except json.JSONDecodeError as exc:
-        raise SurrogateFormatError(f"{mpath}: not valid JSON ({exc})") from exc
-    if manifest.get("format") != BUNDLE_FORMAT:
-        raise SurrogateFormatError(f"{mpath}: field 'format' is {manifest.get('format')!r}, expected {BUNDLE_FORMAT!r}")
-    if manifest.get("format_version") != BUNDLE_FORMAT_VERSION:
-        raise SurrogateFormatError(f"{mpath}: field 'format_version' is {manifest.get('format_version')!r}, "
-                                   f"this code reads version {BUNDLE_FORMAT_VERSION}")
+    manifest = read_versioned_json(mpath, BUNDLE_FORMAT, BUNDLE_FORMAT_VERSION, SurrogateFormatError, "bundle manifest")
     bundle = Bundle(path=path, manifest=manifest)
     for i, entry in enumerate(manifest.get("surrogates", [])):
         for key in ("file", "setup", "diameter_um", "data_hash"):
