@@ -76,7 +76,7 @@ def _wp():
 
 def _field(mesh, params, device: str, dtype=None):
     wp = _wp()
-    from .kernels.shell import ShellForceField
+    from bubblecal.sim.kernels.shell import ShellForceField
 
     return ShellForceField(mesh, params if isinstance(params, list) else [params], device=device,
                            dtype=wp.float64 if dtype is None else dtype)
@@ -86,9 +86,9 @@ def _field(mesh, params, device: str, dtype=None):
 # (a) Lim force = -grad W by finite differences; zero net force and torque per triangle
 # ----------------------------------------------------------------------------------------------
 def check_lim_finite_differences(quick: bool = True, device: str = "cpu") -> CheckResult:
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
-    from .shell_reference import lim_triangle_forces
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
+    from bubblecal.sim.shell_reference import lim_triangle_forces
 
     t0 = time.perf_counter()
     sub = 1 if quick else 2
@@ -132,8 +132,8 @@ def check_lim_finite_differences(quick: bool = True, device: str = "cpu") -> Che
 # ----------------------------------------------------------------------------------------------
 def check_zero_force_reference(quick: bool = True, device: str = "cpu") -> CheckResult:
     wp = _wp()
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
 
     t0 = time.perf_counter()
     sub = 3 if quick else 4
@@ -168,8 +168,8 @@ JUELICHER_EXPECTED = {3: 25.180, 4: 25.145}
 
 
 def check_bending_energies_icosphere(quick: bool = True, device: str = "cpu") -> CheckResult:
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
 
     t0 = time.perf_counter()
     subs = (3,) if quick else (3, 4)
@@ -202,8 +202,8 @@ def _to_wp(ff, x):
 # (d) energies under uniform scaling (analytic)
 # ----------------------------------------------------------------------------------------------
 def check_constraint_scaling(quick: bool = True, device: str = "cpu") -> CheckResult:
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
 
     t0 = time.perf_counter()
     mesh = icosphere(3.0, 2 if quick else 3)
@@ -246,9 +246,9 @@ def measure_kantor_kappa(subdivisions: int = 4, ell: int = 6, eps: float = 1e-3)
     """
     from scipy.special import eval_legendre
 
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
-    from .shell_reference import kantor_energy
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
+    from bubblecal.sim.shell_reference import kantor_energy
 
     mesh = icosphere(1.0, subdivisions)
     x = mesh.vertices * (1.0 + eps * eval_legendre(ell, mesh.vertices[:, 2]))[:, None]
@@ -260,10 +260,10 @@ def reissner_point_load(subdivisions: int = 4, force: float = 20.0, ftol_rel: fl
                         device: str = "cpu", p0: float = 3.0, radius: float = R_REISSNER,
                         ka: float = KA_REISSNER, kb: float = KB_REISSNER, max_steps: int = 50_000) -> dict:
     """Relax a shell under two antipodal point forces with FIRE; return deflection and stiffness."""
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
-    from .minimize import fire_minimize
-    from .shell_reference import volume_gradient
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
+    from bubblecal.sim.minimize import fire_minimize
+    from bubblecal.sim.shell_reference import volume_gradient
 
     mesh = icosphere(radius, subdivisions)
     p = ShellParams(ka=ka, kb=kb, self_avoid=False)

@@ -20,8 +20,8 @@ import time
 
 import numpy as np
 
-from .checks import CheckResult
-from .system import bubble_spec
+from bubblecal.sim.checks import CheckResult
+from bubblecal.sim.system import bubble_spec
 
 __all__ = ["check_eos_a25", "check_eos_a100", "check_temperature", "check_momentum",
            "check_ideal_gas_pressure", "check_no_leaks", "check_bubble_shape", "ALL_FLUID_CHECKS",
@@ -50,8 +50,8 @@ def _wp_quiet():
 def _fluid_run(quick: bool, device: str) -> dict:
     """Replicas of a = 25 and a = 100 (gamma = 4.5, s = 0.5 / 0.25) advanced in the same launches."""
     _wp_quiet()
-    from .particles import fluid_pair_table
-    from .system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.particles import fluid_pair_table
+    from bubblecal.sim.system import ParticleSystem, ReplicaSpec
 
     if quick:
         box, n_each, t_eq, t_prod, dt = (6.0, 6.0, 6.0), 1, 4.0, 10.0, 0.0025
@@ -157,10 +157,10 @@ def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckRe
     kick-drift integrator's O(gamma dt / m) bias -- reported in benchmarks/results_sim.md.)
     """
     _wp_quiet()
-    from .kernels.shell import ShellParams
-    from .mesh import icosphere
-    from .particles import GAS, published_pair_table
-    from .system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import icosphere
+    from bubblecal.sim.particles import GAS, published_pair_table
+    from bubblecal.sim.system import ParticleSystem, ReplicaSpec
 
     if quick:
         radius, subdiv, n_rep, t_prod, dt = 3.0, 3, 1, 6.0, 1e-3
@@ -207,8 +207,8 @@ def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckRe
 @functools.cache
 def _bubble_run(quick: bool, device: str) -> dict:
     _wp_quiet()
-    from .health import HealthConfig, HealthMonitor
-    from .system import ParticleSystem
+    from bubblecal.sim.health import HealthConfig, HealthMonitor
+    from bubblecal.sim.system import ParticleSystem
 
     if quick:
         # 1.5 um bubble (R = 3, subdivision 3) in a 9^3 box, 3,000 steps

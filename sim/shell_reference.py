@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels.shell_params import ShellParams
-from .mesh import ShellMesh, dihedral_angles
+from bubblecal.sim.kernels.shell_params import ShellParams
+from bubblecal.sim.mesh import ShellMesh, dihedral_angles
 
 __all__ = [
     "ENERGY_TERMS",

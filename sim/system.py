@@ -38,11 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .kernels.bounce import bounce_kernels
-from .kernels.integrate import integrate_kernels
-from .kernels.pairs import pair_kernels
-from .neighbors import grid_for_boxes, neighbor_kernels
-from .particles import GAS, N_TYPES, VERTEX, WALL, WATER, PairTable
+from bubblecal.sim.kernels.bounce import bounce_kernels
+from bubblecal.sim.kernels.integrate import integrate_kernels
+from bubblecal.sim.kernels.pairs import pair_kernels
+from bubblecal.sim.neighbors import grid_for_boxes, neighbor_kernels
+from bubblecal.sim.particles import GAS, N_TYPES, VERTEX, WALL, WATER, PairTable
 
 __all__ = ["ReplicaSpec", "ParticleSystem", "resolve_dtype", "inside_convex_mesh", "bubble_spec"]
 
@@ -352,7 +352,7 @@ class ParticleSystem:
         self.tri_cols = wp.zeros(max(16, 4 * N // 10 if self.Nf else 16), dtype=wp.int32, device=dev)
         self.meshes = meshes
         if self.Nv:
-            from .kernels.shell import ShellForceField
+            from bubblecal.sim.kernels.shell import ShellForceField
 
             self.shell_field = ShellForceField(meshes, shell_params, device=str(dev), dtype=self.dtype,
                                                offsets=vert_off)
@@ -653,9 +653,9 @@ def bubble_spec(diameter_um: float = 3.0, subdivisions: int | None = None, box=N
     indentation), k_a = 5,584 (E = 10 MPa), mu = k_a/3, k_b = 389.23, back pressure p_b = 91 and
     an ideal gas of number density ``gas_density`` (*choice*, default 3) inside.
     """
-    from .kernels.shell import ShellParams
-    from .mesh import mesh_for_diameter
-    from .particles import RHO_SHELL_KG_M3, published_pair_table
+    from bubblecal.sim.kernels.shell import ShellParams
+    from bubblecal.sim.mesh import mesh_for_diameter
+    from bubblecal.sim.particles import RHO_SHELL_KG_M3, published_pair_table
 
     mesh = mesh_for_diameter(diameter_um, subdivisions)
     R = mesh.radius_dpd

@@ -14,15 +14,15 @@ import time
 import traceback
 from collections.abc import Callable, Sequence
 
-from .checks import ALL_SHELL_CHECKS, CheckResult
-from .fluid_checks import ALL_FLUID_CHECKS
+from bubblecal.sim.checks import ALL_SHELL_CHECKS, CheckResult
+from bubblecal.sim.fluid_checks import ALL_FLUID_CHECKS
 
 __all__ = ["all_checks", "run_checks", "render_table", "summary_json", "main"]
 
 
 def all_checks() -> list[Callable[..., CheckResult]]:
     """Fluid checks first, then the shell helper's checks (looked up at call time)."""
-    from . import checks as shell_checks
+    from bubblecal.sim import checks as shell_checks
 
     return list(ALL_FLUID_CHECKS) + list(getattr(shell_checks, "ALL_SHELL_CHECKS", ALL_SHELL_CHECKS))
 

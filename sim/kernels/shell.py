@@ -37,8 +37,8 @@ from collections.abc import Sequence
 import numpy as np
 import warp as wp
 
-from ..mesh import ShellMesh
-from .shell_params import BENDING_MODELS, ShellParams
+from bubblecal.sim.kernels.shell_params import BENDING_MODELS, ShellParams
+from bubblecal.sim.mesh import ShellMesh
 
 __all__ = ["ShellParams", "ShellForceField", "ENERGY_TERMS", "BENDING_MODELS", "AREA_CLAMP"]
 
