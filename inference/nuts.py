@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import jax
 import numpy as np
 from numpyro.diagnostics import summary
-from numpyro.infer import MCMC, NUTS
+from numpyro.infer import MCMC, NUTS, init_to_uniform
 
 
 @dataclass
@@ -50,12 +50,15 @@ def run_nuts(
     dense_mass: bool = False,
     max_tree_depth: int = 10,
     progress_bar: bool = False,
+    init_strategy: Callable | None = None,
     **kwargs,
 ) -> NUTSResult:
     """Run NumPyro NUTS on ``model(*args, **kwargs)`` with ``num_chains`` chains.
 
     ``chain_method`` is passed to ``numpyro.infer.MCMC`` ('vectorized' works on one device;
     'parallel' needs one device per chain).  Deterministic sites are included in the samples.
+    ``init_strategy``: a NumPyro init strategy (default ``init_to_uniform``), e.g.
+    ``init_to_value(values=...)`` to start chains away from a flat region of the likelihood.
     """
     for name, value, minimum in (
         ("num_warmup", num_warmup, 0),
@@ -66,7 +69,8 @@ def run_nuts(
             raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     rng_key = jax.random.PRNGKey(0) if rng_key is None else rng_key
     kernel = NUTS(
-        model, target_accept_prob=target_accept_prob, dense_mass=dense_mass, max_tree_depth=max_tree_depth
+        model, target_accept_prob=target_accept_prob, dense_mass=dense_mass, max_tree_depth=max_tree_depth,
+        init_strategy=init_to_uniform if init_strategy is None else init_strategy,
     )
     mcmc = MCMC(
         kernel,

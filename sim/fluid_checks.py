@@ -154,7 +154,7 @@ def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckRe
     mass 0.1 and gas-gas (0, 1, 0.5) at dt = 1e-3, which resolves the gas dynamics (gamma dt / m = 0.01)
     at a tenth of the steps. (The published gas, m = 0.0112 with gamma = 11, has gamma dt/m ~ 1 at
     dt = 1e-3 and needs the production dt = 1e-4; at 1e-4 its kinetic temperature is ~1.05, the
-    kick-drift integrator's O(gamma dt / m) bias -- reported in benchmarks/results_sim.md.)
+    kick-drift integrator's O(gamma dt / m) bias -- reported in benchmarks/RESULTS.md.)
     """
     _wp_quiet()
     from bubblecal.sim.kernels.shell import ShellParams

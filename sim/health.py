@@ -26,6 +26,8 @@ from enum import IntEnum
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.kernels.common import kernel_decorator, min_image
+
 __all__ = ["Status", "HealthConfig", "HealthReport", "HealthMonitor"]
 
 
@@ -65,14 +67,8 @@ class HealthReport:
 @functools.cache
 def _health_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
-    kern = functools.partial(wp.kernel, enable_backward=False,
-                             module=f"bubblecal_health_{'f64' if dtype is wp.float64 else 'f32'}")
+    kern = kernel_decorator(dtype, "health")
 
-    @wp.func
-    def min_image(d: vec3, L: vec3) -> vec3:
-        return vec3(d[0] - L[0] * wp.round(d[0] / L[0]),
-                    d[1] - L[1] * wp.round(d[1] / L[1]),
-                    d[2] - L[2] * wp.round(d[2] / L[2]))
 
     @kern
     def finite_speed(x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), rep: wp.array(dtype=wp.int32),

@@ -28,12 +28,13 @@ import functools
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.kernels.common import kernel_decorator, min_image
+
 
 @functools.cache
 def neighbor_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
-    kern = functools.partial(wp.kernel, enable_backward=False,
-                             module=f"bubblecal_nbr_{'f64' if dtype is wp.float64 else 'f32'}")
+    kern = kernel_decorator(dtype, "nbr")
 
     @wp.func
     def cell_coord(p: dtype, L: dtype, n: wp.int32) -> wp.int32:
@@ -45,11 +46,6 @@ def neighbor_kernels(dtype):
     def wrap_int(c: wp.int32, n: wp.int32) -> wp.int32:
         return ((c % n) + n) % n
 
-    @wp.func
-    def min_image(d: vec3, L: vec3) -> vec3:
-        return vec3(d[0] - L[0] * wp.round(d[0] / L[0]),
-                    d[1] - L[1] * wp.round(d[1] / L[1]),
-                    d[2] - L[2] * wp.round(d[2] / L[2]))
 
     @wp.func
     def finite3(p: vec3) -> wp.bool:

@@ -29,18 +29,14 @@ import functools
 
 import warp as wp
 
+from bubblecal.sim.kernels.common import kernel_decorator, min_image
+
 
 @functools.cache
 def bounce_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
-    kern = functools.partial(wp.kernel, enable_backward=False,
-                             module=f"bubblecal_bounce_{'f64' if dtype is wp.float64 else 'f32'}")
+    kern = kernel_decorator(dtype, "bounce")
 
-    @wp.func
-    def min_image(d: vec3, L: vec3) -> vec3:
-        return vec3(d[0] - L[0] * wp.round(d[0] / L[0]),
-                    d[1] - L[1] * wp.round(d[1] / L[1]),
-                    d[2] - L[2] * wp.round(d[2] / L[2]))
 
     @wp.func
     def signed_vol(p: vec3, a: vec3, b: vec3, c: vec3) -> dtype:

@@ -18,12 +18,13 @@ import functools
 
 import warp as wp
 
+from bubblecal.sim.kernels.common import kernel_decorator
+
 
 @functools.cache
 def integrate_kernels(dtype):
     vec3 = wp.types.vector(3, dtype)
-    kern = functools.partial(wp.kernel, enable_backward=False,
-                             module=f"bubblecal_integ_{'f64' if dtype is wp.float64 else 'f32'}")
+    kern = kernel_decorator(dtype, "integ")
 
     @kern
     def kick_drift_solvent(x: wp.array(dtype=vec3), v: wp.array(dtype=vec3), f: wp.array(dtype=vec3),

@@ -24,6 +24,8 @@ import functools
 
 import warp as wp
 
+from bubblecal.sim.kernels.common import kernel_decorator, min_image
+
 #: Offset added to vertex indices to form their persistent ids in the pair hash.
 VERTEX_ID_OFFSET = 1 << 30
 SQRT3 = 1.7320508075688772
@@ -79,14 +81,8 @@ def wrap_delta(d: float, L: float) -> float:
 def pair_kernels(dtype):
     """Kernels for one scalar type (``wp.float32`` or ``wp.float64``); cached."""
     vec3 = wp.types.vector(3, dtype)
-    kern = functools.partial(wp.kernel, enable_backward=False,
-                             module=f"bubblecal_pairs_{'f64' if dtype is wp.float64 else 'f32'}")
+    kern = kernel_decorator(dtype, "pairs")
 
-    @wp.func
-    def min_image(d: vec3, L: vec3) -> vec3:
-        return vec3(d[0] - L[0] * wp.round(d[0] / L[0]),
-                    d[1] - L[1] * wp.round(d[1] / L[1]),
-                    d[2] - L[2] * wp.round(d[2] / L[2]))
 
     @wp.func
     def min_image_inv(d: vec3, L: vec3, invL: vec3) -> vec3:

@@ -1,7 +1,7 @@
 """Known-answer benchmark: the selected surrogate's grouped-holdout error approaches the noise floor.
 
 The full sweep (4 widths x 3 depths, 500 curves) takes tens of minutes on 2 cores: marked slow.
-Numbers from a run are in benchmarks/results_surrogates.md.
+Numbers from a run are in benchmarks/RESULTS.md.
 """
 
 from __future__ import annotations
