@@ -46,6 +46,19 @@ def neighbor_kernels(dtype):
     def wrap_int(c: wp.int32, n: wp.int32) -> wp.int32:
         return ((c % n) + n) % n
 
+    @wp.func
+    def cell_of(p: vec3, L: vec3, n: wp.vec3i) -> wp.vec3i:
+        """Cell coordinates of position p in a periodic box L split into n cells per axis."""
+        return wp.vec3i(cell_coord(p[0], L[0], n[0]), cell_coord(p[1], L[1], n[1]), cell_coord(p[2], L[2], n[2]))
+
+    @wp.func
+    def stencil_cell(home: wp.vec3i, n: wp.vec3i, off: wp.int32, q: wp.int32) -> wp.int32:
+        """Global index of the q-th (0..26) periodic neighbour cell of ``home`` in a replica starting at off."""
+        ix = wrap_int(home[0] + q // 9 - 1, n[0])
+        iy = wrap_int(home[1] + (q // 3) % 3 - 1, n[1])
+        iz = wrap_int(home[2] + q % 3 - 1, n[2])
+        return off + (ix * n[1] + iy) * n[2] + iz
+
 
     @wp.func
     def finite3(p: vec3) -> wp.bool:
@@ -102,15 +115,10 @@ def neighbor_kernels(dtype):
         cap = nbr.shape[0]
         cnt = wp.int32(0)
         if finite3(p):
-            cx = cell_coord(p[0], L[0], n[0])
-            cy = cell_coord(p[1], L[1], n[1])
-            cz = cell_coord(p[2], L[2], n[2])
+            home = cell_of(p, L, n)
             off = cell_offset[r]
             for q in range(27):  # 27 > max_unroll: a real loop (small code, fast compile)
-                ix = wrap_int(cx + q // 9 - 1, n[0])
-                iy = wrap_int(cy + (q // 3) % 3 - 1, n[1])
-                iz = wrap_int(cz + q % 3 - 1, n[2])
-                c = off + (ix * n[1] + iy) * n[2] + iz
+                c = stencil_cell(home, n, off, q)
                 for j in range(start[c], end[c]):
                     if j != i:
                         d = min_image(p - x[j], L)
@@ -137,15 +145,10 @@ def neighbor_kernels(dtype):
         cap = vnbr.shape[0]
         cnt = wp.int32(0)
         if finite3(p):
-            cx = cell_coord(p[0], L[0], n[0])
-            cy = cell_coord(p[1], L[1], n[1])
-            cz = cell_coord(p[2], L[2], n[2])
+            home = cell_of(p, L, n)
             off = cell_offset[r]
             for q in range(27):
-                ix = wrap_int(cx + q // 9 - 1, n[0])
-                iy = wrap_int(cy + (q // 3) % 3 - 1, n[1])
-                iz = wrap_int(cz + q % 3 - 1, n[2])
-                c = off + (ix * n[1] + iy) * n[2] + iz
+                c = stencil_cell(home, n, off, q)
                 for j in range(start[c], end[c]):
                     d = min_image(p - x[j], L)
                     if wp.dot(d, d) < rlist2:
