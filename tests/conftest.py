@@ -28,3 +28,21 @@ def shared_reference() -> Path:
     if path is None:
         pytest.skip("../shared/reference not present")
     return path
+
+
+@pytest.fixture(scope="session")
+def tiny_compression_surrogate(tmp_path_factory) -> Path:
+    """A small compression surrogate (2.1 um) trained on synthetic data through the CLI (~10 s, once per run)."""
+    from typer.testing import CliRunner
+
+    from bubblecal.workflows.cli import app
+
+    folder = tmp_path_factory.mktemp("tiny_surrogate")
+    runner = CliRunner()
+    data = folder / "synthetic.csv"
+    result = runner.invoke(app, ["surrogates", "synthetic", str(data), "--n-curves", "120", "--seed", "3"])
+    assert result.exit_code == 0, result.output
+    result = runner.invoke(app, ["surrogates", "train", str(data), "--setup", "compression", "--diameter", "2.1",
+                                 "--out", str(folder / "out"), "--width", "16", "--depth", "2", "--max-epochs", "80"])
+    assert result.exit_code == 0, result.output
+    return folder / "out" / "compression_2.1um.npz"
