@@ -32,6 +32,8 @@ COMMAND_GROUPS: list[tuple[str, str]] = [
 #: Modules that register top-level commands on :data:`app` when imported (``register(app)``).
 TOP_LEVEL_MODULES: list[str] = [
     "bubblecal.workflows.cli_info",
+    "bubblecal.workflows.cli_sensitivity",
+    "bubblecal.workflows.cli_compare",
 ]
 
 

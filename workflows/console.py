@@ -12,8 +12,11 @@ err_console = Console(stderr=True)
 
 
 def fail(message: str, code: int = 1) -> typer.Exit:
-    """Print ``message`` in red on stderr and return the Exit to raise (exit status ``code``)."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False, markup=True)
+    """Print ``message`` in red on stderr and return the Exit to raise (exit status ``code``).
+
+    ``message`` is plain text, taken literally: '[fixed]' in a priors problem is not a style tag.
+    """
+    err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, markup=True)
     return typer.Exit(code)
 
 

@@ -1,0 +1,1 @@
+"""bubblecal.sim.experiments: loading protocols (compression, indentation) and their fidelity tiers."""

@@ -1,0 +1,515 @@
+"""Athermal quasi-static fidelity tier for the two mechanical loading protocols (physics.md sections 5, 7).
+
+At every load point the shell (+ enclosed ideal gas) is relaxed to a force-balanced state with FIRE
+(:func:`bubblecal.sim.minimize.fire_minimize`); load points are chained (each starts from the
+previous minimum).  R replicas (one :class:`ShellParams` each, same mesh) are batched into one
+:class:`ShellForceField` and minimised together, each with its own FIRE state.  No solvent, no
+temperature: this is the cheap tier that must be validated against the explicit one.
+
+Choices (stated once; also returned in ``result.settings``):
+
+* **Gas** (:class:`IdealGas`): isothermal ideal gas p V = p0 V0 inside; default p0 = 3 DPD pressure
+  (ideal gas at number density 3, k_BT = 1 -- as in the Reissner check of :mod:`bubblecal.sim.checks`),
+  balanced at the reference by a constant ambient pressure p_ambient (default = p0), so the
+  stress-free sphere is force-free.  In the explicit model the water pressure (~89) is balanced by
+  gas + back pressure p_b = 91; a *constant* pressure adds no stiffness, so only p0 (the gas bulk
+  modulus) matters here.  ``gas=None`` removes the gas (shell only).
+* **Indentation**: k = max(1, floor(0.01 N_v)) top-most and bottom-most reference vertices (by z)
+  carry -F/k and +F/k along z.  Centre of mass pinned: the mean force over each replica's vertices
+  is subtracted (all three components).  Equator anchored in z: vertices with
+  |z - z_c| < 0.25 l_min of the reference are not allowed to move in z.  Observable
+  d(F) = H0 - H(F) with H = max z - min z of the shell (axial extent, "pole-to-pole distance");
+  the distance between the loaded patches' mean z is returned as well (``d_patch``).
+* **Compression**: analytic plates z = z_c +- (h0 + gap - d/2), h0 = max_v |z_v - z_c| of the
+  reference, ``gap`` default 1 = the LJ range, so the plates just touch at d = 0 (zero force in this
+  athermal tier; the published thermal curves have F(0) ~ 40-60).  Plate-vertex force: repulsive
+  LJ (WCA) eps = 1000, sigma = 2^(-1/6), r_c = 2^(1/6) sigma = 1, on the distance h of a vertex to
+  the plate; the force magnitude is capped at ``force_cap`` (default 1e4 DPD per vertex, reached at
+  h ~ 0.91) and the energy continued linearly below (also behind the plate), so FIRE can recover a
+  vertex that crossed.  Centre of mass pinned in x, y (mean x, y force removed).  Observable
+  F(d) = force on ONE plate: the sum of plate-vertex forces on the top plate (positive = compressive);
+  the bottom plate's is returned too (``force_bottom``; equal at equilibrium).  "Both plates"
+  (sum) would be twice this -- keep it consistent with the data's convention.
+* **Status per replica**: ``'ok'``; ``'not_converged'`` (FIRE hit ``max_steps`` at some point; the
+  chain goes on); ``'nonfinite'``; ``'ruptured'`` (max triangle area strain |A/A0 - 1| above
+  ``rupture_strain``, default 1.0).  After ``nonfinite`` / ``ruptured`` the replica is frozen and its
+  later observables are NaN.  ``point_status[r][j]`` holds the per-point verdict.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bubblecal.sim.experiments.loading import validate_grid
+from bubblecal.sim.kernels.shell_params import ShellParams
+from bubblecal.sim.mesh import ShellMesh
+
+__all__ = [
+    "IdealGas",
+    "PlateContact",
+    "FireSettings",
+    "IndentationResult",
+    "CompressionResult",
+    "quasistatic_indentation",
+    "quasistatic_compression",
+    "plate_force_energy",
+    "STATUS_OK",
+    "STATUS_NOT_CONVERGED",
+    "STATUS_NONFINITE",
+    "STATUS_RUPTURED",
+]
+
+STATUS_OK = "ok"
+STATUS_NOT_CONVERGED = "not_converged"
+STATUS_NONFINITE = "nonfinite"
+STATUS_RUPTURED = "ruptured"
+_FAILED = (STATUS_NONFINITE, STATUS_RUPTURED)
+
+
+@dataclass(frozen=True)
+class IdealGas:
+    """Isothermal ideal gas inside the shell: p = p0 V0 / V (DPD pressure), ambient ``p_ambient`` outside.
+
+    ``p_ambient`` None -> p0 (reference force-free).  Net outward pressure p - p_ambient acts on the
+    shell as (p - p_ambient) dV/dx_v.
+    """
+
+    p0: float = 3.0
+    p_ambient: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.p0) and self.p0 >= 0):
+            raise ValueError(f"IdealGas.p0 must be a finite number >= 0, got {self.p0!r}")
+        if self.p_ambient is not None and not math.isfinite(self.p_ambient):
+            raise ValueError(f"IdealGas.p_ambient must be finite, got {self.p_ambient!r}")
+
+    @property
+    def ambient(self) -> float:
+        return self.p0 if self.p_ambient is None else float(self.p_ambient)
+
+
+@dataclass(frozen=True)
+class PlateContact:
+    """Capped repulsive LJ between an analytic plate and shell vertices (DPD units).
+
+    ``epsilon`` (energy), ``sigma`` (length; cut-off 2^(1/6) sigma), ``force_cap`` (largest force
+    magnitude per vertex), ``gap`` (plate offset beyond the reference extent at d = 0, length).
+    """
+
+    epsilon: float = 1000.0
+    sigma: float = 2.0 ** (-1.0 / 6.0)
+    force_cap: float = 1.0e4
+    gap: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("epsilon", "sigma", "force_cap"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"PlateContact.{name} must be a positive finite number, got {v!r}")
+        if not (math.isfinite(self.gap) and self.gap >= 0):
+            raise ValueError(f"PlateContact.gap must be a finite number >= 0, got {self.gap!r}")
+
+    @property
+    def cutoff(self) -> float:
+        return 2.0 ** (1.0 / 6.0) * self.sigma
+
+
+@dataclass(frozen=True)
+class FireSettings:
+    """FIRE controls for every load point: ``ftol`` (absolute per-vertex force norm, DPD force),
+    ``max_steps`` per point, ``dt`` / ``dt_max`` (DPD time, unit FIRE mass), ``max_move`` (length/step)."""
+
+    ftol: float = 0.05
+    max_steps: int = 20_000
+    dt: float = 5e-3
+    dt_max: float = 5e-2
+    max_move: float = 0.01
+
+
+def plate_force_energy(h: np.ndarray, contact: PlateContact) -> tuple[np.ndarray, np.ndarray]:
+    """Repulsive force magnitude (>= 0, pushing the vertex away from the plate) and energy for
+    vertex-plate distances ``h`` (DPD length; h <= 0 = behind the plate).  Capped at
+    ``contact.force_cap`` with the energy continued linearly."""
+    h = np.asarray(h, dtype=np.float64)
+    eps, sig, rc, cap = contact.epsilon, contact.sigma, contact.cutoff, contact.force_cap
+    # distance where the LJ force reaches the cap (bisection on the monotone branch h < rc)
+    h_cap = _cap_distance(eps, sig, cap)
+    e_cap = _lj_energy(np.array([h_cap]), eps, sig)[0]
+    f = np.zeros_like(h)
+    e = np.zeros_like(h)
+    near = (h < rc) & (h > h_cap)
+    f[near] = _lj_force(h[near], eps, sig)
+    e[near] = _lj_energy(h[near], eps, sig)
+    capped = h <= h_cap
+    f[capped] = cap
+    e[capped] = e_cap + cap * (h_cap - h[capped])
+    return f, e
+
+
+def _lj_force(h, eps, sig):
+    s6 = (sig / h) ** 6
+    return 24.0 * eps * (2.0 * s6 * s6 - s6) / h
+
+
+def _lj_energy(h, eps, sig):
+    s6 = (sig / h) ** 6
+    return 4.0 * eps * (s6 * s6 - s6) + eps
+
+
+def _cap_distance(eps, sig, cap) -> float:
+    lo, hi = 1e-3 * sig, 2.0 ** (1.0 / 6.0) * sig
+    if _lj_force(lo, eps, sig) <= cap:
+        return lo
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if _lj_force(mid, eps, sig) > cap:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+# ------------------------------------------------------------------------------------------------
+# shared machinery
+# ------------------------------------------------------------------------------------------------
+class _Batch:
+    """R replicas of one mesh packed row-wise; shell + gas forces as NumPy."""
+
+    def __init__(self, params: Sequence[ShellParams], mesh: ShellMesh, gas: IdealGas | None, device: str,
+                 dtype):
+        import warp as wp
+
+        from bubblecal.sim.kernels.shell import ShellForceField
+
+        if isinstance(params, ShellParams):
+            params = [params]
+        params = list(params)
+        if not params:
+            raise ValueError("params must hold at least one ShellParams")
+        for p in params:
+            if not isinstance(p, ShellParams):
+                raise ValueError(f"params must hold ShellParams, got {type(p).__name__}")
+        if not isinstance(mesh, ShellMesh):
+            raise ValueError(f"mesh must be a ShellMesh, got {type(mesh).__name__}")
+        if gas is not None and not isinstance(gas, IdealGas):
+            raise ValueError(f"gas must be an IdealGas or None, got {type(gas).__name__}")
+        wp.config.quiet = True
+        wp.init()
+        self.R = len(params)
+        self.nv = mesh.n_vertices
+        self.mesh = mesh
+        self.gas = gas
+        self.ff = ShellForceField(mesh, params, device=device, dtype=wp.float64 if dtype is None else dtype)
+        self.x_ref = self.ff.reference_positions()
+        self.groups = np.repeat(np.arange(self.R), self.nv)
+        self.v0 = mesh.volume()
+        f = mesh.faces
+        self._faces = f
+
+    def view(self, x: np.ndarray) -> np.ndarray:
+        return x.reshape(self.R, self.nv, 3)
+
+    def volumes(self, x: np.ndarray) -> np.ndarray:
+        xr = self.view(x)
+        f = self._faces
+        return np.einsum("rij,rij->r", xr[:, f[:, 0]], np.cross(xr[:, f[:, 1]], xr[:, f[:, 2]])) / 6.0
+
+    def volume_gradient(self, x: np.ndarray) -> np.ndarray:
+        xr = self.view(x)
+        f = self._faces
+        n = np.cross(xr[:, f[:, 1]] - xr[:, f[:, 0]], xr[:, f[:, 2]] - xr[:, f[:, 0]]) / 6.0  # [R, Nt, 3]
+        g = np.zeros_like(xr)
+        for c in range(3):
+            np.add.at(g, (slice(None), f[:, c]), n)
+        return g.reshape(-1, 3)
+
+    def shell_gas_forces(self, x: np.ndarray) -> np.ndarray:
+        _, f = self.ff.energy_forces_numpy(x, with_energy=False)
+        if self.gas is not None:
+            vol = self.volumes(x)
+            dp = self.gas.p0 * self.v0 / vol - self.gas.ambient  # [R]
+            f = f + np.repeat(dp, self.nv)[:, None] * self.volume_gradient(x)
+        return f
+
+    def max_area_strain(self, x: np.ndarray) -> np.ndarray:
+        import warp as wp
+
+        xa = wp.array(np.ascontiguousarray(x), dtype=self.ff.vec3, device=self.ff.device)
+        return self.ff.health(xa)["max_area_strain"]
+
+
+def _run_chain(batch: _Batch, n_points: int, make_energy_forces: Callable[[int, np.ndarray], Callable],
+               free: np.ndarray, fire: FireSettings, rupture_strain: float,
+               measure: Callable[[np.ndarray, int], dict]) -> dict:
+    """Chain the load points; returns per-replica/point arrays and statuses."""
+    from bubblecal.sim.minimize import STATUS_CONVERGED, STATUS_NONFINITE, fire_minimize
+
+    R = batch.R
+    x = batch.x_ref.copy()
+    status = [STATUS_OK] * R
+    point_status = [[STATUS_OK] * n_points for _ in range(R)]
+    steps = np.zeros((R, n_points), dtype=np.int64)
+    fmax = np.full((R, n_points), np.nan)
+    strain = np.full((R, n_points), np.nan)
+    volume = np.full((R, n_points), np.nan)
+    obs: dict[str, np.ndarray] = {}
+    for j in range(n_points):
+        alive = np.array([s not in _FAILED for s in status])
+        if not alive.any():
+            for r in range(R):
+                point_status[r][j:] = [status[r]] * (n_points - j)
+            break
+        groups = np.where(alive[batch.groups], batch.groups, -1)
+        res = fire_minimize(make_energy_forces(j, alive), x, groups, n_groups=R, free=free, ftol=fire.ftol,
+                            max_steps=fire.max_steps, dt=fire.dt, dt_max=fire.dt_max, max_move=fire.max_move)
+        xn = res.x
+        finite_rows = np.isfinite(batch.view(xn)).all(axis=(1, 2))
+        xs = np.where(np.repeat(finite_rows, batch.nv)[:, None], xn, batch.x_ref)
+        eps = batch.max_area_strain(xs)
+        vols = batch.volumes(xs)
+        m = measure(xs, j)
+        for r in range(R):
+            if not alive[r]:
+                point_status[r][j] = status[r]
+                continue
+            if res.status[r] == STATUS_NONFINITE or not finite_rows[r]:
+                ps = STATUS_NONFINITE
+            elif eps[r] > rupture_strain:
+                ps = STATUS_RUPTURED
+            elif res.status[r] != STATUS_CONVERGED:
+                ps = STATUS_NOT_CONVERGED
+            else:
+                ps = STATUS_OK
+            point_status[r][j] = ps
+            if ps in _FAILED or status[r] == STATUS_OK:
+                status[r] = ps if ps != STATUS_OK else status[r]
+            steps[r, j] = res.steps[r]
+            fmax[r, j] = res.fmax[r]
+            if ps in _FAILED:
+                continue
+            strain[r, j] = eps[r]
+            volume[r, j] = vols[r]
+            for k, v in m.items():
+                obs.setdefault(k, np.full((R, n_points), np.nan))[r, j] = v[r]
+        # failed replicas restart from (and stay frozen at) the reference so their rows stay finite
+        failed_rows = np.repeat(np.array([s in _FAILED for s in status]), batch.nv)
+        x = np.where(failed_rows[:, None], batch.x_ref, xn)
+    return {"status": status, "point_status": point_status, "fire_steps": steps, "fmax": fmax,
+            "max_area_strain": strain, "volume": volume, "obs": obs, "x": x}
+
+
+def _check_common(rupture_strain: float, fire: FireSettings) -> None:
+    if not (math.isfinite(rupture_strain) and rupture_strain > 0):
+        raise ValueError(f"rupture_strain must be a positive finite number, got {rupture_strain!r}")
+    if not isinstance(fire, FireSettings):
+        raise ValueError(f"fire must be a FireSettings, got {type(fire).__name__}")
+
+
+def _mean_free(f: np.ndarray, R: int, nv: int, comps: slice) -> np.ndarray:
+    fr = f.reshape(R, nv, 3)
+    fr[:, :, comps] -= fr[:, :, comps].mean(axis=1, keepdims=True)
+    return fr.reshape(-1, 3)
+
+
+# ------------------------------------------------------------------------------------------------
+# indentation
+# ------------------------------------------------------------------------------------------------
+@dataclass
+class IndentationResult:
+    """Quasi-static indentation curves of R replicas at P forces (DPD units).
+
+    ``forces [P]`` (total per pole), ``displacement [R, P]`` = d(F) = H0 - H (axial extent
+    reduction), ``axial_diameter [R, P]`` = H, ``axial_diameter0 [R]`` = H0, ``d_patch [R, P]``
+    (reduction of the distance between the loaded patches' mean z), ``volume``, ``max_area_strain``,
+    ``fmax`` (final per-vertex residual), ``fire_steps`` [R, P]; ``status [R]``, ``point_status
+    [R][P]``; ``x_final`` [R*Nv, 3]; ``settings`` (choices); ``seconds`` (wall time).
+    """
+
+    forces: np.ndarray
+    displacement: np.ndarray
+    axial_diameter: np.ndarray
+    axial_diameter0: np.ndarray
+    d_patch: np.ndarray
+    volume: np.ndarray
+    max_area_strain: np.ndarray
+    fmax: np.ndarray
+    fire_steps: np.ndarray
+    status: list[str]
+    point_status: list[list[str]]
+    x_final: np.ndarray
+    settings: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
+                            forces_dpd: Sequence[float] | np.ndarray, *, gas: IdealGas | None = IdealGas(),
+                            device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
+                            rupture_strain: float = 1.0, fraction_loaded: float = 0.01) -> IndentationResult:
+    """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
+
+    Args:
+        params: one :class:`ShellParams` per replica (moduli in DPD units).
+        mesh: stress-free reference shell (DPD lengths), shared by all replicas.
+        forces_dpd: total force per pole at each load point (DPD force, >= 0, strictly increasing).
+        gas: enclosed ideal gas (:class:`IdealGas`, pressures in DPD units) or None.
+        device, dtype: Warp device and float type (default ``wp.float64``).
+        fire: :class:`FireSettings` (ftol in DPD force per vertex).
+        rupture_strain: max |A_t/A0_t - 1| above which a replica is 'ruptured'.
+        fraction_loaded: k = max(1, floor(fraction_loaded N_v)) loaded vertices per pole.
+
+    Returns: :class:`IndentationResult`; displacement in DPD length.
+    """
+    t0 = time.perf_counter()
+    forces = validate_grid(forces_dpd, "forces_dpd")
+    _check_common(rupture_strain, fire)
+    if not (0 < fraction_loaded < 0.5):
+        raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {fraction_loaded!r}")
+    b = _Batch(params, mesh, gas, device, dtype)
+    R, nv = b.R, b.nv
+    z0 = mesh.vertices[:, 2]
+    zc = float(mesh.vertices[:, 2].mean())
+    k = max(1, int(math.floor(fraction_loaded * nv)))
+    order = np.argsort(z0, kind="stable")
+    bottom, top = order[:k], order[::-1][:k]
+    equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
+    free = np.ones((R, nv, 3), dtype=bool)
+    free[:, equator, 2] = False
+    free = free.reshape(-1, 3)
+    unit = np.zeros((nv, 3))
+    unit[top, 2] = -1.0 / k
+    unit[bottom, 2] = 1.0 / k
+    unit_all = np.tile(unit, (R, 1))
+
+    def make(j, alive):
+        fext = forces[j] * unit_all
+
+        def ef(x):
+            f = b.shell_gas_forces(x) + fext
+            return None, _mean_free(f, R, nv, slice(0, 3))
+
+        return ef
+
+    def measure(x, j):
+        xr = b.view(x)
+        h = xr[:, :, 2].max(axis=1) - xr[:, :, 2].min(axis=1)
+        patch = xr[:, top, 2].mean(axis=1) - xr[:, bottom, 2].mean(axis=1)
+        return {"H": h, "patch": patch}
+
+    out = _run_chain(b, len(forces), make, free, fire, rupture_strain, measure)
+    h0 = float(z0.max() - z0.min())
+    patch0 = float(z0[top].mean() - z0[bottom].mean())
+    H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
+    P = out["obs"].get("patch", np.full((R, len(forces)), np.nan))
+    settings = {"k_loaded_per_pole": k, "n_equator_anchored": int(equator.size),
+                "gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
+                "com": "mean force removed (x, y, z)", "equator": "|z - z_c| < 0.25 l_min anchored in z",
+                "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,
+                "rupture_strain": rupture_strain, "n_vertices": nv}
+    return IndentationResult(forces=forces, displacement=h0 - H, axial_diameter=H,
+                             axial_diameter0=np.full(R, h0), d_patch=patch0 - P, volume=out["volume"],
+                             max_area_strain=out["max_area_strain"], fmax=out["fmax"],
+                             fire_steps=out["fire_steps"], status=out["status"],
+                             point_status=out["point_status"], x_final=out["x"], settings=settings,
+                             seconds=time.perf_counter() - t0)
+
+
+# ------------------------------------------------------------------------------------------------
+# compression
+# ------------------------------------------------------------------------------------------------
+@dataclass
+class CompressionResult:
+    """Quasi-static compression curves of R replicas at P imposed total displacements (DPD units).
+
+    ``displacements [P]``, ``force [R, P]`` = compressive force on the top plate (one plate),
+    ``force_bottom [R, P]`` (same for the bottom plate), ``n_contacts [R, P]`` (vertices in range of
+    the top plate), ``plate_z [P]`` (top plate height; bottom is mirrored about z_c), ``volume``,
+    ``max_area_strain``, ``fmax``, ``fire_steps``, ``status``, ``point_status``, ``x_final``,
+    ``settings``, ``seconds``.
+    """
+
+    displacements: np.ndarray
+    force: np.ndarray
+    force_bottom: np.ndarray
+    n_contacts: np.ndarray
+    plate_z: np.ndarray
+    volume: np.ndarray
+    max_area_strain: np.ndarray
+    fmax: np.ndarray
+    fire_steps: np.ndarray
+    status: list[str]
+    point_status: list[list[str]]
+    x_final: np.ndarray
+    settings: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
+                            displacements_dpd: Sequence[float] | np.ndarray, *,
+                            gas: IdealGas | None = IdealGas(), contact: PlateContact = PlateContact(),
+                            device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
+                            rupture_strain: float = 1.0) -> CompressionResult:
+    """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
+
+    Args:
+        params: one :class:`ShellParams` per replica (DPD units).
+        mesh: stress-free reference shell (DPD lengths).
+        displacements_dpd: imposed total plate displacement d at each point (DPD length, >= 0,
+            strictly increasing); each plate moves d/2.
+        gas: enclosed ideal gas or None.  contact: plate-vertex :class:`PlateContact`.
+        device, dtype, fire, rupture_strain: as in :func:`quasistatic_indentation`.
+
+    Returns: :class:`CompressionResult`; ``force`` in DPD force (on one plate).
+    """
+    t0 = time.perf_counter()
+    disp = validate_grid(displacements_dpd, "displacements_dpd")
+    _check_common(rupture_strain, fire)
+    if not isinstance(contact, PlateContact):
+        raise ValueError(f"contact must be a PlateContact, got {type(contact).__name__}")
+    b = _Batch(params, mesh, gas, device, dtype)
+    R, nv = b.R, b.nv
+    zc = float(mesh.vertices[:, 2].mean())
+    h0 = float(np.max(np.abs(mesh.vertices[:, 2] - zc)))
+    if np.any(disp / 2 >= h0 + contact.gap):
+        raise ValueError(f"displacements_dpd must stay below 2 (h0 + gap) = {2 * (h0 + contact.gap):.3f}")
+    plate = zc + h0 + contact.gap - disp / 2.0  # top plate z; bottom = 2 zc - plate
+
+    def plate_forces(x, j):
+        z = x[:, 2]
+        ft, et = plate_force_energy(plate[j] - z, contact)
+        fb, eb = plate_force_energy(z - (2 * zc - plate[j]), contact)
+        return ft, fb
+
+    def make(j, alive):
+        def ef(x):
+            f = b.shell_gas_forces(x)
+            ft, fb = plate_forces(x, j)
+            f[:, 2] += fb - ft
+            return None, _mean_free(f, R, nv, slice(0, 2))
+
+        return ef
+
+    def measure(x, j):
+        ft, fb = plate_forces(x, j)
+        z = x[:, 2]
+        return {"top": ft.reshape(R, nv).sum(axis=1), "bottom": fb.reshape(R, nv).sum(axis=1),
+                "contacts": (plate[j] - z < contact.cutoff).reshape(R, nv).sum(axis=1).astype(float)}
+
+    out = _run_chain(b, len(disp), make, np.ones((R * nv, 3), dtype=bool), fire, rupture_strain, measure)
+    nan = np.full((R, len(disp)), np.nan)
+    settings = {"gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
+                "contact": {**contact.__dict__, "cutoff": contact.cutoff},
+                "plates": "z = z_c +- (h0 + gap - d/2)", "h0": h0, "com": "mean x, y force removed",
+                "observable": "force on the top plate (one plate), positive compressive",
+                "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv}
+    return CompressionResult(displacements=disp, force=out["obs"].get("top", nan),
+                             force_bottom=out["obs"].get("bottom", nan),
+                             n_contacts=out["obs"].get("contacts", nan), plate_z=plate, volume=out["volume"],
+                             max_area_strain=out["max_area_strain"], fmax=out["fmax"],
+                             fire_steps=out["fire_steps"], status=out["status"],
+                             point_status=out["point_status"], x_final=out["x"], settings=settings,
+                             seconds=time.perf_counter() - t0)

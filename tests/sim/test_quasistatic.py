@@ -1,0 +1,181 @@
+"""Athermal quasi-static tier: bubblecal.sim.experiments (loading grids, indentation, compression).
+
+CPU, float64, subdivision-2 icospheres (162 vertices), R = 6 DPD lengths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("warp")
+
+from bubblecal.sim.experiments.loading import (  # noqa: E402
+    CompressionProtocol,
+    IndentationProtocol,
+    published_compression_protocol,
+    published_indentation_protocol,
+)
+from bubblecal.sim.experiments.quasistatic import (  # noqa: E402
+    FireSettings,
+    PlateContact,
+    plate_force_energy,
+    quasistatic_compression,
+    quasistatic_indentation,
+)
+from bubblecal.sim.kernels.shell_params import ShellParams  # noqa: E402
+from bubblecal.sim.mesh import icosphere  # noqa: E402
+
+KA, KB = 16751.0, 500.0  # the Reissner check's parameter set (physics.md 6.5)
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return icosphere(6.0, 2)
+
+
+def _p(ka=KA, kb=KB):
+    return ShellParams(ka=ka, kb=kb, self_avoid=False)
+
+
+@pytest.fixture(scope="module")
+def indentation(mesh):
+    return quasistatic_indentation([_p(), _p(ka=KA / 4)], mesh, [0.0, 10.0, 20.0, 40.0])
+
+
+@pytest.fixture(scope="module")
+def compression(mesh):
+    return quasistatic_compression([_p(), _p(ka=KA / 4)], mesh, [0.0, 0.12, 0.24, 0.36])
+
+
+# ----- loading grids --------------------------------------------------------------------------
+def test_published_grids():
+    c = published_compression_protocol()
+    assert c.n_points == 15 and c.displacements_dpd[0] == 0.0
+    assert np.allclose(np.diff(c.as_array()), 0.12) and np.isclose(c.displacements_dpd[-1], 1.68)
+    for d, fmax in ((3.2, 6000.0), (3.4, 6000.0), (5.8, 8000.0)):
+        p = published_indentation_protocol(d)
+        assert p.n_points == 15 and p.forces_dpd[0] == 0.0 and p.forces_dpd[-1] == fmax
+        assert np.allclose(np.diff(p.as_array()), fmax / 14)
+    with pytest.raises(ValueError, match="diameter_um"):
+        published_indentation_protocol(2.0)
+
+
+@pytest.mark.parametrize("bad", [[0.0, 1.0, 1.0], [0.0, 2.0, 1.0], [-1.0, 0.0, 1.0], [0.0, np.nan], []])
+def test_bad_grids_name_the_field(bad, mesh):
+    with pytest.raises(ValueError, match="forces_dpd"):
+        IndentationProtocol(tuple(bad))
+    with pytest.raises(ValueError, match="displacements_dpd"):
+        CompressionProtocol(tuple(bad))
+    with pytest.raises(ValueError, match="forces_dpd"):
+        quasistatic_indentation([_p()], mesh, bad)
+    with pytest.raises(ValueError, match="displacements_dpd"):
+        quasistatic_compression([_p()], mesh, bad)
+
+
+def test_bad_other_inputs(mesh):
+    with pytest.raises(ValueError, match="rupture_strain"):
+        quasistatic_indentation([_p()], mesh, [0.0], rupture_strain=-1.0)
+    with pytest.raises(ValueError, match="params"):
+        quasistatic_indentation([], mesh, [0.0])
+    with pytest.raises(ValueError, match="displacements_dpd"):
+        quasistatic_compression([_p()], mesh, [0.0, 20.0])  # plates would cross
+    with pytest.raises(ValueError, match="force_cap"):
+        PlateContact(force_cap=0.0)
+
+
+# ----- plate potential ----------------------------------------------------------------------
+def test_plate_potential_capped_and_consistent():
+    c = PlateContact()
+    h = np.linspace(-0.5, 1.2, 2001)
+    f, e = plate_force_energy(h, c)
+    assert np.all(f >= 0) and np.all(f <= c.force_cap + 1e-9)
+    assert np.all(f[h >= c.cutoff] == 0) and np.all(e[h >= c.cutoff] == 0)
+    assert f[0] == c.force_cap
+    # force = -dE/dh (finite differences, away from the kink at the cap)
+    hh = np.array([0.93, 0.96, 0.99, 0.5, 0.0])
+    d = 1e-6
+    fd = -(plate_force_energy(hh + d, c)[1] - plate_force_energy(hh - d, c)[1]) / (2 * d)
+    assert np.allclose(fd, plate_force_energy(hh, c)[0], rtol=1e-5, atol=1e-6)
+
+
+# ----- indentation ----------------------------------------------------------------------------
+def test_indentation_zero_load_and_status(indentation):
+    r = indentation
+    assert r.status == ["ok", "ok"]
+    assert all(s == "ok" for row in r.point_status for s in row)
+    assert np.all(r.displacement[:, 0] == 0.0) and np.all(r.fire_steps[:, 0] == 0)
+    assert r.settings["k_loaded_per_pole"] == 1  # floor(0.01 * 162)
+    assert r.settings["n_equator_anchored"] == 16
+    assert np.all(r.fmax <= FireSettings().ftol)
+
+
+def test_indentation_linear_regime_and_reissner_range(indentation):
+    d = indentation.displacement
+    assert np.all(np.diff(d, axis=1) > 0)  # monotone
+    assert np.allclose(d[:, 2] / d[:, 1], 2.0, rtol=0.03)  # linear for small loads
+    # stiffness per pole F / (d/2): the Reissner check's s3 value is 2,783 (s4 3,044); s2 sits a bit lower
+    k = 20.0 / (d[0, 2] / 2)
+    assert 2200.0 < k < 3400.0, k
+
+
+def test_indentation_stiffer_replica_indents_less(indentation):
+    d = indentation.displacement
+    assert np.all(d[0, 1:] < d[1, 1:])
+
+
+def test_indentation_batched_equals_single_and_reproducible(mesh, indentation):
+    single = quasistatic_indentation([_p(ka=KA / 4)], mesh, [0.0, 10.0, 20.0, 40.0])
+    assert np.allclose(single.displacement[0], indentation.displacement[1], rtol=1e-3, atol=1e-5)
+    again = quasistatic_indentation([_p(ka=KA / 4)], mesh, [0.0, 10.0, 20.0, 40.0])
+    assert np.array_equal(again.displacement, single.displacement)
+
+
+def test_indentation_rupture_and_not_converged_status(mesh):
+    r = quasistatic_indentation([_p(), _p()], mesh, [0.0, 50.0, 100.0], rupture_strain=1e-4)
+    assert r.status == ["ruptured", "ruptured"]
+    assert r.point_status[0] == ["ok", "ruptured", "ruptured"]
+    assert np.all(np.isnan(r.displacement[:, 1:])) and np.all(np.isfinite(r.x_final))
+    r = quasistatic_indentation([_p()], mesh, [0.0, 50.0], fire=FireSettings(max_steps=3))
+    assert r.status == ["not_converged"] and r.point_status[0] == ["ok", "not_converged"]
+    assert np.isfinite(r.displacement[0, 1])
+
+
+# ----- compression ----------------------------------------------------------------------------
+def test_compression_zero_and_balance(compression):
+    c = compression
+    assert c.status == ["ok", "ok"]
+    assert np.all(c.force[:, 0] == 0.0) and np.all(c.force_bottom[:, 0] == 0.0)
+    # one plate's reaction balances the other's (shell and gas forces sum to zero)
+    scale = c.force[:, 1:]
+    assert np.allclose(c.force_bottom[:, 1:], scale, rtol=1e-3, atol=0.05 * 162)
+    assert np.all(np.diff(c.force, axis=1) > 0)
+    assert np.all(c.force[0, 1:] > c.force[1, 1:])  # stiffer replica pushes back harder
+    # plates move d/2 each
+    assert np.allclose(c.plate_z[0] - c.plate_z, np.array([0.0, 0.12, 0.24, 0.36]) / 2)
+
+
+def test_compression_small_load_matches_indentation_stiffness(compression, indentation):
+    # one contact vertex per pole at small d: the plate acts like a point load, so F / (d/2) should
+    # be close to the point-load stiffness (the plate's LJ layer takes a little of d)
+    k_plate = compression.force[0, 1] / 0.06
+    k_point = 20.0 / (indentation.displacement[0, 2] / 2)
+    assert 0.6 * k_point < k_plate < 1.05 * k_point, (k_plate, k_point)
+
+
+@pytest.mark.slow
+def test_indentation_close_to_published_training_row(shared_reference):
+    # first row of the 3.2 um SonoVue training table (explicit-solvent Mirheo, s4 mesh) vs this tier at s3:
+    # measured 0.87 (this tier is ~13 % stiffer at F_max); accept 0.75-1.05
+    import csv
+
+    with open(shared_reference / "training_head_indentation_3.2um.csv") as fh:
+        row = next(iter(csv.DictReader(fh)))
+    p = ShellParams(ka=float(row["ka_dpd"]), kb=float(row["kb_dpd"]), b1=float(row["b1"]), b2=float(row["b2"]),
+                    a3=float(row["a3"]), a4=float(row["a4"]), self_avoid=False)
+    diam = np.array([float(row[f"axial_diameter_dpd_{j:02d}"]) for j in range(1, 16)])
+    r = quasistatic_indentation([p], icosphere(float(row["radius_dpd"]), 3),
+                                published_indentation_protocol(3.2).as_array())
+    assert r.status == ["ok"]
+    ratio = r.displacement[0, -1] / (diam[0] - diam[-1])
+    assert 0.75 < ratio < 1.05, ratio
