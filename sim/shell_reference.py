@@ -39,12 +39,25 @@ __all__ = [
     "self_avoid_forces",
     "shell_energies",
     "shell_forces",
+    "finite_difference_forces",
 ]
 
 ENERGY_TERMS = ("in_plane", "bending", "area", "volume", "back_pressure", "self_avoid")
 
 #: Lower clamp of the current triangle area in the Lim energy (physics.md section 3).
 AREA_CLAMP = 1e-6
+
+
+def finite_difference_forces(energy, x: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Forces -dE/dx [DPD force] by central differences of ``energy(x) -> float`` over positions x [Nv, 3]."""
+    g = np.zeros_like(x)
+    for i in range(x.shape[0]):
+        for k in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, k] += h
+            xm[i, k] -= h
+            g[i, k] = (energy(xp) - energy(xm)) / (2 * h)
+    return -g
 
 
 def _scatter(n_vertices: int, idx: np.ndarray, vals: np.ndarray) -> np.ndarray:

@@ -20,15 +20,6 @@ def perturbed():
     return m, m.vertices + 0.08 * rng.standard_normal(m.vertices.shape)
 
 
-def fd_forces(energy, x, h=1e-6):
-    g = np.zeros_like(x)
-    for i in range(x.shape[0]):
-        for k in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, k] += h
-            xm[i, k] -= h
-            g[i, k] = (energy(xp) - energy(xm)) / (2 * h)
-    return -g
 
 
 TERMS = {
@@ -45,7 +36,7 @@ def test_forces_are_minus_gradient(perturbed, term):
     m, x = perturbed
     energy, forces = TERMS[term]
     f = forces(x, m, P)
-    g = fd_forces(lambda y: energy(y, m, P), x)
+    g = sr.finite_difference_forces(lambda y: energy(y, m, P), x)
     assert np.max(np.abs(g)) > 1e-3  # the term is exercised
     assert np.max(np.abs(f - g)) / np.max(np.abs(g)) < 1e-6
     np.testing.assert_allclose(f.sum(axis=0), 0.0, atol=1e-10 * np.abs(f).max())
