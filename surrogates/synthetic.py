@@ -47,17 +47,23 @@ def _reissner(ka, kb, radius):
     return 8.0 * np.sqrt(np.abs(ka * kb) / math.sqrt(3.0)) / radius
 
 
+def _columns(params, coord, radius_dpd: float):
+    """Split params (..., 6) into ka..a4 plus the Reissner stiffness, broadcast against the loading coordinate."""
+    p = np.asarray(params, dtype=float)
+    coord = np.asarray(coord, dtype=float)
+    cols = [p[..., j] for j in range(6)]
+    cols.append(_reissner(cols[0], cols[1], radius_dpd))
+    if coord.ndim > 0 and p.ndim > 1:
+        cols = [v[..., None] for v in cols]
+    return cols, coord
+
+
 def compression_force(params, d, radius_dpd: float):
     """Closed-form compression force F(d) [DPD force].
 
     ``params`` (6,) with ``d`` (m,) gives (m,); ``params`` (n, 6) with ``d`` (m,) gives (n, m).
     """
-    p = np.asarray(params, dtype=float)
-    ka, kb, b1, b2, a3, a4 = (p[..., j] for j in range(6))
-    d = np.asarray(d, dtype=float)
-    kr = _reissner(ka, kb, radius_dpd)
-    if d.ndim > 0 and p.ndim > 1:
-        ka, kb, b1, b2, a3, a4, kr = (v[..., None] for v in (ka, kb, b1, b2, a3, a4, kr))
+    (ka, kb, b1, b2, a3, a4, kr), d = _columns(params, d, radius_dpd)
     e = d / (2.0 * radius_dpd)
     return (kr * d * (1.0 + 0.5 * b1 * e + b2 * e**2) + math.pi * ka * radius_dpd * e**2 * (1.0 + a3 * e + a4 * e**2)
             + 0.01 * kr * radius_dpd)
@@ -65,12 +71,7 @@ def compression_force(params, d, radius_dpd: float):
 
 def indentation_displacement(params, force, radius_dpd: float):
     """Closed-form indentation depth delta(F) [DPD length]."""
-    p = np.asarray(params, dtype=float)
-    ka, kb, b1, b2, a3, a4 = (p[..., j] for j in range(6))
-    f = np.asarray(force, dtype=float)
-    kr = _reissner(ka, kb, radius_dpd)
-    if f.ndim > 0 and p.ndim > 1:
-        ka, kb, b1, b2, a3, a4, kr = (v[..., None] for v in (ka, kb, b1, b2, a3, a4, kr))
+    (ka, kb, b1, b2, a3, a4, kr), f = _columns(params, force, radius_dpd)
     q = f / (ka * radius_dpd)
     return (f / kr) * (1.0 + 0.25 * b1 * q + b2 * q**2) / (1.0 + (2.0 + 0.5 * a3 + 0.25 * a4) * q)
 
