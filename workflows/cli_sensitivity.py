@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import typer
@@ -42,8 +43,10 @@ def sensitivity(
     if spec.setup != kind:
         raise fail(f"priors {spec.name} are for {spec.setup}, the curve {name} is {kind}")
     try:
-        run = surrogate_sensitivity(model, spec, (float(data.x.min()), float(data.x.max())), N=n,
-                                    num_points=points, seed=seed)
+        with warnings.catch_warnings(record=True) as caught:  # shown once, on the console, below the table
+            warnings.simplefilter("always")
+            run = surrogate_sensitivity(model, spec, (float(data.x.min()), float(data.x.max())), N=n,
+                                        num_points=points, seed=seed)
     except ValueError as exc:
         raise fail(str(exc)) from None
     r = run.result
@@ -59,6 +62,8 @@ def sensitivity(
     if run.outside_training_fraction > 0:
         console.print(f"[yellow]warning:[/] {100 * run.outside_training_fraction:.1f} % of the prior box lies "
                       "outside the surrogate's training box (indices there are extrapolations)")
+    for w in caught:
+        console.print(str(w.message), markup=False, highlight=False)
     files = write_sensitivity(run, out, name)
     console.print(f"wrote {files['json']} and {files['plot']}")
 

@@ -37,7 +37,8 @@ def test_sensitivity_cli_writes_report(tiny_compression_surrogate, tmp_path):
 
 def test_indices_are_consistent(tiny_compression_surrogate):
     s = load(tiny_compression_surrogate)
-    run = surrogate_sensitivity(s, load_priors("definity_full"), (0.2, 1.6), N=256, num_points=10)
+    with pytest.warns(UserWarning, match="outside the training box"):
+        run = surrogate_sensitivity(s, load_priors("definity_full"), (0.2, 1.6), N=256, num_points=10)
     r = run.result
     assert r.names == ("ka", "kb", "b1", "b2", "a3", "a4")
     # S1 <= ST up to the bootstrap error, and both sum sensibly
