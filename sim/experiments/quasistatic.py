@@ -303,6 +303,29 @@ def _run_chain(batch: _Batch, n_points: int, make_energy_forces: Callable[[int, 
             "max_area_strain": strain, "volume": volume, "obs": obs, "x": x}
 
 
+def _refine_grid(grid: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Insert sub-steps so no load step exceeds ``max_step``; returns (refined grid, indices of ``grid``)."""
+    pts, keep, prev = [], [], 0.0
+    for g in grid:
+        n = max(1, int(math.ceil((g - prev) / max_step - 1e-9)))
+        pts.extend(prev + (g - prev) * (i + 1) / n for i in range(n))
+        keep.append(len(pts) - 1)
+        prev = g
+    return np.asarray(pts), np.asarray(keep)
+
+
+def _select_points(out: dict, keep: np.ndarray) -> dict:
+    """Restrict the per-point arrays of :func:`_run_chain` to the reported points (failures are kept)."""
+    sel = dict(out)
+    for k in ("fire_steps", "fmax", "max_area_strain", "volume"):
+        sel[k] = out[k][:, keep]
+    sel["fire_steps"] = np.add.reduceat(out["fire_steps"], np.r_[0, keep[:-1] + 1], axis=1) \
+        if len(keep) else out["fire_steps"][:, :0]
+    sel["point_status"] = [[ps[j] for j in keep] for ps in out["point_status"]]
+    sel["obs"] = {k: v[:, keep] for k, v in out["obs"].items()}
+    return sel
+
+
 def _check_common(rupture_strain: float, fire: FireSettings) -> None:
     if not (math.isfinite(rupture_strain) and rupture_strain > 0):
         raise ValueError(f"rupture_strain must be a positive finite number, got {rupture_strain!r}")
@@ -452,7 +475,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                             displacements_dpd: Sequence[float] | np.ndarray, *,
                             gas: IdealGas | None = IdealGas(), contact: PlateContact = PlateContact(),
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
-                            rupture_strain: float = 1.0) -> CompressionResult:
+                            rupture_strain: float = 1.0, max_plate_step: float = 0.03) -> CompressionResult:
     """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
 
     Args:
@@ -462,12 +485,18 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
             strictly increasing); each plate moves d/2.
         gas: enclosed ideal gas or None.  contact: plate-vertex :class:`PlateContact`.
         device, dtype, fire, rupture_strain: as in :func:`quasistatic_indentation`.
+        max_plate_step: largest plate move between two minimisations (DPD length); longer load steps
+            are split into relaxed sub-steps (a 0.12 jump into the stiff WCA wall makes FIRE diverge).
 
-    Returns: :class:`CompressionResult`; ``force`` in DPD force (on one plate).
+    Returns: :class:`CompressionResult`; ``force`` in DPD force (on one plate), at the requested
+    displacements only (sub-steps are not reported).
     """
     t0 = time.perf_counter()
-    disp = validate_grid(displacements_dpd, "displacements_dpd")
+    requested = validate_grid(displacements_dpd, "displacements_dpd")
     _check_common(rupture_strain, fire)
+    if not (math.isfinite(max_plate_step) and max_plate_step > 0):
+        raise ValueError(f"max_plate_step must be a positive finite DPD length, got {max_plate_step!r}")
+    disp, keep = _refine_grid(requested, 2.0 * max_plate_step)
     if not isinstance(contact, PlateContact):
         raise ValueError(f"contact must be a PlateContact, got {type(contact).__name__}")
     b = _Batch(params, mesh, gas, device, dtype)
@@ -499,16 +528,17 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         return {"top": ft.reshape(R, nv).sum(axis=1), "bottom": fb.reshape(R, nv).sum(axis=1),
                 "contacts": (plate[j] - z < contact.cutoff).reshape(R, nv).sum(axis=1).astype(float)}
 
-    out = _run_chain(b, len(disp), make, np.ones((R * nv, 3), dtype=bool), fire, rupture_strain, measure)
-    nan = np.full((R, len(disp)), np.nan)
+    out = _select_points(_run_chain(b, len(disp), make, np.ones((R * nv, 3), dtype=bool), fire, rupture_strain,
+                                    measure), keep)
+    nan = np.full((R, len(keep)), np.nan)
     settings = {"gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
                 "contact": {**contact.__dict__, "cutoff": contact.cutoff},
                 "plates": "z = z_c +- (h0 + gap - d/2)", "h0": h0, "com": "mean x, y force removed",
                 "observable": "force on the top plate (one plate), positive compressive",
                 "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv}
-    return CompressionResult(displacements=disp, force=out["obs"].get("top", nan),
+    return CompressionResult(displacements=requested, force=out["obs"].get("top", nan),
                              force_bottom=out["obs"].get("bottom", nan),
-                             n_contacts=out["obs"].get("contacts", nan), plate_z=plate, volume=out["volume"],
+                             n_contacts=out["obs"].get("contacts", nan), plate_z=plate[keep], volume=out["volume"],
                              max_area_strain=out["max_area_strain"], fmax=out["fmax"],
                              fire_steps=out["fire_steps"], status=out["status"],
                              point_status=out["point_status"], x_final=out["x"], settings=settings,
