@@ -168,15 +168,20 @@ class FilterReport:
     counts: dict[str, int]
     dropped: dict[str, list[str]]
     settings: dict
+    #: curves dropped for reason 'status', split by their store status (e.g. ruptured, invalid, failed)
+    status_counts: dict[str, int] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"source": self.source, "n_in": self.n_in, "n_kept": self.n_kept, "counts": dict(self.counts),
-                "settings": dict(self.settings)}
+                "status_counts": dict(self.status_counts), "settings": dict(self.settings)}
 
     def __str__(self) -> str:
         lines = [f"{self.source}: {self.n_in} curves read, {self.n_kept} kept"]
         for reason, count in self.counts.items():
             lines.append(f"  {reason:<24s} {count:6d}")
+            if reason == "status":
+                for status, n in self.status_counts.items():
+                    lines.append(f"    {status:<22s} {n:6d}")
         return "\n".join(lines)
 
 
@@ -298,13 +303,13 @@ def write_published(ts: TrainingSet, path: str | Path, units=DEFAULT_UNITS) -> P
 # campaign store
 # ----------------------------------------------------------------------------------------------
 def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSet:
-    """Read every record of a campaign store (:mod:`bubblecal.surrogates.store`) as a TrainingSet.
+    """Read every record of a campaign store (:mod:`bubblecal.data.store`) as a TrainingSet.
 
     All statuses are returned (``status`` column); :func:`filter_curves` keeps ``'ok'`` only.
     Records of one setup only (``setup`` selects when the store holds several). Curves must all
     have the same number of points (the published protocol); otherwise DatasetError.
     """
-    from bubblecal.surrogates.store import CampaignStore
+    from bubblecal.data.store import CampaignStore
 
     store = CampaignStore(path)
     records = store.read()
@@ -360,7 +365,8 @@ def filter_curves(ts: TrainingSet, zero_frac: float = 0.01, max_rel_drop: float 
                   statuses: Sequence[str] = ("ok",)) -> tuple[TrainingSet, FilterReport]:
     """Drop unusable curves; returns (kept set, report with counts per reason).
 
-    Reasons, checked in order: ``status`` (store status not in ``statuses``), ``non_finite`` (any
+    Reasons, checked in order: ``status`` (store status not in ``statuses``; the report's
+    ``status_counts`` splits it by status: ruptured, invalid = non-finite curve, failed, ...), ``non_finite`` (any
     non-finite parameter, radius, x or y), ``rupture_trailing_zero`` (last raw response <=
     ``zero_frac`` x the curve's largest |raw response|), ``rupture_drop`` (the response falls
     below its running maximum by more than ``max_rel_drop`` x the curve's largest |response|).
@@ -389,7 +395,9 @@ def filter_curves(ts: TrainingSet, zero_frac: float = 0.01, max_rel_drop: float 
     reasons = ("status", "non_finite", "rupture_trailing_zero", "rupture_drop")
     counts = {r: int(np.sum(reason == r)) for r in reasons}
     dropped_ids = {r: ts.curve_id[reason == r].tolist() for r in reasons}
+    status_values, status_n = np.unique(ts.status[bad_status], return_counts=True)
     report = FilterReport(source=ts.source, n_in=n, n_kept=int(keep.sum()), counts=counts, dropped=dropped_ids,
                           settings={"zero_frac": zero_frac, "max_rel_drop": max_rel_drop,
-                                    "statuses": list(statuses)})
+                                    "statuses": list(statuses)},
+                          status_counts={str(k): int(v) for k, v in zip(status_values, status_n, strict=True)})
     return ts.subset(keep), report

@@ -140,7 +140,7 @@ def test_too_few_curves_for_sweep():
 
 
 def test_read_dataset_dispatches_to_store(tmp_path):
-    from bubblecal.surrogates.store import CampaignStore, make_record
+    from bubblecal.data.store import CampaignStore, make_record
 
     store = CampaignStore.create(tmp_path / "camp", fsync=False)
     ts = make_synthetic(3, "compression", noise=0.0, seed=2)
@@ -153,4 +153,5 @@ def test_read_dataset_dispatches_to_store(tmp_path):
     assert back.n_curves == 3 and list(back.status) == ["failed", "ok", "ok"]
     kept, report = filter_curves(back)
     assert report.counts["status"] == 1 and kept.n_curves == 2
+    assert report.status_counts == {"failed": 1} and "failed" in str(report)
     np.testing.assert_array_equal(kept.y, ts.y[1:])

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from bubblecal.surrogates.store import CampaignStore, StoreError, make_record
+from bubblecal.data.store import CampaignStore, StoreError, make_record
 
 P = {"ka": 15000.0, "kb": 900.0, "b1": 1.0, "b2": 0.5, "a3": -0.3, "a4": 1.7}
 
@@ -87,3 +87,22 @@ def test_schema_errors_name_field(tmp_path):
     (tmp_path / "notastore").mkdir()
     with pytest.raises(StoreError, match="not a campaign store"):
         CampaignStore(tmp_path / "notastore").append(r)
+
+
+def test_invalid_status_and_ringdown_setup_roundtrip(tmp_path):
+    """Extensions of format 1: 'invalid' (non-finite curve) and 'ringdown' records (x = t, y = R(t))."""
+    store = CampaignStore.create(tmp_path / "s", fsync=False)
+    bad = make_record(sample_id="c-0", setup="compression", params=P, radius_dpd=4.2, x=[0.0, 0.12],
+                      y=[0.0, math.nan], status="invalid", seed=1, tier="quasistatic", message="non-finite")
+    ring = make_record(sample_id="r-0", setup="ringdown", params=P, radius_dpd=9.36, x=[0.0, 0.1, 0.2],
+                       y=[9.36, 9.40, 9.33], status="ok", seed=2, tier="implicit")
+    store.append_many([bad, ring, rec(5)])
+    back = {r["sample_id"]: r for r in CampaignStore(tmp_path / "s").read()}
+    assert back["c-0"]["status"] == "invalid" and math.isnan(back["c-0"]["y"][1])
+    assert back["r-0"]["setup"] == "ringdown" and back["r-0"]["y"] == [9.36, 9.40, 9.33]
+    assert store.counts()["invalid"] == 1
+    assert store.finished_ids() == {"r-0", "lhs-0005"}  # default: ok + ruptured
+    assert store.finished_ids(statuses=("ok", "invalid")) == {"c-0", "r-0", "lhs-0005"}
+    with pytest.raises(StoreError, match="field 'setup'"):
+        make_record(sample_id="x", setup="shear", params=P, radius_dpd=1.0, x=[0.0], y=[0.0], status="ok", seed=0,
+                    tier="explicit")

@@ -1,7 +1,9 @@
 """Campaign store: the append-only record of finished simulation samples (writer + reader).
 
-Issue 6 (simulation campaigns) writes it; :mod:`bubblecal.surrogates.dataset` reads it for
-training. Format version 1:
+Issue 6 (simulation campaigns, :mod:`bubblecal.sim.campaign`) writes it; :mod:`bubblecal.surrogates.dataset`
+reads it for training.  It lives in the data layer so that both ``sim`` and ``surrogates`` may import
+it.  Format version 1 (``'invalid'`` status and ``'ringdown'`` setup added backwards-compatibly: every
+older store still reads):
 
 Layout
 ------
@@ -18,14 +20,16 @@ Record (one JSON object per line; all keys required unless marked optional)
 ``v``              record schema version (1)
 ``sample_id``      str, the design point's id, unique within the campaign (resume key)
 ``curve_id``       str, globally unique id of this curve (e.g. ``"camp3/lhs-000123/r0"``)
-``setup``          ``"compression"`` | ``"indentation"``
+``setup``          ``"compression"`` | ``"indentation"`` | ``"ringdown"``
 ``params``         {"ka","kb","b1","b2","a3","a4": float} (DPD units, see data/units.py)
 ``radius_dpd``     float, bubble radius [DPD length] (diameter_um = radius_dpd * 0.5)
 ``x``              [float] loading coordinate: compression imposed total displacement [DPD
-                   length]; indentation applied force [DPD force]
+                   length]; indentation applied force [DPD force]; ringdown time t [DPD time]
 ``y``              [float] response: compression force [DPD force]; indentation displacement
-                   (reduction of the pole-to-pole distance) [DPD length]; same length as x
-``status``         ``"ok"`` | ``"ruptured"`` | ``"failed"`` | ``"unstable"`` | ``"timeout"``
+                   (reduction of the pole-to-pole distance) [DPD length]; ringdown volume radius
+                   R(t) = (3V/4 pi)^(1/3) [DPD length]; same length as x
+``status``         ``"ok"`` | ``"ruptured"`` | ``"failed"`` | ``"unstable"`` | ``"timeout"`` |
+                   ``"invalid"`` (the simulation reported ok but the curve holds non-finite numbers)
 ``seed``           int, the random seed of the run
 ``tier``           str, fidelity tier (``"explicit"``, ``"implicit"``, ``"quasistatic"``, ...)
 ``code_version``   str, bubblecal version (and git commit when known)
@@ -61,15 +65,16 @@ import zlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-__all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "STATUSES", "StoreError",
-           "CampaignStore", "make_record"]
+__all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "STATUSES", "SETUPS", "PARAM_NAMES",
+           "StoreError", "CampaignStore", "make_record", "validate_record"]
 
 STORE_FORMAT = "bubblecal-campaign-store"
 STORE_FORMAT_VERSION = 1
 RECORD_VERSION = 1
-STATUSES = ("ok", "ruptured", "failed", "unstable", "timeout")
+#: Record statuses: the tiers' vocabulary (bubblecal.sim.tiers.STATUSES) plus 'invalid' (non-finite curve).
+STATUSES = ("ok", "ruptured", "failed", "unstable", "timeout", "invalid")
 PARAM_NAMES = ("ka", "kb", "b1", "b2", "a3", "a4")
-SETUPS = ("compression", "indentation")
+SETUPS = ("compression", "indentation", "ringdown")
 REQUIRED = ("v", "sample_id", "curve_id", "setup", "params", "radius_dpd", "x", "y", "status", "seed",
             "tier", "code_version", "provenance", "written_utc")
 

@@ -1,0 +1,290 @@
+"""Campaigns: designs, task chunking, resumable execution (interrupted runs, a killed Dask worker), real tiny run."""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from collections import Counter
+
+import cloudpickle
+import numpy as np
+import pytest
+
+from bubblecal.data.store import CampaignStore
+from bubblecal.sim.campaign import (
+    CampaignConfig,
+    CampaignConfigError,
+    CampaignError,
+    TaskResult,
+    design_points,
+    grid_design,
+    lhs_design,
+    make_tasks,
+    pending_indices,
+    run_campaign,
+    sample_ids,
+    sample_seed,
+    store_status,
+    synthetic_simulate,
+)
+
+# test-local simulate functions travel to the Dask workers by value (the test module is not importable there)
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+BOX = {"ka": (5580.0, 27900.0), "kb": (100.0, 1000.0), "b1": (0.0, 3.0), "b2": (0.0, 10.0), "a3": (-2.5, 3.0),
+       "a4": (0.0, 4.0)}
+FAST = functools.partial(synthetic_simulate)
+
+
+def cfg(tmp_path, **kw) -> CampaignConfig:
+    base = dict(name="t", protocol="compression", diameter_um=2.1, ranges=BOX, n_samples=20, seed=7,
+                replicas_per_task=3, store=str(tmp_path / "t.store"))
+    base.update(kw)
+    return CampaignConfig(**base)
+
+
+def lines_per_sample(store_path) -> Counter:
+    """sample_id -> number of lines in records.jsonl (every line must parse)."""
+    counts: Counter = Counter()
+    for line in (store_path / "records.jsonl").read_text().splitlines():
+        counts[json.loads(line)["sample_id"]] += 1
+    return counts
+
+
+# ------------------------------------------------------------------------------------------------
+# configuration and design
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("change, field, text", [
+    ({"protocol": "shear"}, "protocol", "compression, indentation, ringdown"),
+    ({"n_samples": 0}, "n_samples", ">= 1"),
+    ({"design": "sobol"}, "design", "lhs, grid"),
+    ({"diameter_um": 40.0}, "diameter_um", "[0.5, 20]"),
+    ({"diameter_um": (2.1, 2.9)}, "diameter_um", "only with design = 'grid'"),
+    ({"ranges": {**BOX, "ka": (10.0, 5.0)}}, "ranges.ka", "lo <= hi"),
+    ({"ranges": {**BOX, "ka": (0.0, 5.0)}}, "ranges.ka", "> 0"),
+    ({"ranges": {k: v for k, v in BOX.items() if k != "a4"}}, "ranges.a4", "missing"),
+    ({"ranges": {**BOX, "mu": (1.0, 2.0)}}, "ranges.mu", "allowed: ka, kb"),
+    ({"tier": "fast"}, "tier", "explicit, implicit, quasistatic"),
+    ({"device": "gpu"}, "device", "'cpu', 'cuda' or 'cuda:N'"),
+    ({"replicas_per_task": 0}, "replicas_per_task", ">= 1"),
+    ({"loading_grid": (0.0, 0.5, 0.4)}, "loading_grid", "strictly increasing"),
+    ({"protocol": "indentation", "diameter_um": 4.0}, "loading_grid", "give loading_grid explicitly"),
+    ({"design": "grid"}, "ranges.kb", "fix every other parameter"),
+    ({"retry_statuses": ("ok",)}, "retry_statuses", "choose from"),
+])
+def test_config_errors_name_the_field(tmp_path, change, field, text):
+    with pytest.raises(CampaignConfigError) as info:
+        cfg(tmp_path, **change)
+    assert info.value.field == field
+    assert text in str(info.value)
+
+
+def test_lhs_design_is_deterministic_stratified_and_in_range(tmp_path):
+    box = {**BOX, "kb": (500.0, 500.0)}  # kb fixed
+    c = cfg(tmp_path, ranges=box, n_samples=50)
+    d1, d2 = lhs_design(c), lhs_design(cfg(tmp_path, ranges=box, n_samples=50))
+    for k in BOX:
+        np.testing.assert_array_equal(d1[k], d2[k])  # a restart regenerates the same design
+    assert np.all(d1["kb"] == 500.0)
+    for k in ("ka", "b1", "b2", "a3", "a4"):
+        lo, hi = box[k]
+        u = (d1[k] - lo) / (hi - lo)
+        assert np.all((u >= 0) & (u <= 1))
+        assert sorted(np.floor(u * 50).astype(int).tolist()) == list(range(50))  # one point per stratum
+    assert not np.array_equal(lhs_design(cfg(tmp_path, ranges=box, n_samples=50, seed=8))["ka"], d1["ka"])
+    ids = sample_ids(c)
+    assert ids[0] == "t-000000" and ids[-1] == "t-000049"
+    seeds = design_points(c)["seed"]
+    assert len(set(seeds.tolist())) == 50 and seeds[3] == sample_seed(7, 3) and 0 <= seeds.min()
+
+
+def test_grid_design_over_diameters_and_tasks(tmp_path):
+    fixed = {**{k: (v[0], v[0]) for k, v in BOX.items()}, "ka": (1000.0, 28000.0), "kb": (389.23, 389.23)}
+    c = cfg(tmp_path, protocol="ringdown", design="grid", diameter_um=(4.68, 5.18), ranges=fixed, n_samples=28,
+            replicas_per_task=10)
+    d = grid_design(c)
+    assert c.n_design == 56 and c.n_tasks == 6
+    np.testing.assert_allclose(d["ka"][:28], np.linspace(1000.0, 28000.0, 28))
+    assert np.all(d["kb"] == 389.23) and d["diameter_um"][27] == 4.68 and d["diameter_um"][28] == 5.18
+    tasks = make_tasks(c, range(56))
+    assert [t.n_replicas for t in tasks] == [10, 10, 8, 10, 10, 8]
+    assert all(len({d["diameter_um"][i] for i in t.indices}) == 1 for t in tasks)  # never mixed
+    assert tasks[0].grid is None and tasks[3].diameter_um == 5.18
+    explicit = cfg(tmp_path, protocol="ringdown", design="grid", diameter_um=4.68, ranges=fixed, n_samples=None,
+                   ka_values=(2000.0, 3000.0, 5000.0))
+    assert explicit.n_samples == 3 and grid_design(explicit)["ka"].tolist() == [2000.0, 3000.0, 5000.0]
+
+
+# ------------------------------------------------------------------------------------------------
+# interruption safety (in-process scheduler: the same client-side bookkeeping as with Dask)
+# ------------------------------------------------------------------------------------------------
+def test_limit_then_restart_runs_every_sample_once(tmp_path):
+    c = cfg(tmp_path)
+    s1 = run_campaign(c, scheduler_address="inline", simulate=FAST, limit=7, progress=False)
+    assert s1.n_written == 7 and s1.n_tasks == 3 and s1.n_remaining == 13
+    assert len(pending_indices(c)) == 13
+    s2 = run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False)
+    assert s2.n_done_before == 7 and s2.n_written == 13 and s2.n_remaining == 0
+    assert lines_per_sample(c.store_path) == Counter({sid: 1 for sid in sample_ids(c)})
+    s3 = run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False)
+    assert s3.n_tasks == 0 and s3.store_counts["ok"] == 20
+
+
+def _raise_on_task_2(task):
+    if "t-000006" in task.sample_ids:
+        raise RuntimeError("simulated crash")
+    return synthetic_simulate(task)
+
+
+def test_exception_interrupts_then_restart_completes(tmp_path):
+    c = cfg(tmp_path)
+    with pytest.raises(CampaignError, match="simulated crash"):
+        run_campaign(c, scheduler_address="inline", simulate=_raise_on_task_2, on_error="raise", progress=False)
+    assert set(lines_per_sample(c.store_path)) == set(sample_ids(c)[:6])  # tasks 0, 1 written, nothing else
+    # 'record': the failing task's samples are stored as 'failed' and re-run by the next call
+    s = run_campaign(c, scheduler_address="inline", simulate=_raise_on_task_2, progress=False)
+    assert s.counts["failed"] == 3 and s.counts["ok"] == 11 and len(s.task_errors) == 1
+    assert store_status(c.store_path).n_pending == 3
+    s = run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False)
+    assert s.n_written == 3 and s.store_counts == {**dict.fromkeys(s.store_counts, 0), "ok": 20}
+    final = CampaignStore(c.store_path).read()
+    assert sorted(r["sample_id"] for r in final) == sample_ids(c)
+
+
+def _nan_and_ruptured(task):
+    res = synthetic_simulate(task)
+    res.y[0, -1] = np.nan  # reported ok, non-finite -> 'invalid'
+    res.status[-1] = "ruptured"
+    return res
+
+
+def test_invalid_and_ruptured_are_stored_not_rerun_and_filtered(tmp_path):
+    from bubblecal.surrogates.dataset import filter_curves, read_dataset
+
+    c = cfg(tmp_path, n_samples=9, replicas_per_task=3)
+    s = run_campaign(c, scheduler_address="inline", simulate=_nan_and_ruptured, progress=False)
+    assert s.counts["invalid"] == 3 and s.counts["ruptured"] == 3 and s.counts["ok"] == 3
+    assert pending_indices(c) == []  # final statuses: not re-run
+    ts = read_dataset(c.store_path)
+    kept, report = filter_curves(ts)
+    assert kept.n_curves == 3 and report.status_counts == {"invalid": 3, "ruptured": 3}
+    rec = CampaignStore(c.store_path).read()[0]
+    assert rec["message"].startswith("simulation reported ok") and rec["provenance"]["task"] == 0
+    assert rec["tier"] == "quasistatic" and rec["code_version"] and rec["seed"] == sample_seed(7, 0)
+
+
+def test_store_of_another_design_is_refused(tmp_path):
+    run_campaign(cfg(tmp_path, n_samples=3), scheduler_address="inline", simulate=FAST, progress=False)
+    with pytest.raises(CampaignError, match="differs in: n_samples"):
+        run_campaign(cfg(tmp_path, n_samples=4), scheduler_address="inline", simulate=FAST, progress=False)
+    # execution settings are not part of the design
+    run_campaign(cfg(tmp_path, n_samples=3, replicas_per_task=1), scheduler_address="inline", simulate=FAST,
+                 progress=False)
+
+
+def _ringdown_fake(task):
+    t = np.linspace(0.0, 5.0, 11)
+    r = np.sqrt(task.params["ka"])[:, None] * 0 + 9.36 + 0.1 * np.sin(t)[None, :]
+    return TaskResult(x=t, y=r, status=["ok"] * task.n_replicas)
+
+
+def test_ringdown_records_and_missing_module_message(tmp_path):
+    fixed = {**{k: (v[0], v[0]) for k, v in BOX.items()}, "ka": (1000.0, 28000.0)}
+    c = cfg(tmp_path, protocol="ringdown", design="grid", diameter_um=(4.68, 5.18), ranges=fixed, n_samples=3)
+    run_campaign(c, scheduler_address="inline", simulate=_ringdown_fake, progress=False)
+    recs = CampaignStore(c.store_path).read()
+    assert len(recs) == 6 and recs[0]["setup"] == "ringdown" and len(recs[0]["x"]) == 11
+    c2 = cfg(tmp_path, name="r2", protocol="ringdown", design="grid", ranges=fixed, n_samples=2, subdivisions=1,
+             tier="implicit", store=str(tmp_path / "r2.store"),
+             tier_settings={"equilibration_steps": 200, "record_steps": 400, "record_every": 10})
+    if importlib.util.find_spec("bubblecal.sim.experiments.ringdown") is None:
+        with pytest.raises(CampaignError, match="ringdown_batch"):
+            run_campaign(c2, scheduler_address="inline", on_error="raise", progress=False)
+    else:  # the real default task: a tiny implicit-solvent ringdown (~2 s)
+        s = run_campaign(c2, scheduler_address="inline", on_error="raise", progress=False)
+        recs = CampaignStore(c2.store_path).read()
+        assert s.counts["ok"] == 2 and len(recs[0]["x"]) == len(recs[0]["y"]) > 10
+        assert abs(recs[0]["y"][0] / recs[0]["radius_dpd"] - 1.0) < 0.05  # R(t) near the bubble radius
+
+
+# ------------------------------------------------------------------------------------------------
+# Dask
+# ------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def dask_client():
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=":0",
+                           silence_logs=logging.ERROR)
+    client = Client(cluster)
+    yield client
+    client.close()
+    cluster.close()
+
+
+def test_dask_exception_interrupt_and_restart(tmp_path, dask_client):
+    c = cfg(tmp_path, n_samples=18)
+    with pytest.raises(CampaignError, match="simulated crash"):
+        run_campaign(c, client=dask_client, simulate=_raise_on_task_2, on_error="raise", progress=False)
+    before = lines_per_sample(c.store_path)
+    assert "t-000006" not in before and all(v == 1 for v in before.values())
+    s = run_campaign(c, client=dask_client, simulate=FAST, progress=False)
+    assert s.n_workers == 2 and s.n_written == 18 - len(before) and s.compute_seconds > 0
+    assert lines_per_sample(c.store_path) == Counter({sid: 1 for sid in sample_ids(c)})
+
+
+def test_killed_worker_is_rescheduled_nothing_lost_or_duplicated(tmp_path):
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    c = cfg(tmp_path, n_samples=24, replicas_per_task=2)  # 12 tasks of 0.4 s on 2 workers
+    slow = functools.partial(synthetic_simulate, sleep_seconds=0.4)
+    killed: dict = {}
+    with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=":0",
+                      silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+        pids = sorted(client.run(os.getpid).values())
+        records = c.store_path / "records.jsonl"
+
+        def killer():
+            t_end = time.time() + 60
+            while time.time() < t_end:
+                n = len(records.read_text().splitlines()) if records.exists() else 0
+                if n >= 4:  # mid-run: both workers busy with later tasks
+                    killed["n_before"] = n
+                    os.kill(pids[0], signal.SIGKILL)
+                    return
+                time.sleep(0.02)
+
+        thread = threading.Thread(target=killer, daemon=True)
+        thread.start()
+        summary = run_campaign(c, client=client, simulate=slow, progress=False)
+        thread.join(5)
+        pids_after = sorted(client.run(os.getpid).values())
+    assert killed and killed["n_before"] < 24  # the worker died mid-campaign
+    assert pids[0] not in pids_after  # ... and its nanny started a new one
+    store = CampaignStore(c.store_path)
+    assert lines_per_sample(c.store_path) == Counter({sid: 1 for sid in sample_ids(c)})
+    assert store.read(warn=False) and not store.problems  # no torn or corrupt line
+    assert summary.n_written == 24 and summary.counts["ok"] == 24 and summary.task_errors == []
+
+
+def test_real_tiny_quasistatic_campaign_on_local_cluster(tmp_path):
+    """The default task (quasistatic tier) through the default LocalCluster: 2 samples, subdivision 1."""
+    c = cfg(tmp_path, n_samples=2, replicas_per_task=2, subdivisions=1, tier_settings={"max_steps": 4000},
+            loading_grid=(0.0, 0.12, 0.24))
+    s = run_campaign(c, n_workers=1, progress=False)
+    recs = CampaignStore(c.store_path).read()
+    assert s.n_written == 2 and s.scheduler.startswith("tcp://")
+    assert [r["status"] for r in recs] == ["ok", "ok"]
+    y = np.array([r["y"] for r in recs])
+    assert y.shape == (2, 3) and np.all(np.diff(y, axis=1) > 0)  # force grows with compression
+    assert recs[0]["provenance"]["info"]["mesh_subdivisions"] == 1 and recs[0]["x"] == [0.0, 0.12, 0.24]

@@ -1,0 +1,161 @@
+"""Campaign TOML files (shipped and user-written) and the `bubblecal sim campaign` / `campaign-status` commands."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from bubblecal.workflows.campaign import (
+    CampaignFileError,
+    available_campaigns,
+    load_campaign_config,
+    load_campaign_file,
+)
+from bubblecal.workflows.cli import app
+
+runner = CliRunner()
+
+GOOD = """
+[campaign]
+name = "tiny"
+protocol = "compression"
+diameter_um = 2.1
+tier = "quasistatic"
+n_samples = 2
+seed = 5
+replicas_per_task = 2
+device = "cpu"
+subdivisions = 1
+loading_grid = [0.0, 0.12, 0.24]
+store = "stores/tiny"
+
+[ranges]
+priors = "definity_full"
+kb = 500.0
+
+[tier]
+max_steps = 4000
+
+[dask]
+scheduler_address = "inline"
+"""
+
+
+def write(tmp_path, text=GOOD, name="c.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def plain(text: str) -> str:
+    return re.sub(r"\s+", " ", text)
+
+
+def test_shipped_campaigns_are_valid():
+    names = available_campaigns()
+    mech = [n for n in names if "ringdown" not in n]
+    assert len(mech) == 6 and {"definity_ringdown", "sonovue_ringdown"} <= set(names)
+    for n in mech:
+        c = load_campaign_config(n)
+        assert c.n_samples == 6000 and c.design == "lhs" and c.tier == "quasistatic"
+        agent = "definity" if c.protocol == "compression" else "sonovue"
+        assert n.startswith(agent) and f"{c.diameter_um}um" in n
+        assert c.ranges["ka"] == ((5580.0, 27900.0) if agent == "definity" else (558.0, 558000.0))
+        assert len(c.free_names) == 6
+    d = load_campaign_config("definity_ringdown")
+    assert d.diameters[0] == 4.68 and d.diameters[-1] == 11.2 and len(d.diameters) == 14 and d.n_design == 14 * 28
+    assert d.ranges["kb"] == (389.23, 389.23) and d.free_names == ("ka",) and d.fixed["b1"] == 0.0
+    s = load_campaign_config("sonovue_ringdown")
+    assert s.diameters == (2.6, 3.2, 4.0) and s.ranges["kb"] == (7850.29, 7850.29) and s.n_samples == 28
+    assert load_campaign_file("definity_ringdown").config.store_path.name == "definity_ringdown.store"
+
+
+def test_relative_store_and_priors_box(tmp_path):
+    f = load_campaign_file(write(tmp_path))
+    c = f.config
+    assert c.store_path == tmp_path / "stores" / "tiny" and f.scheduler_address == "inline"
+    assert c.ranges["ka"] == (5580.0, 27900.0) and c.ranges["kb"] == (500.0, 500.0)  # override fixes kb
+    assert c.tier_settings == {"max_steps": 4000}
+
+
+@pytest.mark.parametrize("old, new, key, allowed", [
+    ('protocol = "compression"', 'protocol = "shear"', "[campaign].protocol", "compression, indentation, ringdown"),
+    ("n_samples = 2", "n_samples = 0", "[campaign].n_samples", ">= 1"),
+    ("n_samples = 2", "n_samples = 2.5", "[campaign].n_samples", ">= 1"),
+    ("diameter_um = 2.1", "diameter_um = 99.0", "[campaign].diameter_um", "[0.5, 20]"),
+    ("diameter_um = 2.1", "diameter_um = [2.1, 2.9]", "[campaign].diameter_um", "only with design = 'grid'"),
+    ('device = "cpu"', 'device = "tpu"', "[campaign].device", "'cpu', 'cuda' or 'cuda:N'"),
+    ('tier = "quasistatic"', 'tier = "fast"', "[campaign].tier", "explicit, implicit, quasistatic"),
+    ("seed = 5", "seed = -1", "[campaign].seed", "[0, 2^63)"),
+    ("seed = 5", "seeds = 5", "[campaign].seeds", "allowed: name, protocol"),
+    ("kb = 500.0", "kb = [900.0, 100.0]", "[ranges].kb", "lo <= hi"),
+    ("kb = 500.0", 'kb = "soft"', "[ranges].kb", "[lo, hi]"),
+    ("kb = 500.0", "mu = 3.0", "[ranges].mu", "allowed: priors, ka, kb"),
+    ('priors = "definity_full"', 'priors = "nosuch_full"', "[ranges].priors", "shipped workflows: definity_full"),
+    ('priors = "definity_full"', "", "[ranges].ka", "missing"),
+    ("max_steps = 4000", "max_step = 4000", "[tier].max_step", "allowed for tier 'quasistatic'"),
+    ('scheduler_address = "inline"', "n_workers = 0", "[dask].n_workers", ">= 1"),
+    ('scheduler_address = "inline"', "threads = 2", "[dask].threads", "allowed: scheduler_address, n_workers"),
+    ("[dask]", "[cluster]", "[cluster]", "allowed: campaign, ranges, tier, dask"),
+    ("loading_grid = [0.0, 0.12, 0.24]", "loading_grid = [0.0, 0.2, 0.1]", "[campaign].loading_grid",
+     "strictly increasing"),
+])
+def test_config_file_errors_name_file_field_and_allowed(tmp_path, old, new, key, allowed):
+    assert old in GOOD
+    path = write(tmp_path, GOOD.replace(old, new))
+    with pytest.raises(CampaignFileError) as info:
+        load_campaign_config(path)
+    msg = str(info.value)
+    assert str(path) in msg and f"{key}:" in msg and allowed in msg, msg
+
+
+def test_missing_sections_and_bad_toml(tmp_path):
+    with pytest.raises(CampaignFileError, match=r"\[ranges\]: missing section"):
+        load_campaign_config(write(tmp_path, GOOD.split("[ranges]")[0]))
+    with pytest.raises(CampaignFileError, match=r"\[campaign\]: missing section"):
+        load_campaign_config(write(tmp_path, "[ranges]\nka = 1.0\n"))
+    with pytest.raises(CampaignFileError, match="not valid TOML"):
+        load_campaign_config(write(tmp_path, "[campaign\n"))
+    with pytest.raises(CampaignFileError, match="shipped: definity_compression_2.1um"):
+        load_campaign_config("no_such_campaign")
+
+
+def test_cli_dry_run_run_resume_and_status(tmp_path):
+    path = write(tmp_path)
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run"])
+    assert res.exit_code == 0, res.output
+    out = plain(res.output)
+    assert "design points │ 2" in out and "done / pending │ 0 / 2" in out and "DPD 2-D modulus" in out
+    assert "nothing simulated" in out and not (tmp_path / "stores" / "tiny").exists()
+
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--limit", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.output.strip().splitlines()[-1])
+    assert summary["n_written"] == 1 and summary["counts"]["ok"] == 1 and summary["n_remaining"] == 1
+
+    res = runner.invoke(app, ["sim", "campaign-status", str(tmp_path / "stores" / "tiny")])
+    assert res.exit_code == 0, res.output
+    status = json.loads(res.output.strip().splitlines()[-1])
+    assert status["counts"]["ok"] == 1 and status["n_pending"] == 1 and status["name"] == "tiny"
+
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.output.strip().splitlines()[-1])
+    assert summary["n_done_before"] == 1 and summary["n_written"] == 1 and summary["store_counts"]["ok"] == 2
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run"])
+    assert "done / pending │ 2 / 0" in plain(res.output)
+
+
+def test_cli_errors_exit_1(tmp_path):
+    res = runner.invoke(app, ["sim", "campaign", str(write(tmp_path, GOOD.replace("n_samples = 2", "n_samples = 0")))])
+    assert res.exit_code == 1 and "[campaign].n_samples" in res.output
+    res = runner.invoke(app, ["sim", "campaign", str(write(tmp_path)), "--device", "gpu", "--dry-run"])
+    assert res.exit_code == 1 and "--device" in res.output
+    res = runner.invoke(app, ["sim", "campaign-status", str(tmp_path / "nothing")])
+    assert res.exit_code == 1 and "no such campaign store" in res.output
+    res = runner.invoke(app, ["sim", "campaign", "--help"])
+    assert res.exit_code == 0 and "SLURMCluster" in plain(res.output)
