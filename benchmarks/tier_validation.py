@@ -1,0 +1,290 @@
+"""Validation of the fidelity tiers against the published Mirheo curves and against each other (issue 6).
+
+For each diameter: the first ``--rows`` valid rows of
+``<reference>/training_head_{compression,indentation}_<d>um.csv`` (read with
+:func:`bubblecal.surrogates.dataset.read_published` + :func:`filter_curves`; indentation responses are
+d = 2 * radius_dpd - axial diameter) are simulated with each requested tier (``get_tier``) at the rows'
+parameters and grid, geometry from the rows' radius (3.2 um rows: radius 6.38 -> 3.19 um).  Reported per
+diameter and tier: median and IQR of the relative L2 error ||y_tier - y_pub|| / ||y_pub|| over the rows,
+the same against the explicit tier (the <= 3 % gate of issue 6) when it ran, wall seconds, curves per
+GPU-hour (ok curves / wall), statuses.  Files under ``--out``: ``tier_validation.json`` (rewritten
+after every diameter, so a cut-off run keeps its finished diameters), ``curves_<d>um.csv`` (all curves)
+and ``overlay_<d>um.png`` (published vs tiers, up to 4 rows).  Last stdout line: one JSON summary.
+
+Usage (CPU smoke):
+  python benchmarks/tier_validation.py --device cpu --diameters 2.1 --rows 2 --scale 0.002 --subdivisions 2 \
+      --out /tmp/tv
+GPU (see benchmarks/results_tiers.md for the recommended calls, each < 9 minutes):
+  python benchmarks/tier_validation.py --device cuda --diameters 2.1 --rows 5 --tiers explicit --out out/tv21
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+TIERS = ("explicit", "implicit", "quasistatic")
+PROTOCOL_OF = {2.1: "compression", 2.9: "compression", 3.0: "compression", 3.2: "indentation", 5.8: "indentation"}
+# H100 rates from benchmarks/RESULTS.md (Warp DPD engine): one 3 um bubble 262 us/step (launch bound),
+# 64 bubbles 1.04e9 particle-steps/s; implicit: shell force field 212 us / 64 s4 replicas + ~40 % integrate
+EXPLICIT_RATE = 1.0e9
+EXPLICIT_FLOOR_S = 262e-6
+IMPLICIT_US_PER_REPLICA_STEP = 4.5
+IMPLICIT_FLOOR_S = 150e-6
+
+
+def find_reference(arg: str | None) -> Path | None:
+    cands = [Path(arg)] if arg else []
+    if os.environ.get("BUBBLECAL_SHARED"):
+        cands.append(Path(os.environ["BUBBLECAL_SHARED"]) / "reference")
+    here = Path(__file__).resolve().parents[1]
+    cands += [here.parent / "shared" / "reference", here / "shared" / "reference", Path("/work/shared/reference")]
+    for c in cands:
+        if c.is_dir():
+            return c
+    return None
+
+
+def _head_file(ref: Path, protocol: str, diameter: float) -> Path | None:
+    for name in (f"{diameter:g}", f"{diameter:.1f}"):
+        path = ref / f"training_head_{protocol}_{name}um.csv"
+        if path.is_file():
+            return path
+    return None
+
+
+def load_rows(ref: Path, diameter: float, n_rows: int, first_row: int = 1):
+    """(protocol, TrainingSet of n valid rows from the first_row-th valid row on) or (protocol, None)."""
+    from bubblecal.surrogates.dataset import filter_curves, read_published
+
+    protocol = PROTOCOL_OF.get(diameter)
+    if protocol is None:
+        for p in ("compression", "indentation"):
+            if _head_file(ref, p, diameter) is not None:
+                protocol = p
+    if protocol is None:
+        return None, None
+    path = _head_file(ref, protocol, diameter)
+    if path is None:
+        return protocol, None
+    ts, _report = filter_curves(read_published(path, setup=protocol))
+    start = max(0, first_row - 1)
+    idx = np.arange(start, min(start + n_rows, ts.n_curves))
+    if idx.size == 0:
+        return protocol, None
+    return protocol, ts.subset(idx)
+
+
+def estimate_seconds(tier: str, mesh, n_rep: int, steps: int, device: str) -> float | None:
+    """Rough H100 wall-time estimate (None on CPU)."""
+    if not device.startswith("cuda"):
+        return None
+    nv = mesh.n_vertices
+    if tier == "explicit":
+        r = mesh.radius_dpd
+        particles = 3.0 * (2 * r + 5) ** 2 * (2 * r + 10) + nv
+        return steps * max(EXPLICIT_FLOOR_S, n_rep * particles / EXPLICIT_RATE)
+    if tier == "implicit":
+        return steps * max(IMPLICIT_FLOOR_S, n_rep * IMPLICIT_US_PER_REPLICA_STEP * 1e-6 * nv / 2562)
+    return None
+
+
+def rel_l2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise ||a - b|| / ||b|| (NaN where a row is not finite)."""
+    num = np.linalg.norm(a - b, axis=1)
+    den = np.linalg.norm(b, axis=1)
+    out = num / np.where(den > 0, den, np.nan)
+    out[~np.all(np.isfinite(a), axis=1)] = np.nan
+    return out
+
+
+def stats(e: np.ndarray) -> dict:
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return {"n": 0, "median": None, "iqr": None}
+    q1, med, q3 = np.percentile(e, [25, 50, 75])
+    return {"n": int(e.size), "median": float(med), "iqr": [float(q1), float(q3)]}
+
+
+def overlay(path: Path, diameter: float, protocol: str, x: np.ndarray, y_pub: np.ndarray, curves: dict) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # pragma: no cover
+        return
+    n = min(4, len(y_pub))
+    fig, axes = plt.subplots(1, n, figsize=(4 * n, 3.4), squeeze=False)
+    styles = {"explicit": "o-", "implicit": "s--", "quasistatic": "^:"}
+    for i in range(n):
+        ax = axes[0, i]
+        ax.plot(x[i], y_pub[i], "k-", lw=2, label="published (Mirheo)")
+        for t, y in curves.items():
+            ax.plot(x[i], y[i], styles.get(t, "x-"), ms=3, label=t)
+        ax.set_title(f"{diameter:g} um row {i + 1}")
+        ax.set_xlabel("d [DPD length]" if protocol == "compression" else "F [DPD force]")
+        ax.set_ylabel("F (both plates) [DPD force]" if protocol == "compression" else "d [DPD length]")
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--diameters", default="2.1,3.2", help="comma list of um (2.1, 2.9, 3.0 compression; 3.2, 5.8 "
+                                                            "indentation)")
+    ap.add_argument("--rows", type=int, default=5, help="first N valid rows per diameter")
+    ap.add_argument("--first-row", type=int, default=1, help="start at this valid row (1-based; split runs)")
+    ap.add_argument("--tiers", default="explicit,implicit,quasistatic")
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--scale", type=float, default=1.0, help="multiplies every MD step count (smoke runs)")
+    ap.add_argument("--replicas", type=int, default=0, help="rows per batch (0 = all rows in one batch)")
+    ap.add_argument("--subdivisions", type=int, default=None, help="mesh level (default: 4, 5 above 5 um)")
+    ap.add_argument("--implicit-dt", type=float, default=1e-4, help="time step of the implicit tier")
+    ap.add_argument("--max-seconds", type=float, default=None, help="per tier and diameter; the rest -> 'timeout'")
+    ap.add_argument("--reference", default=None, help="folder with training_head_*.csv")
+    ap.add_argument("--out", default="tier_validation_out")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--plan-only", action="store_true", help="print the cost estimate and exit")
+    args = ap.parse_args(argv)
+
+    import warp as wp
+
+    wp.config.quiet = True
+    from bubblecal.sim.experiments.md_loading import ProtocolSteps, steps_per_curve
+    from bubblecal.sim.mesh import mesh_for_diameter
+    from bubblecal.sim.tiers import CurveRequest, get_tier
+    from bubblecal.surrogates.dataset import PARAM_NAMES, diameter_um_from_radius
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    tiers = [t.strip() for t in args.tiers.split(",") if t.strip()]
+    for t in tiers:
+        if t not in TIERS:
+            ap.error(f"--tiers: unknown tier {t!r} (choose from {TIERS})")
+    tiers.sort(key=TIERS.index)  # explicit first: the others are compared with it
+    diameters = [float(d) for d in args.diameters.split(",") if d.strip()]
+    ref = find_reference(args.reference)
+    summary = {"device": args.device, "scale": args.scale, "rows": args.rows, "tiers": tiers,
+               "reference": str(ref) if ref else None, "diameters": {}, "started": time.strftime("%Y-%m-%d %H:%M:%S")}
+    if ref is None:
+        print("reference folder not found: nothing to validate (skipped)")
+        print(json.dumps({"skipped": "no reference"}))
+        return 0
+    steps = ProtocolSteps().scaled(args.scale)
+
+    # ---- up-front cost estimate
+    plan = []
+    for d in diameters:
+        protocol, ts = load_rows(ref, d, args.rows, args.first_row)
+        if ts is None:
+            print(f"{d:g} um: no training_head rows for it in {ref} -> skipped")
+            continue
+        dia = diameter_um_from_radius(float(np.median(ts.radius_dpd)))
+        mesh = mesh_for_diameter(dia, args.subdivisions)
+        n_steps = steps_per_curve(steps, ts.x[0])
+        plan.append((d, protocol, ts, dia, mesh, n_steps))
+        rep = args.replicas or ts.n_curves
+        n_batches = math.ceil(ts.n_curves / rep)
+        for t in tiers:
+            est = estimate_seconds(t, mesh, rep, n_steps, args.device)
+            est_s = f"~{est * n_batches:.0f} s (H100 estimate)" if est is not None else "(no estimate)"
+            print(f"plan {d:g} um {protocol}: {ts.n_curves} rows, mesh s{mesh.subdivisions} ({mesh.n_vertices} v), "
+                  f"{n_steps} MD steps/curve, tier {t}: {n_batches} batch(es) of {rep} {est_s}", flush=True)
+    if args.plan_only:
+        print(json.dumps({"plan_only": True, "diameters": [p[0] for p in plan]}))
+        return 0
+    t_all = time.perf_counter()
+    for k, (d, protocol, ts, dia, mesh, n_steps) in enumerate(plan):
+        print(f"=== {d:g} um ({protocol}, geometry {dia:.3f} um, {ts.n_curves} rows) "
+              f"[{k + 1}/{len(plan)}, {time.perf_counter() - t_all:.0f} s so far]", flush=True)
+        y_pub = ts.y
+        res: dict = {"protocol": protocol, "geometry_um": dia, "n_rows": ts.n_curves, "mesh_vertices": mesh.n_vertices,
+                     "md_steps_per_curve": n_steps, "tiers": {}}
+        curves: dict[str, np.ndarray] = {}
+        rep = args.replicas or ts.n_curves
+        for t in tiers:
+            settings: dict = {"subdivisions": mesh.subdivisions}
+            if t in ("explicit", "implicit"):
+                settings.update(scale=args.scale, verbose=True, max_seconds=args.max_seconds)
+            if t == "implicit":
+                settings["dt"] = args.implicit_dt
+            tier = get_tier(t, **settings)
+            y = np.full_like(y_pub, np.nan)
+            status: list[str] = []
+            t0 = time.perf_counter()
+            for b0 in range(0, ts.n_curves, rep):
+                idx = np.arange(b0, min(ts.n_curves, b0 + rep))
+                params = {name: ts.params[idx, j] for j, name in enumerate(PARAM_NAMES)}
+                req = CurveRequest(protocol=protocol, diameter_um=dia, grid=tuple(ts.x[idx[0]]), params=params,
+                                   seeds=tuple(args.seed + 1000 * k + int(i) for i in idx),
+                                   subdivisions=mesh.subdivisions)
+                print(f"  {t}: rows {idx[0] + 1}-{idx[-1] + 1} ...", flush=True)
+                batch = tier.run(req, device=args.device)
+                y[idx] = batch.observable
+                status += list(batch.status)
+                el = time.perf_counter() - t0
+                eta = el / (idx[-1] + 1) * (ts.n_curves - idx[-1] - 1)
+                print(f"  {t}: {idx[-1] + 1}/{ts.n_curves} rows, {el:.1f} s, ETA {eta:.0f} s, status {batch.status}",
+                      flush=True)
+            wall = time.perf_counter() - t0
+            curves[t] = y
+            n_ok = sum(s == "ok" for s in status)
+            entry = {"wall_s": wall, "status": status, "curves_per_gpu_hour": n_ok / wall * 3600 if wall > 0 else None,
+                     "rel_l2_vs_published": stats(rel_l2(y, y_pub)),
+                     "rel_l2_rows": [None if not np.isfinite(v) else float(v) for v in rel_l2(y, y_pub)]}
+            if t != "explicit" and "explicit" in curves:
+                entry["rel_l2_vs_explicit"] = stats(rel_l2(y, curves["explicit"]))
+                entry["gate_3pct_vs_explicit"] = (entry["rel_l2_vs_explicit"]["median"] is not None
+                                                  and entry["rel_l2_vs_explicit"]["median"] <= 0.03)
+            res["tiers"][t] = entry
+        # files for this diameter (partial results survive a cut-off)
+        header = ["row", "point", "x", "published"] + tiers
+        lines = [",".join(header)]
+        for i in range(ts.n_curves):
+            for j in range(ts.x.shape[1]):
+                lines.append(",".join([str(i + 1), str(j + 1), repr(float(ts.x[i, j])), repr(float(y_pub[i, j]))]
+                                      + [repr(float(curves[t][i, j])) for t in tiers]))
+        (out / f"curves_{d:g}um.csv").write_text("\n".join(lines) + "\n")
+        overlay(out / f"overlay_{d:g}um.png", d, protocol, ts.x, y_pub, curves)
+        summary["diameters"][f"{d:g}"] = res
+        (out / "tier_validation.json").write_text(json.dumps(summary, indent=1))
+        print_table(d, res)
+    summary["total_wall_s"] = time.perf_counter() - t_all
+    (out / "tier_validation.json").write_text(json.dumps(summary, indent=1))
+    compact = {d: {t: {"med_vs_pub": e["rel_l2_vs_published"]["median"],
+                       "med_vs_explicit": e.get("rel_l2_vs_explicit", {}).get("median"),
+                       "wall_s": round(e["wall_s"], 1), "curves_per_gpu_hour": e["curves_per_gpu_hour"],
+                       "ok": sum(s == "ok" for s in e["status"])} for t, e in r["tiers"].items()}
+               for d, r in summary["diameters"].items()}
+    print(json.dumps({"device": args.device, "scale": args.scale, "results": compact,
+                      "total_wall_s": round(summary["total_wall_s"], 1)}))
+    return 0
+
+
+def print_table(d: float, res: dict) -> None:
+    print(f"\n{d:g} um ({res['protocol']}), {res['n_rows']} rows, {res['md_steps_per_curve']} MD steps/curve")
+    print(f"{'tier':<12} {'relL2 vs pub (median [IQR])':<32} {'relL2 vs explicit':<28} {'wall s':>8} "
+          f"{'curves/GPU-h':>12}  status")
+    for t, e in res["tiers"].items():
+        def fmt(s):
+            if not s or s.get("median") is None:
+                return "-"
+            return f"{s['median']:.4f} [{s['iqr'][0]:.4f}, {s['iqr'][1]:.4f}]"
+        cph = e["curves_per_gpu_hour"]
+        print(f"{t:<12} {fmt(e['rel_l2_vs_published']):<32} {fmt(e.get('rel_l2_vs_explicit')):<28} "
+              f"{e['wall_s']:>8.1f} {cph if cph is None else round(cph, 1)!s:>12}  {','.join(e['status'])}")
+    print(flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
