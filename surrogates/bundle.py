@@ -66,7 +66,7 @@ from bubblecal.surrogates.mlp import mlp_forward
 __all__ = [
     "FORMAT", "FORMAT_VERSION", "BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "PARAM_NAMES",
     "SurrogateFormatError", "OutOfDomainError", "SurrogateDomainWarning", "Surrogate", "Bundle",
-    "save_surrogate", "load", "load_bundle", "write_bundle",
+    "save_surrogate", "load", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError",
 ]
 
 FORMAT = "bubblecal-mlp-surrogate"
@@ -482,3 +482,21 @@ def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
     mpath = path / "manifest.json"
     _atomic_write_bytes(mpath, lambda fh: fh.write(json.dumps(manifest, indent=2).encode()))
     return mpath
+
+
+class NoDefaultBundleError(FileNotFoundError):
+    """The shipped surrogate bundle (package data ``bubblecal/surrogates/bundle/``) is not installed."""
+
+
+def default_bundle_path(must_exist: bool = False) -> Path:
+    """Directory of the shipped surrogate bundle (package data ``bubblecal/surrogates/bundle/``).
+
+    With ``must_exist=True`` raise :class:`NoDefaultBundleError` (a clear message pointing at
+    ``--bundle DIR`` and ``bubblecal surrogates synthetic-bundle DIR``) when it holds no ``manifest.json``.
+    """
+    path = Path(__file__).resolve().parent / "bundle"
+    if must_exist and not (path / "manifest.json").is_file():
+        raise NoDefaultBundleError(
+            f"no shipped surrogate bundle found at {path}; pass --bundle DIR (e.g. a development bundle written "
+            "by `bubblecal surrogates synthetic-bundle DIR`, SYNTHETIC closed-form laws, not DPD)")
+    return path

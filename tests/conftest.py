@@ -46,3 +46,12 @@ def tiny_compression_surrogate(tmp_path_factory) -> Path:
                                  "--out", str(folder / "out"), "--width", "16", "--depth", "2", "--max-epochs", "80"])
     assert result.exit_code == 0, result.output
     return folder / "out" / "compression_2.1um.npz"
+
+
+@pytest.fixture(scope="session")
+def synthetic_bundle(tmp_path_factory) -> Path:
+    """A complete SYNTHETIC bundle (6 mechanical + 2 acoustic surrogates, closed-form laws, quick
+    settings; ~10 s, built once per run): bubblecal.surrogates.synthetic_bundle.write_synthetic_bundle."""
+    from bubblecal.surrogates.synthetic_bundle import write_synthetic_bundle
+
+    return write_synthetic_bundle(tmp_path_factory.mktemp("synthetic_bundle"), seed=0, quick=True)

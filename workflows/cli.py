@@ -34,6 +34,7 @@ TOP_LEVEL_MODULES: list[str] = [
     "bubblecal.workflows.cli_info",
     "bubblecal.workflows.cli_sensitivity",
     "bubblecal.workflows.cli_compare",
+    "bubblecal.workflows.cli_calibrate",
 ]
 
 

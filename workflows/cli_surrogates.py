@@ -156,3 +156,16 @@ def synthetic(
     ts = make_synthetic(n_curves, setup, radius_dpd=radius_dpd_from_diameter_um(diameter), noise=noise, seed=seed)
     write_published(ts, out)
     typer.echo(f"wrote {ts.n_curves} {setup} curves to {out}")
+
+
+@app.command("synthetic-bundle")
+def synthetic_bundle(
+    out: Path = typer.Argument(..., help="Output directory of the bundle (created)."),
+    seed: int = typer.Option(0, help="Seed of the designs and the initial weights."),
+    quick: bool = typer.Option(False, "--quick", help="Smaller designs and networks (~10 s; for tests)."),
+) -> None:
+    """Write a SYNTHETIC development bundle (closed-form laws, not DPD): six mechanical + two acoustic surrogates."""
+    from bubblecal.surrogates.synthetic_bundle import write_synthetic_bundle
+
+    write_synthetic_bundle(out, seed=seed, quick=quick, progress=typer.echo)
+    typer.echo(f"wrote {out} -- SYNTHETIC closed-form laws, for development/tests, not DPD")

@@ -131,6 +131,7 @@ def _max_central(comparison):
     return max(max(abs(r["dq_25"]), abs(r["dq_50"]), abs(r["dq_75"])) for r in comparison.table)
 
 
+@pytest.mark.slow  # ~90 s CPU; the default suite covers this path through notebook 04
 def test_staged_and_joint_agree_small(tmp_path, closed_form):
     """k_b fixed, small populations: medians and quartiles of ψ and every Θ_i within 0.5 posterior sd."""
     staged, joint, report, truths = run_both(tmp_path, closed_form, particles=1000, nuts_samples=300, nuts_chains=2,

@@ -1,0 +1,181 @@
+"""`bubblecal calibrate`: plan validation (bad inputs fail before sampling), a tiny staged run with an
+injected crash in phase 2, reuse of finished phases, outputs (NetCDF, manifest, summary, figures, report)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from bubblecal.workflows.calibrate import CalibrationConfig, CalibrationError, make_plan, run_calibration
+from bubblecal.workflows.cli import app
+
+runner = CliRunner()
+
+
+def _phase_files(root: Path) -> list[Path]:
+    return sorted(root.rglob("phase*.nc")) + sorted(root.rglob("phase*.npz"))
+
+
+def _cli(*args):
+    return runner.invoke(app, ["calibrate", *map(str, args)])
+
+
+# -------------------------------------------------------------------------------------------------
+# bad inputs: one clear error before any sampling (no phase files)
+# -------------------------------------------------------------------------------------------------
+def test_broken_priors_file(tmp_path, synthetic_bundle):
+    bad = tmp_path / "broken.toml"
+    bad.write_text("[workflow]\nagent = 'definity'\nsetup = 'compression'\nshell = 'reduced'\nacoustic = false\n"
+                   "[parameters.ka]\nprior = [3.0e4, 1.0e3]\n")
+    out = tmp_path / "out"
+    r = _cli("--agent", "definity", "--workflow", "reduced", "--priors", bad, "--bundle", synthetic_bundle,
+             "--population", 200, "--out", out)
+    assert r.exit_code == 1, r.output
+    assert "broken.toml" in r.output and "ka" in r.output
+    assert not _phase_files(out)
+
+
+def test_bad_data_rows(tmp_path, synthetic_bundle):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "definity_compression_2.9um_dpd.csv").write_text(
+        "displacement_dpd,force_dpd\n0.3,600\n0.5,abc\n0.4,-5\n0.9,3000\n")
+    with pytest.raises(CalibrationError, match=r"definity_compression_2\.9um_dpd\.csv.*\n.*row"):
+        make_plan(CalibrationConfig(agents=("definity",), workflow="reduced", bundle=synthetic_bundle, population=200,
+                                    data_dir=data, out=tmp_path / "out"))
+    r = _cli("--agent", "definity", "--workflow", "reduced", "--data-dir", data, "--bundle", synthetic_bundle,
+             "--population", 200, "--out", tmp_path / "out")
+    assert r.exit_code == 1 and "abc" in r.output
+    assert not _phase_files(tmp_path / "out")
+
+
+def test_bundle_missing_a_diameter(tmp_path, synthetic_bundle):
+    partial = tmp_path / "partial"
+    shutil.copytree(synthetic_bundle, partial)
+    manifest = json.loads((partial / "manifest.json").read_text())
+    manifest["surrogates"] = [e for e in manifest["surrogates"] if not (e["setup"] == "indentation"
+                                                                         and abs(e["diameter_um"] - 3.4) < 0.01)]
+    (partial / "manifest.json").write_text(json.dumps(manifest))
+    r = _cli("--agent", "sonovue", "--bundle", partial, "--population", 500, "--out", tmp_path / "out")
+    assert r.exit_code == 1
+    assert "no indentation surrogate at 3.4 um" in r.output and "sonovue_indentation_3.4um" in r.output
+    assert not _phase_files(tmp_path / "out")
+
+
+def test_population_too_small_and_other_fields(tmp_path, synthetic_bundle):
+    r = _cli("--agent", "definity", "--bundle", synthetic_bundle, "--population", 50, "--out", tmp_path / "out")
+    assert r.exit_code == 1 and "--population 50 is too small" in r.output and "phase" in r.output
+    assert not _phase_files(tmp_path / "out")
+    for kwargs, match in (({"workflow": "medium"}, "--workflow"), ({"sampler": "hmc"}, "--sampler"),
+                          ({"agents": ("optison",)}, "--agent"), ({"bundle": tmp_path}, "manifest.json")):
+        base = {"agents": ("definity",), "bundle": synthetic_bundle, "population": 200, "out": tmp_path / "o"}
+        with pytest.raises(CalibrationError, match=match):
+            make_plan(CalibrationConfig(**{**base, **kwargs}))
+
+
+def test_no_shipped_bundle_message(tmp_path, monkeypatch):
+    import bubblecal.surrogates.bundle as bundle_mod
+
+    monkeypatch.setattr(bundle_mod, "__file__", str(tmp_path / "nowhere" / "bundle.py"))
+    with pytest.raises(CalibrationError, match="no shipped surrogate bundle found at .*synthetic-bundle"):
+        make_plan(CalibrationConfig(agents=("definity",), out=tmp_path / "o"))
+
+
+# -------------------------------------------------------------------------------------------------
+# a tiny staged run: crash in phase 2, rerun reuses phase 1, outputs
+# -------------------------------------------------------------------------------------------------
+CURVES = {"one": ("definity_compression_2.1um",), "all": ()}
+
+
+@pytest.mark.parametrize("which", ["one", pytest.param("all", marks=pytest.mark.slow)])
+def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
+    """Default suite: one curve (phases 1, 2, 3 once each); slow: all three Definity curves."""
+    out = tmp_path / "cal"
+    config = CalibrationConfig(agents=("definity",), workflow="reduced", bundle=synthetic_bundle, population=120,
+                               out=out, phase2_samples=120, predictive_samples=200, num_mcmc_steps=3,
+                               curves=CURVES[which])
+    plan = make_plan(config)
+    assert plan.synthetic_bundle
+
+    def crash(name):
+        if name == "phase2":
+            raise RuntimeError("injected crash in phase 2")
+
+    with pytest.raises(RuntimeError, match="injected"):
+        run_calibration(plan, inject=crash)
+    run_dir = out / "definity" / "reduced"
+    phase1 = sorted(p.name for p in run_dir.glob("phase1_*.nc"))
+    diameters = ("2.1",) if which == "one" else ("2.1", "2.9", "3.0")
+    assert phase1 == [f"phase1_definity_compression_{d}um.nc" for d in diameters]
+    assert not list(run_dir.glob("phase2*")) and not list(run_dir.glob(".*tmp"))
+    stamps = {p: p.stat().st_mtime_ns for p in run_dir.glob("phase1_*.nc")}
+
+    results = run_calibration(make_plan(config))
+    (res,) = results
+    assert sorted(res.reused) == sorted(p.removesuffix(".nc") for p in phase1)
+    assert all(p.stat().st_mtime_ns == t for p, t in stamps.items())  # phase-1 files untouched
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    assert set(manifest["phases"]) == {*(p.removesuffix(".nc") for p in phase1), "phase2",
+                                       *(p.replace("phase1", "phase3").removesuffix(".nc") for p in phase1)}
+    assert all(len(v["config_hash"]) == 16 for v in manifest["phases"].values())
+    # summary: per curve mean / 90 % / MAP of ka, kb, d0, sigma in DPD and physical units + coverage, CRPS
+    df = pd.read_csv(run_dir / "summary.csv")
+    curve = df[df["dataset"] == "definity_compression_2.1um"].set_index("parameter")
+    assert set(curve.index) == {"ka", "kb", "d0", "sigma"}
+    ka = curve.loc["ka"]
+    assert ka["q05"] <= ka["mean"] <= ka["q95"] and 3.4e3 <= ka["map"] <= 3.5e4
+    assert ka["mean_phys"] == pytest.approx(ka["mean"] * 1790.92e-6, rel=1e-3)  # E [MPa]
+    assert curve.loc["d0", "physical_unit"] == "nm" and curve.loc["kb", "physical_unit"] == "k_BT"
+    assert 0 <= ka["coverage_90"] <= 1 and ka["crps"] > 0 and ka["crps_unit"] == "nN"
+    assert "population (new bubble)" in set(df["dataset"]) and "hyperparameters" in set(df["dataset"])
+    ess = pd.read_csv(run_dir / "ess.csv")
+    assert len(ess) == len(diameters) and (ess["ess_median"] >= 1).all()
+    report = (run_dir / "report.md").read_text()
+    assert "SYNTHETIC" in report and "ess.csv" in report and "figures/fit.png" in report
+    for name in ("fit", "ka_kb", "population"):
+        assert (run_dir / "figures" / f"{name}.png").stat().st_size > 10_000
+    # NetCDF phase files open with ArviZ and carry the evidence and the config hash
+    import arviz as az
+
+    idata = az.from_netcdf(str(run_dir / "phase2.nc"))
+    assert np.isfinite(float(idata.posterior.attrs["log_evidence"]))
+    assert idata.posterior.attrs["config_hash"] == manifest["phases"]["phase2"]["config_hash"]
+
+    # the CLI with the same settings reuses every phase and prints the summary table
+    args = ["--agent", "definity", "--workflow", "reduced", "--bundle", synthetic_bundle, "--population", 120,
+            "--phase2-samples", 120, "--mcmc-steps", 3, "--out", out, "--no-figures"]
+    for c in CURVES[which]:
+        args += ["--curve", c]
+    r = _cli(*args)
+    assert r.exit_code == 0, r.output
+    assert "reused phases: phase1_definity_compression_2.1um" in r.output and "compression_2.1um" in r.output
+    assert "E [MPa]" in r.output and "coverage" in r.output
+
+    # a changed setting invalidates exactly the dependent phases: a new phase-2 sample size keeps phase 1
+    cfg2 = CalibrationConfig(**{**config.__dict__, "phase2_samples": 100, "figures": False})
+    from bubblecal.workflows.calibrate import PhaseStore, _bundle_hashes, _phase_hashes
+
+    plan2 = make_plan(cfg2)
+    h_old = {k: v["config_hash"] for k, v in manifest["phases"].items()}
+    h_new = _phase_hashes(plan2.agents[0], cfg2, _bundle_hashes(plan2.bundle))
+    assert all(h_new[k] == h_old[k] for k in h_old if k.startswith("phase1"))
+    assert h_new["phase2"] != h_old["phase2"] and all(h_new[k] != h_old[k] for k in h_old if k.startswith("phase3"))
+    assert PhaseStore(run_dir).manifest["phases"].keys() == manifest["phases"].keys()
+
+
+@pytest.mark.slow
+def test_joint_nuts_run(tmp_path, synthetic_bundle):
+    """--sampler nuts: the joint model, the same summaries (one curve, short chains)."""
+    config = CalibrationConfig(agents=("definity",), workflow="reduced", sampler="nuts", bundle=synthetic_bundle,
+                               out=tmp_path, nuts_samples=100, nuts_warmup=100, nuts_chains=1,
+                               predictive_samples=100, curves=("definity_compression_2.9um",))
+    (res,) = run_calibration(make_plan(config))
+    df = pd.read_csv(tmp_path / "definity" / "reduced" / "summary.csv")
+    assert {"ka", "kb", "d0", "sigma"} <= set(df[df["dataset"] == "definity_compression_2.9um"]["parameter"])
+    assert (tmp_path / "definity" / "reduced" / "joint_nuts.nc").is_file() and res.joint.diagnostics

@@ -1,0 +1,199 @@
+"""``bubblecal calibrate`` (the main job), ``bubblecal evidence`` and ``bubblecal confirm``.
+
+Heavy imports (jax, numpyro, arviz, matplotlib, warp) happen inside the command functions. Exit status:
+0 on success, 1 on bad inputs (reported before any sampling) or a failed run.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+from bubblecal.workflows.console import console, fail
+
+
+class _PhaseProgress:
+    """A rich progress bar over the phases of one agent, fed by run_staged's progress messages."""
+
+    def __init__(self, progress, total: int, label: str):
+        self.progress = progress
+        self.task = progress.add_task(label, total=total)
+        self.label = label
+        self.t0 = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        done = not message.endswith(("running TMCMC", "draws)")) and ": running" not in message
+        self.progress.update(self.task, description=f"{self.label}: {message}", advance=1 if done else 0)
+        if done:
+            self.progress.console.print(f"  {message}", highlight=False)
+
+
+def calibrate(
+    agent: str = typer.Option("all", "--agent", help="definity | sonovue | all"),
+    workflow: str = typer.Option("reduced-acoustic", "--workflow", help="reduced-acoustic | reduced | full"),
+    sampler: str = typer.Option("tmcmc", "--sampler", help="tmcmc (staged phases 1-2-3) | nuts (joint model)"),
+    population: int = typer.Option(None, "--population", help="TMCMC particles per phase (default 2000; "
+                                   "--paper: 50000)."),
+    paper: bool = typer.Option(False, "--paper", help="Published settings: N = 50,000, CoV 0.8/0.6, scaling 0.04."),
+    out: Path = typer.Option(Path("calibration"), "--out", help="Output folder (OUT/<agent>/<workflow>/...)."),
+    device: str = typer.Option("cpu", "--device", help="cpu | gpu (JAX device)."),
+    bundle: Path = typer.Option(None, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
+    force: bool = typer.Option(False, "--force", help="Rerun finished phases instead of reusing them."),
+    seed: int = typer.Option(0, "--seed"),
+    priors: Path = typer.Option(None, "--priors", help="Your priors TOML instead of the workflow's (one agent only)."),
+    data_dir: Path = typer.Option(None, "--data-dir", help="Folder of curve CSVs (DPD units) named like the shipped "
+                                  "ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
+                                  "acoustic_observations_published.csv, replacing them."),
+    curve: list[str] = typer.Option(None, "--curve", help="Only these curves (repeatable), e.g. "
+                                    "definity_compression_2.1um."),
+    phase2_samples: int = typer.Option(None, "--phase2-samples", help="Phase-1 draws per dataset in phase 2 "
+                                       "(default min(N, 2000))."),
+    mcmc_steps: int = typer.Option(10, "--mcmc-steps", help="Random-walk MH steps per TMCMC stage."),
+    chunk_size: int = typer.Option(None, "--chunk-size", help="TMCMC likelihood evaluations per batch (memory)."),
+    nuts_samples: int = typer.Option(500, "--nuts-samples", help="NUTS draws per chain (--sampler nuts)."),
+    nuts_chains: int = typer.Option(2, "--nuts-chains"),
+    netcdf: bool = typer.Option(True, "--netcdf/--npz", help="Phase files as ArviZ NetCDF (else .npz)."),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="Draw figures and report.md."),
+) -> None:
+    """Calibrate the shell parameters of Definity and/or SonoVue: staged hierarchical TMCMC (or joint NUTS)
+    on the shipped curves, acoustic data, priors and surrogates; writes NetCDF per phase, summary.csv,
+    figures and report.md under OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from bubblecal.workflows.calibrate import CalibrationConfig, CalibrationError, make_plan, run_agent
+    from bubblecal.workflows.figures import agent_figures
+    from bubblecal.workflows.report import summary_table, write_report
+
+    agents = ("definity", "sonovue") if agent == "all" else (agent,)
+    priors_map = {}
+    if priors is not None:
+        if len(agents) != 1:
+            raise fail("--priors FILE needs a single --agent (definity or sonovue)")
+        priors_map[agents[0]] = str(priors)
+    try:
+        config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
+                                   paper=paper, out=out, device=device, bundle=bundle, force=force, seed=seed,
+                                   priors=priors_map, data_dir=data_dir, curves=tuple(curve or ()),
+                                   phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
+                                   nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
+                                   netcdf=netcdf, figures=figures)
+        plan = make_plan(config)
+    except CalibrationError as exc:
+        raise fail(str(exc)) from None
+    if plan.synthetic_bundle:
+        console.print(f"[bold yellow]warning:[/] {plan.bundle_path} is a SYNTHETIC bundle (closed-form laws, not DPD): "
+                      "the posteriors are not physical results", highlight=False)
+    for ap in plan.agents:
+        for msg in ap.domain_warnings[:5]:
+            console.print(f"[yellow]warning:[/] {ap.agent}: prior box exceeds a surrogate's training box: {msg}",
+                          highlight=False, markup=False)
+    console.print(f"calibrate: agents {', '.join(agents)}, workflow {workflow}, sampler {sampler}, "
+                  f"N = {config.num_particles} per phase, device {device}, bundle {plan.bundle_path}, out {out}",
+                  highlight=False)
+    t_all = time.perf_counter()
+    for ap in plan.agents:
+        n_phases = 2 * len(ap.dataset_names) + 1 if sampler == "tmcmc" else 1
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
+                      "{task.total} phases"), TimeElapsedColumn(), console=console, transient=True) as progress:
+            reporter = _PhaseProgress(progress, n_phases, ap.agent)
+            try:
+                result = run_agent(plan, ap, progress=reporter)
+            except RuntimeError as exc:
+                raise fail(f"{ap.agent}: {exc} (finished phases are kept in {ap.out_dir})") from None
+        if figures:
+            result.figures = agent_figures(result, plan)
+            result.report = write_report(result, plan)
+        console.print(summary_table(result))
+        if result.ess is not None:
+            console.print("phase-2 IS-ESS (median per dataset): " + ", ".join(
+                f"{r.dataset} {r.ess_median:.0f}" for r in result.ess.itertuples()), highlight=False)
+        console.print(f"{ap.agent}: wrote {ap.out_dir} (summary.csv"
+                      + (", figures/, report.md" if figures else "") + f"); reused phases: "
+                      f"{', '.join(result.reused) or 'none'}; {result.seconds['sampling_total']:.1f} s sampling",
+                      highlight=False)
+    console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
+
+
+def evidence(
+    agent: str = typer.Option("all", "--agent", help="definity | sonovue | all"),
+    population: int = typer.Option(2000, "--population", help="TMCMC particles per run."),
+    replicas: int = typer.Option(3, "--replicas", help="Independent TMCMC runs per model (ln Z ± SE)."),
+    curve: list[str] = typer.Option(None, "--curve", help="Only these curves (repeatable)."),
+    out: Path = typer.Option(Path("calibration"), "--out", help="Output root: OUT/<agent>/evidence.csv."),
+    bundle: Path = typer.Option(None, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
+    device: str = typer.Option("cpu", "--device", help="cpu | gpu"),
+    seed: int = typer.Option(0, "--seed"),
+) -> None:
+    """ln Z of the full and the reduced shell per curve (TMCMC, replica mean ± SE), the Bayes factor
+    ln B = ln Z_full − ln Z_reduced ± error and its Kass–Raftery verdict; CSV + table (and in report.md)."""
+    from bubblecal.surrogates import load_bundle
+    from bubblecal.workflows.calibrate import CalibrationError, _check_device, resolve_bundle
+    from bubblecal.workflows.console import make_table
+    from bubblecal.workflows.evidence import run_evidence
+
+    agents = ("definity", "sonovue") if agent == "all" else (agent,)
+    if any(a not in ("definity", "sonovue") for a in agents):
+        raise fail(f"--agent must be definity, sonovue or all, got {agent!r}")
+    if population < 100 or replicas < 2:
+        raise fail(f"--population must be >= 100 and --replicas >= 2 (for an error bar), got {population}, {replicas}")
+    try:
+        _check_device(device)
+        bundle_dir = resolve_bundle(bundle)
+        b = load_bundle(bundle_dir)
+        for a in agents:
+            from bubblecal.data import reference_curves
+
+            for c in reference_curves(a):
+                b.get(c.kind, c.diameter_um)
+    except (CalibrationError, KeyError) as exc:
+        raise fail(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
+    df = run_evidence(agents, b, population=population, replicas=replicas, seed=seed, device=device, out=out,
+                      curves=tuple(curve or ()),
+                      progress=lambda m: console.print(f"  {m}", highlight=False))
+    table = make_table("Model evidence per curve: full vs reduced shell", ("curve", "ln Z full", "ln Z reduced",
+                                                                          "ln B (full - reduced)", "verdict"))
+    for r in df.itertuples():
+        table.add_row(r.curve, f"{r.log_z_full:.3f} ± {r.log_z_full_se:.3f}",
+                      f"{r.log_z_reduced:.3f} ± {r.log_z_reduced_se:.3f}",
+                      f"{r.ln_bayes_factor:.3f} ± {r.ln_bayes_factor_se:.3f}", r.verdict)
+    console.print(table)
+    console.print(f"wrote {', '.join(str(Path(out) / a / 'evidence.csv') for a in agents)}", highlight=False)
+
+
+def confirm(
+    results: Path = typer.Argument(..., help="A calibration output folder (OUT or OUT/<agent>/<workflow>)."),
+    tier: str = typer.Option("explicit", "--tier", help="explicit | implicit | quasistatic"),
+    device: str = typer.Option("cuda", "--device", help="Warp device: cuda | cpu"),
+    subdivisions: int = typer.Option(None, "--subdivisions", help="Icosphere level (default: the tier's)."),
+) -> None:
+    """Re-simulate each curve's phase-3 MAP with a DPD tier and overlay simulation, surrogate and data
+    (PNG + CSV + relative L2 table under RUN/confirm/)."""
+    from bubblecal.workflows.confirm import confirm_run, find_runs
+    from bubblecal.workflows.console import make_table
+
+    runs = find_runs(results)
+    if not runs:
+        raise fail(f"{results}: no calibration run folder (manifest.json) found")
+    for run in runs:
+        try:
+            pts, summ, fig = confirm_run(run, tier=tier, device=device, subdivisions=subdivisions,
+                                         progress=lambda m: console.print(f"  {m}", highlight=False))
+        except ValueError as exc:
+            raise fail(f"{run}: {exc}") from None
+        table = make_table(f"{run}: {tier} tier at the MAP, relative L2", ("curve", "status", "sim vs surrogate",
+                                                                           "sim vs data", "surrogate vs data", "s"))
+        for r in summ.itertuples():
+            table.add_row(r.curve, r.status, f"{r.rel_l2_sim_vs_surrogate:.3f}", f"{r.rel_l2_sim_vs_data:.3f}",
+                          f"{r.rel_l2_surrogate_vs_data:.3f}", f"{r.seconds:.1f}")
+        console.print(table)
+        if fig is not None:
+            console.print(f"wrote {fig}", highlight=False)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``calibrate``, ``evidence`` and ``confirm`` to the root command."""
+    app.command("calibrate")(calibrate)
+    app.command("evidence")(evidence)
+    app.command("confirm")(confirm)

@@ -1,0 +1,223 @@
+"""Figures of a calibration run (matplotlib, Agg): physical units, labelled axes, legends.
+
+* ``fit.png`` — every loading curve (one panel each): data, posterior-predictive median and 90 % band
+  (observation noise included) and the MAP model curve; force [nN] against displacement [nm] for both
+  protocols (indentation: the model predicts the depth at each applied force, so its band is horizontal);
+* ``ka_kb.png`` — phase-3 posteriors of (E, kappa) per curve and the population-predictive cloud;
+* ``population.png`` — posterior marginals of the hyperparameters m_k, tau_k (physical units);
+* ``acoustic.png`` (acoustic workflows) — resonance frequency [MHz] against diameter [um]: data with
+  error bars sigma_ac x f (posterior mean relative noise) and the f_res(D) band of the population-
+  predictive k_a (median, 90 %), plus each acoustic dataset's phase-3 predictive interval.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data.units import DEFAULT_UNITS
+
+__all__ = ["agent_figures", "fit_figure", "ka_kb_figure", "population_figure", "acoustic_figure"]
+
+COLOURS = ("#1b6ca8", "#d1495b", "#2e8b57", "#edae49", "#6a4c93", "#00798c")
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update({"font.size": 9, "axes.spines.top": False, "axes.spines.right": False,
+                         "legend.frameon": False, "savefig.dpi": 150})
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    """Tight layout, write ``path`` (PNG, 150 dpi), close the figure."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def _nm(v):
+    return np.asarray(DEFAULT_UNITS.dpd_to_nm(v))
+
+
+def _nN(v):
+    return np.asarray(DEFAULT_UNITS.dpd_to_nN(v))
+
+
+def _title(result, plan, what: str) -> str:
+    t = f"{result.plan.agent.capitalize()} — {what} ({result.plan.workflow})"
+    return t + ("\nSYNTHETIC surrogate bundle: not a physical result" if plan.synthetic_bundle else "")
+
+
+def fit_figure(result, plan, path: Path) -> Path:
+    plt = _plt()
+    curves = [c for c in result.plan.curves if c.name in result.bands]
+    fig, axes = plt.subplots(1, len(curves), figsize=(max(3.4 * len(curves), 5.0), 3.3), squeeze=False)
+    for ax, curve in zip(axes[0], curves, strict=True):
+        b = result.bands[curve.name]
+        if b["kind"] == "compression":
+            gx = _nm(b["grid"])
+            ax.fill_between(gx, _nN(b["grid_lower"]), _nN(b["grid_upper"]), color=COLOURS[0], alpha=0.25, lw=0,
+                            label="90 % predictive band")
+            ax.plot(gx, _nN(b["grid_median"]), color=COLOURS[0], lw=1.5, label="predictive median")
+            if b.get("map_curve") is not None:
+                ax.plot(gx, _nN(b["map_curve"]), color="k", lw=0.9, ls="--", label="MAP model")
+            ax.plot(_nm(b["x"]), _nN(b["y"]), "o", ms=3.5, mfc="white", mec="k", mew=0.9, label="AFM data")
+        else:
+            gf = _nN(b["grid"])
+            ax.fill_betweenx(gf, _nm(b["grid_lower"]), _nm(b["grid_upper"]), color=COLOURS[1], alpha=0.25, lw=0,
+                             label="90 % predictive band")
+            ax.plot(_nm(b["grid_median"]), gf, color=COLOURS[1], lw=1.5, label="predictive median")
+            if b.get("map_curve") is not None:
+                ax.plot(_nm(b["map_curve"]), gf, color="k", lw=0.9, ls="--", label="MAP model")
+            ax.plot(_nm(b["y"]), _nN(b["x"]), "o", ms=3.5, mfc="white", mec="k", mew=0.9, label="AFM data")
+        ax.set_xlim(left=0)
+        ax.set_ylim(bottom=0)
+        proto = "compression" if b["kind"] == "compression" else "indentation"
+        diam = curve.bubble_diameter_um or curve.diameter_um
+        ax.set_title(f"{proto}, D = {diam:g} µm", fontsize=9)
+        ax.set_xlabel("displacement [nm]" if b["kind"] == "compression" else "indentation depth [nm]")
+        ax.set_ylabel("force [nN]")
+        cov = result.summary[result.summary["dataset"] == curve.name]["coverage_90"].iloc[0]
+        ax.text(0.03, 0.97, f"coverage {cov:.2f}", transform=ax.transAxes, va="top", fontsize=8)
+    axes[0][0].legend(loc="lower right", fontsize=7)
+    fig.suptitle(_title(result, plan, "loading curves and posterior predictive"), fontsize=10)
+    return _save(fig, path)
+
+
+def ka_kb_figure(result, plan, path: Path) -> Path | None:
+    from bubblecal.workflows.report import dataset_posteriors
+
+    spec = result.plan.spec
+    if "ka" not in spec.parameters or "kb" not in spec.parameters:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(4.6, 3.8))
+    E = lambda v: np.asarray(DEFAULT_UNITS.ka_to_young(v)) * 1e-6  # noqa: E731
+    K = lambda v: np.asarray(DEFAULT_UNITS.kb_to_bending_kBT(v))  # noqa: E731
+    pop = result.population_predictive
+    rng = np.random.default_rng(0)
+    if pop is not None and "ka" in pop and "kb" in pop:
+        idx = rng.choice(pop["ka"].size, min(2000, pop["ka"].size), replace=False)
+        ax.scatter(E(pop["ka"][idx]), K(pop["kb"][idx]), s=2, c="0.65", alpha=0.4, lw=0, label="population predictive")
+    post = dataset_posteriors(result)
+    i = 0
+    for d in post.values():
+        if d["kind"] == "acoustic":
+            continue
+        s = d["samples"]
+        idx = rng.choice(s["ka"].size, min(1500, s["ka"].size), replace=False)
+        diam = d["obj"].bubble_diameter_um or d["obj"].diameter_um
+        ax.scatter(E(s["ka"][idx]), K(s["kb"][idx]), s=3, alpha=0.35, lw=0, c=COLOURS[i % len(COLOURS)],
+                   label=f"D = {diam:g} µm (phase 3)" if result.staged is not None else f"D = {diam:g} µm")
+        ax.plot(np.median(E(s["ka"])), np.median(K(s["kb"])), "x", c=COLOURS[i % len(COLOURS)], ms=7, mew=1.8)
+        i += 1
+    lo_e, hi_e = E(np.array(spec.parameters["ka"].prior.as_tuple()))
+    lo_k, hi_k = K(np.array(spec.parameters["kb"].prior.as_tuple()))
+    from matplotlib.ticker import NullFormatter
+
+    if hi_e / lo_e > 30:
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    if hi_k / lo_k > 30:
+        ax.set_yscale("log")
+        ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlim(lo_e, hi_e)
+    ax.set_ylim(lo_k, hi_k)
+    ax.set_xlabel("Young's modulus E [MPa]  (from $k_a$, ν = 1/2)")
+    ax.set_ylabel("bending modulus κ [$k_BT$]  (from $k_b$)")
+    leg = ax.legend(fontsize=7, markerscale=3, loc="best")
+    for h in leg.legend_handles:
+        h.set_alpha(1)
+    ax.set_title(_title(result, plan, "$k_a$–$k_b$ posteriors"), fontsize=9)
+    return _save(fig, path)
+
+
+def population_figure(result, plan, path: Path) -> Path | None:
+    from bubblecal.workflows.report import PHYSICAL, _psi
+
+    m, tau = _psi(result)
+    if not m:
+        return None
+    plt = _plt()
+    names = list(m)
+    fig, axes = plt.subplots(2, len(names), figsize=(2.9 * len(names), 4.6), squeeze=False)
+    spec = result.plan.spec
+    for j, k in enumerate(names):
+        _u, pname, punit, conv = PHYSICAL[k]
+        p = spec.parameters[k]
+        label = {"ka": "E", "kb": "κ", "d0": "$d_0$"}.get(k, pname)
+        unit = f" [{punit.replace('k_BT', '$k_BT$')}]" if punit != "1" else ""
+        for row, (sym, values, box) in enumerate((("m", m[k], p.hyper_m), ("τ", tau[k], p.hyper_tau))):
+            ax = axes[row][j]
+            if sym == "m":
+                v = conv(values)
+                lo, hi = conv(np.array(box.as_tuple()))
+            else:  # a spread converts with the same linear factor (all conversions are proportional)
+                f = float(conv(1.0))
+                v = np.asarray(values) * f
+                lo, hi = np.array(box.as_tuple()) * f
+            ax.hist(v, bins=40, range=(lo, hi), density=True, color=COLOURS[j % len(COLOURS)], alpha=0.75)
+            ax.axhline(1.0 / (hi - lo), color="k", lw=0.8, ls=":", label="hyperprior")
+            ax.set_xlim(lo, hi)
+            ax.set_xlabel(f"{sym}$_{{{k}}}$: {label} {'mean' if sym == 'm' else 'spread'}{unit}")
+            ax.set_ylabel("posterior density" if j == 0 else "")
+            ax.set_yticks([])
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(_title(result, plan, "population hyperparameters ψ"), fontsize=10)
+    return _save(fig, path)
+
+
+def acoustic_figure(result, plan, path: Path) -> Path | None:
+    ap = result.plan
+    if not ap.acoustic or ap.f_res is None:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(4.6, 3.5))
+    pop = result.population_predictive
+    diam_grid = np.array([d for d in ap.f_res.diameters])
+    obs_d = np.concatenate([np.atleast_1d(ds.diameter_um) for ds in ap.acoustic])
+    lo_d, hi_d = obs_d.min() - 0.6, obs_d.max() + 0.6
+    diam_grid = diam_grid[(diam_grid >= lo_d) & (diam_grid <= hi_d)]
+    if pop is not None and "ka" in pop and diam_grid.size:
+        ka = pop["ka"][:2000]
+        f = np.asarray(ap.f_res.f_res(ka[:, None], diam_grid[None, :]))
+        q = np.quantile(f, [0.05, 0.5, 0.95], axis=0)
+        ax.fill_between(diam_grid, q[0], q[2], color=COLOURS[0], alpha=0.2, lw=0,
+                        label="$f_{res}(D)$, population-predictive $k_a$ (90 %)")
+        ax.plot(diam_grid, q[1], color=COLOURS[0], lw=1.4, label="median")
+    for j, ds in enumerate(ap.acoustic):
+        b = result.bands.get(ds.name)
+        d = np.atleast_1d(ds.diameter_um)
+        f = np.atleast_1d(ds.frequency_MHz)
+        err = b["sigma_mean"] * f if b is not None else None
+        ax.errorbar(d, f, yerr=err, fmt="o", ms=4, mfc="white", mec="k", ecolor="k", elinewidth=0.8, capsize=2,
+                    label="measured ± $\\bar\\sigma_{ac} f$" if j == 0 else None)
+        if b is not None:
+            ax.vlines(d + 0.12, b["lower"], b["upper"], color=COLOURS[1], lw=2.5, alpha=0.7,
+                      label="dataset posterior predictive (90 %)" if j == 0 else None)
+    ax.set_xlabel("bubble diameter D [µm]")
+    ax.set_ylabel("resonance frequency [MHz]")
+    ax.set_xlim(lo_d, hi_d)
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7)
+    ax.set_title(_title(result, plan, "acoustic resonance"), fontsize=9)
+    return _save(fig, path)
+
+
+def agent_figures(result, plan) -> list[Path]:
+    """Draw every figure of one agent under ``<out>/figures/``; returns the written paths."""
+    folder = result.plan.out_dir / "figures"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = [fit_figure(result, plan, folder / "fit.png"), ka_kb_figure(result, plan, folder / "ka_kb.png"),
+           population_figure(result, plan, folder / "population.png"),
+           acoustic_figure(result, plan, folder / "acoustic.png")]
+    return [p for p in out if p is not None]
