@@ -32,8 +32,6 @@
 
 # %%
 import os
-import tempfile
-from pathlib import Path
 from types import SimpleNamespace
 
 import jax
@@ -55,7 +53,7 @@ from bubblecal.models import (
 )
 from bubblecal.priors import load_priors
 from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle, write_synthetic_bundle
+from bubblecal.surrogates.synthetic_bundle import development_bundle_path, is_synthetic_bundle
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 PARTICLES = 300 if SMALL else 10_000
@@ -63,23 +61,9 @@ NUTS_WARMUP, NUTS_SAMPLES, NUTS_CHAINS, TREE_DEPTH = (100, 100, 1, 5) if SMALL e
 DIAMETERS = (2.1, 3.0) if SMALL else (2.1, 2.9, 3.0)  # small run: two bubbles (five TMCMC runs instead of seven)
 
 
-def bundle_dir() -> Path:
-    """The shipped bundle if present, else a synthetic one (written once into the temp folder)."""
-    try:
-        from bubblecal.surrogates.bundle import default_bundle_path
-
-        shipped = Path(default_bundle_path())
-        if (shipped / "manifest.json").exists():
-            return shipped
-    except Exception:  # not shipped yet
-        pass
-    folder = Path(tempfile.gettempdir()) / f"bubblecal_synthetic_bundle_{'quick' if SMALL else 'full'}"
-    if not (folder / "manifest.json").exists():
-        write_synthetic_bundle(folder, quick=SMALL)
-    return folder
 
 
-bundle = load_bundle(bundle_dir())
+bundle = load_bundle(development_bundle_path(quick=SMALL))
 if is_synthetic_bundle(bundle):
     print("NOTE: SYNTHETIC surrogate bundle (closed-form laws, not DPD): numbers illustrate the method only")
 

@@ -26,8 +26,6 @@
 
 # %%
 import os
-import tempfile
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -36,30 +34,16 @@ from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import load_reference
 from bubblecal.priors import load_priors
 from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle, write_synthetic_bundle
+from bubblecal.surrogates.synthetic_bundle import development_bundle_path, is_synthetic_bundle
 from bubblecal.workflows.sensitivity import surrogate_sensitivity
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 N, POINTS = (256, 16) if SMALL else (2048, 40)
 
 
-def bundle_dir() -> Path:
-    """The shipped bundle if present, else a synthetic one (written once into the temp folder)."""
-    try:
-        from bubblecal.surrogates.bundle import default_bundle_path
-
-        shipped = Path(default_bundle_path())
-        if (shipped / "manifest.json").exists():
-            return shipped
-    except Exception:  # not shipped yet
-        pass
-    folder = Path(tempfile.gettempdir()) / f"bubblecal_synthetic_bundle_{'quick' if SMALL else 'full'}"
-    if not (folder / "manifest.json").exists():
-        write_synthetic_bundle(folder, quick=SMALL)
-    return folder
 
 
-bundle = load_bundle(bundle_dir())
+bundle = load_bundle(development_bundle_path(quick=SMALL))
 if is_synthetic_bundle(bundle):
     print("NOTE: SYNTHETIC surrogate bundle (closed-form laws, not DPD): indices illustrate the method only")
 

@@ -26,8 +26,6 @@
 
 # %%
 import os
-import tempfile
-from pathlib import Path
 
 import jax
 import matplotlib.pyplot as plt
@@ -44,32 +42,18 @@ from bubblecal.surrogates import load_bundle
 from bubblecal.surrogates.acoustic import fit_quadratic
 from bubblecal.surrogates.synthetic_bundle import (
     ACOUSTIC_KA_RANGE,
+    development_bundle_path,
     is_synthetic_bundle,
     ringdown_frequency_MHz,
-    write_synthetic_bundle,
 )
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 PARTICLES = 1000 if SMALL else 20_000
 
 
-def bundle_dir() -> Path:
-    """The shipped bundle if present, else a synthetic one (written once into the temp folder)."""
-    try:
-        from bubblecal.surrogates.bundle import default_bundle_path
-
-        shipped = Path(default_bundle_path())
-        if (shipped / "manifest.json").exists():
-            return shipped
-    except Exception:  # not shipped yet
-        pass
-    folder = Path(tempfile.gettempdir()) / f"bubblecal_synthetic_bundle_{'quick' if SMALL else 'full'}"
-    if not (folder / "manifest.json").exists():
-        write_synthetic_bundle(folder, quick=SMALL)
-    return folder
 
 
-bundle = load_bundle(bundle_dir())
+bundle = load_bundle(development_bundle_path(quick=SMALL))
 SYNTHETIC = is_synthetic_bundle(bundle)
 if SYNTHETIC:
     print("NOTE: SYNTHETIC surrogate bundle (ringdown law, not DPD): the posterior illustrates the method only")

@@ -50,7 +50,7 @@ from bubblecal.surrogates.bundle import PARAM_NAMES, save_surrogate, write_bundl
 from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
 from bubblecal.surrogates.synthetic import truth
 
-__all__ = ["SYNTHETIC_NOTE", "TRAINING_BOXES", "LOG_PARAMETERS", "X_MARGIN", "DEPTH_CAP_RADII", "GAS_PRESSURE_DPD", "RHO_SHELL_KG_M3",
+__all__ = ["development_bundle_path", "SYNTHETIC_NOTE", "TRAINING_BOXES", "LOG_PARAMETERS", "X_MARGIN", "DEPTH_CAP_RADII", "GAS_PRESSURE_DPD", "RHO_SHELL_KG_M3",
            "ringdown_frequency_MHz", "write_synthetic_bundle", "is_synthetic_bundle"]
 
 #: The loud warning carried by the manifest and every file of the bundle.
@@ -304,6 +304,22 @@ def write_synthetic_bundle(path: str | Path, *, seed: int = 0, quick: bool = Fal
              + ", ".join(f"{k} {v:.2%}" for k, v in scores.items()))
     write_bundle(path, files, acoustic, notes=notes)
     return path
+
+
+def development_bundle_path(quick: bool = False, cache_dir: str | Path | None = None) -> Path:
+    """The shipped bundle when installed, else a SYNTHETIC one written once into ``cache_dir``
+    (default: the temp folder) and reused; for notebooks and demos until the DPD bundle ships."""
+    import tempfile
+
+    from bubblecal.surrogates.bundle import default_bundle_path
+
+    shipped = Path(default_bundle_path())
+    if (shipped / "manifest.json").is_file():
+        return shipped
+    folder = Path(cache_dir or tempfile.gettempdir()) / f"bubblecal_synthetic_bundle_{'quick' if quick else 'full'}"
+    if not (folder / "manifest.json").is_file():
+        write_synthetic_bundle(folder, quick=quick)
+    return folder
 
 
 def is_synthetic_bundle(bundle) -> bool:

@@ -1,10 +1,20 @@
 """Athermal quasi-static fidelity tier for the two mechanical loading protocols (physics.md sections 5, 7).
 
-At every load point the shell (+ enclosed ideal gas) is relaxed to a force-balanced state with FIRE
-(:func:`bubblecal.sim.minimize.fire_minimize`); load points are chained (each starts from the
-previous minimum).  R replicas (one :class:`ShellParams` each, same mesh) are batched into one
-:class:`ShellForceField` and minimised together, each with its own FIRE state.  No solvent, no
-temperature: this is the cheap tier that must be validated against the explicit one.
+At every load point the shell (+ enclosed ideal gas) is relaxed to a force-balanced state with FIRE;
+load points are chained (each starts from the previous minimum).  R replicas (one :class:`ShellParams`
+each, same mesh) are batched into one :class:`ShellForceField` and minimised together, each with its
+own FIRE state.  No solvent, no temperature: this is the cheap tier that must be validated against
+the explicit one.
+
+Minimiser (``minimizer=``): ``"device"`` (default, every device incl. the CPU) runs
+:class:`bubblecal.sim.minimize_device.DeviceFire` -- positions, velocities, forces and the FIRE state
+stay on the Warp device; shell (ShellForceField kernels), gas, pole loads / plates, COM removal and
+the observables are kernels (:mod:`bubblecal.sim.kernels.qs_loading`); the host reads R status flags
+every ``sync_every`` iterations (CUDA: those iterations replay as one CUDA graph).  ``"numpy"`` is the
+reference implementation (:func:`bubblecal.sim.minimize.fire_minimize`, one host round trip per
+force evaluation); both follow the same FIRE rules and give the same curves (float64: equal to
+round-off on the CPU; tests/sim/test_minimize_device.py).  ``dtype=wp.float32`` is offered for GPU
+throughput (curves within ~1e-3 relative of float64, see benchmarks/results_quasistatic.md).
 
 Choices (stated once; also returned in ``result.settings``):
 
@@ -177,8 +187,27 @@ def _cap_distance(eps, sig, cap) -> float:
 # ------------------------------------------------------------------------------------------------
 # shared machinery
 # ------------------------------------------------------------------------------------------------
+MINIMIZERS = ("device", "numpy")
+
+
+def _check_params(params, mesh: ShellMesh, gas: IdealGas | None) -> list[ShellParams]:
+    if isinstance(params, ShellParams):
+        params = [params]
+    params = list(params)
+    if not params:
+        raise ValueError("params must hold at least one ShellParams")
+    for p in params:
+        if not isinstance(p, ShellParams):
+            raise ValueError(f"params must hold ShellParams, got {type(p).__name__}")
+    if not isinstance(mesh, ShellMesh):
+        raise ValueError(f"mesh must be a ShellMesh, got {type(mesh).__name__}")
+    if gas is not None and not isinstance(gas, IdealGas):
+        raise ValueError(f"gas must be an IdealGas or None, got {type(gas).__name__}")
+    return params
+
+
 class _Batch:
-    """R replicas of one mesh packed row-wise; shell + gas forces as NumPy."""
+    """R replicas of one mesh packed row-wise; shell + gas forces as NumPy (``minimizer='numpy'``)."""
 
     def __init__(self, params: Sequence[ShellParams], mesh: ShellMesh, gas: IdealGas | None, device: str,
                  dtype):
@@ -186,18 +215,7 @@ class _Batch:
 
         from bubblecal.sim.kernels.shell import ShellForceField
 
-        if isinstance(params, ShellParams):
-            params = [params]
-        params = list(params)
-        if not params:
-            raise ValueError("params must hold at least one ShellParams")
-        for p in params:
-            if not isinstance(p, ShellParams):
-                raise ValueError(f"params must hold ShellParams, got {type(p).__name__}")
-        if not isinstance(mesh, ShellMesh):
-            raise ValueError(f"mesh must be a ShellMesh, got {type(mesh).__name__}")
-        if gas is not None and not isinstance(gas, IdealGas):
-            raise ValueError(f"gas must be an IdealGas or None, got {type(gas).__name__}")
+        params = _check_params(params, mesh, gas)
         wp.config.quiet = True
         wp.init()
         self.R = len(params)
@@ -243,14 +261,194 @@ class _Batch:
         return self.ff.health(xa)["max_area_strain"]
 
 
-def _run_chain(batch: _Batch, n_points: int, make_energy_forces: Callable[[int, np.ndarray], Callable],
-               free: np.ndarray, fire: FireSettings, rupture_strain: float,
-               measure: Callable[[np.ndarray, int], dict]) -> dict:
-    """Chain the load points; returns per-replica/point arrays and statuses."""
-    from bubblecal.sim.minimize import STATUS_CONVERGED, STATUS_NONFINITE, fire_minimize
+class _HostChain:
+    """Load-point backend with the NumPy FIRE (:func:`bubblecal.sim.minimize.fire_minimize`): every force
+    evaluation copies positions to the Warp device and forces back (the reference implementation)."""
 
-    R = batch.R
-    x = batch.x_ref.copy()
+    def __init__(self, batch: _Batch, make_energy_forces: Callable[[int, np.ndarray], Callable],
+                 free: np.ndarray, fire: FireSettings, measure: Callable[[np.ndarray, int], dict]):
+        self.b, self.make, self.free, self.fire, self.measure = batch, make_energy_forces, free, fire, measure
+        self.R, self.nv = batch.R, batch.nv
+        self.x = batch.x_ref.copy()
+        self.xn = self.x
+        self.n_evaluations = 0
+
+    def minimize(self, j: int, alive: np.ndarray):
+        from bubblecal.sim.minimize import fire_minimize
+
+        b, fire = self.b, self.fire
+        groups = np.where(alive[b.groups], b.groups, -1)
+        res = fire_minimize(self.make(j, alive), self.x, groups, n_groups=self.R, free=self.free, ftol=fire.ftol,
+                            max_steps=fire.max_steps, dt=fire.dt, dt_max=fire.dt_max, max_move=fire.max_move)
+        self.xn = res.x
+        self.n_evaluations += res.n_evaluations
+        return res.status, res.steps, res.fmax
+
+    def point_state(self, j: int):
+        b = self.b
+        finite_rows = np.isfinite(b.view(self.xn)).all(axis=(1, 2))
+        xs = np.where(np.repeat(finite_rows, b.nv)[:, None], self.xn, b.x_ref)
+        return finite_rows, b.max_area_strain(xs), b.volumes(xs), self.measure(xs, j)
+
+    def reset_failed(self, failed: np.ndarray) -> None:
+        self.x = np.where(np.repeat(failed, self.nv)[:, None], self.b.x_ref, self.xn)
+
+    def x_final(self) -> np.ndarray:
+        return self.x
+
+
+class _DeviceChain:
+    """Load-point backend with the device-resident FIRE (:class:`bubblecal.sim.minimize_device.DeviceFire`).
+
+    Shell (ShellForceField kernels), gas, pole loads / plates, COM removal and the observables all run
+    as Warp kernels on ``device``; per load point only R-sized arrays come back to the host.
+    ``free_v [Nv, 3]`` (per mesh vertex), ``remove_mean`` (components), ``unit [Nv, 3]`` (pole-load
+    direction per unit load, or None), ``tag [Nv]`` (1 top patch, -1 bottom patch, or None),
+    ``contact`` (plates, or None).
+    """
+
+    def __init__(self, params, mesh: ShellMesh, gas: IdealGas | None, device: str, dtype, fire: FireSettings, *,
+                 free_v: np.ndarray, remove_mean: tuple[bool, bool, bool], unit: np.ndarray | None = None,
+                 tag: np.ndarray | None = None, contact: PlateContact | None = None,
+                 sync_every: int | None = None, use_graph: bool | None = None):
+        import warp as wp
+
+        from bubblecal.sim.kernels.qs_loading import qs_kernels
+        from bubblecal.sim.kernels.shell import ShellForceField
+        from bubblecal.sim.minimize_device import DeviceFire
+
+        params = _check_params(params, mesh, gas)
+        wp.config.quiet = True
+        wp.init()
+        self.wp = wp
+        T = wp.float64 if dtype is None else dtype
+        self.R, self.nv = R, nv = len(params), mesh.n_vertices
+        self.ff = ShellForceField(mesh, params, device=device, dtype=T)
+        self.dtype, self.vec3, dev = T, self.ff.vec3, self.ff.device
+        self.device = dev
+        npf = np.float64 if T is wp.float64 else np.float32
+        self._npf = npf
+        self.k = qs_kernels(T)
+        self.fire_settings = fire
+        self.fire = DeviceFire(np.arange(R + 1) * nv, self._forces, device=dev, dtype=T,
+                               free=np.tile(np.asarray(free_v, dtype=bool), (R, 1)), remove_mean=remove_mean,
+                               dt=fire.dt, dt_max=fire.dt_max, max_move=fire.max_move, sync_every=sync_every,
+                               use_graph=use_graph)
+        self.nthr = self.fire.nthr
+        self.row_start = self.fire.row_start
+        self.x_ref = wp.array(self.ff.reference_positions().astype(npf), dtype=self.vec3, device=dev)
+        wp.copy(self.fire.x, self.x_ref)
+        self.row_rep = wp.array(np.repeat(np.arange(R), nv).astype(np.int32), dtype=wp.int32, device=dev)
+        faces = mesh.faces.astype(np.int64)
+        self.tri = wp.array(faces.astype(np.int32), dtype=wp.vec3i, device=dev)
+        vert = faces.reshape(-1)
+        order = np.argsort(vert, kind="stable")
+        start = np.zeros(nv + 1, dtype=np.int64)
+        np.cumsum(np.bincount(vert, minlength=nv), out=start[1:])
+        self.vt_start = wp.array(start.astype(np.int32), dtype=wp.int32, device=dev)
+        self.vt_tri = wp.array((order // 3).astype(np.int32), dtype=wp.int32, device=dev)
+        self.gas_on = gas is not None
+        v0 = mesh.volume()
+        g = np.zeros((R, 2))
+        if gas is not None:
+            g[:] = (gas.p0 * v0, gas.ambient)
+        self.gas = wp.array(g.astype(npf), dtype=T, device=dev)
+        self.vol = wp.zeros(R, dtype=T, device=dev)
+        self.vol_meas = wp.zeros(R, dtype=T, device=dev)
+        self.load_on = unit is not None
+        self.load = wp.zeros(R, dtype=T, device=dev)
+        u = np.zeros((nv, 3)) if unit is None else np.asarray(unit, dtype=np.float64)
+        self.unit = wp.array(np.tile(u, (R, 1)).astype(npf), dtype=self.vec3, device=dev)
+        tg = np.zeros(nv, dtype=np.int32) if tag is None else np.asarray(tag, dtype=np.int32)
+        self.n_top = max(1, int(np.sum(tg == 1)))
+        self.n_bottom = max(1, int(np.sum(tg == -1)))
+        self.tag = wp.array(np.tile(tg, R), dtype=wp.int32, device=dev)
+        self.plate_on = contact is not None
+        self.plates = wp.zeros((R, 2), dtype=T, device=dev)
+        c = contact if contact is not None else PlateContact()
+        h_cap = _cap_distance(c.epsilon, c.sigma, c.force_cap)
+        self.pc = [T(c.epsilon), T(c.sigma), T(c.cutoff), T(h_cap), T(c.force_cap)]
+        self.obs = wp.zeros((R, 4), dtype=T, device=dev)
+        self.nonfin = wp.zeros(R, dtype=wp.int32, device=dev)
+        self.flag = wp.zeros(R, dtype=wp.int32, device=dev)
+        self.n_evaluations = 0
+
+    # ----- forces (graph-capturable: all varying inputs live in device arrays) -----
+    def _forces(self, x, f) -> None:
+        wp, k, dev = self.wp, self.k, self.device
+        self.ff.accumulate_forces(x, f)
+        if self.gas_on:
+            self.vol.zero_()
+            wp.launch(k["volume_kernel"], dim=self.R * self.nthr,
+                      inputs=[x, self.tri, self.row_start, self.fire.status, 0, self.nthr, self.vol], device=dev)
+        if self.gas_on or self.load_on or self.plate_on:
+            wp.launch(k["load_force_kernel"], dim=self.R * self.nthr,
+                      inputs=[x, f, self.row_start, self.fire.status, self.nthr, self.tri, self.vt_start,
+                              self.vt_tri, self.vol, self.gas, int(self.gas_on), self.load, self.unit,
+                              int(self.load_on), self.plates, int(self.plate_on), *self.pc], device=dev)
+
+    def set_load(self, value: float) -> None:
+        """Pole load (total force per pole, DPD force) for every replica."""
+        self.load.fill_(float(value))
+
+    def set_plates(self, z_top: float, z_bottom: float) -> None:
+        """Plate heights (DPD length) for every replica."""
+        self.plates.assign(np.tile([z_top, z_bottom], (self.R, 1)).astype(self._npf))
+
+    # ----- chain backend -----
+    def minimize(self, j: int, alive: np.ndarray):
+        fs = self.fire_settings
+        res = self.fire.minimize(ftol=fs.ftol, max_steps=fs.max_steps, active=alive)
+        self.n_evaluations += res.n_evaluations
+        return res.status, res.steps, res.fmax
+
+    def point_state(self, j: int):
+        wp, k, dev, x = self.wp, self.k, self.device, self.fire.x
+        n = self.R * self.nv
+        self.nonfin.zero_()
+        wp.launch(k["nonfinite_kernel"], dim=n, inputs=[x, self.row_rep, self.nonfin], device=dev)
+        finite_rows = self.nonfin.numpy() == 0
+        eps = self.ff.health(x)["max_area_strain"]
+        self.vol_meas.zero_()
+        wp.launch(k["volume_kernel"], dim=self.R * self.nthr,
+                  inputs=[x, self.tri, self.row_start, self.fire.status, 1, self.nthr, self.vol_meas], device=dev)
+        vols = self.vol_meas.numpy().astype(np.float64)
+        return finite_rows, eps, vols, self.measure(j)
+
+    def measure(self, j: int) -> dict:
+        wp, k, dev, x = self.wp, self.k, self.device, self.fire.x
+        n = self.R * self.nv
+        if self.plate_on:
+            self.obs.zero_()
+            wp.launch(k["plate_obs_kernel"], dim=n, inputs=[x, self.row_rep, self.plates, *self.pc, self.obs],
+                      device=dev)
+            o = self.obs.numpy().astype(np.float64)
+            return {"top": o[:, 0].copy(), "bottom": o[:, 1].copy(), "contacts": o[:, 2].copy()}
+        init = np.zeros((self.R, 4))
+        init[:, 0], init[:, 1] = -1e30, 1e30
+        self.obs.assign(init.astype(self._npf))
+        wp.launch(k["axial_obs_kernel"], dim=n, inputs=[x, self.row_rep, self.tag, self.obs], device=dev)
+        o = self.obs.numpy().astype(np.float64)
+        return {"H": o[:, 0] - o[:, 1], "patch": o[:, 2] / self.n_top - o[:, 3] / self.n_bottom}
+
+    def reset_failed(self, failed: np.ndarray) -> None:
+        if not np.any(failed):
+            return
+        self.flag.assign(np.asarray(failed, dtype=np.int32))
+        self.wp.launch(self.k["reset_rows_kernel"], dim=self.R * self.nv,
+                       inputs=[self.fire.x, self.x_ref, self.row_rep, self.flag], device=self.device)
+
+    def x_final(self) -> np.ndarray:
+        return self.fire.positions()
+
+
+def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callable[[int], None] | None = None,
+               progress: Callable[[int, int, float], None] | None = None) -> dict:
+    """Chain the load points on ``backend`` (:class:`_HostChain` / :class:`_DeviceChain`); returns
+    per-replica/point arrays and statuses.  ``progress(j, n_points, seconds)`` after every point."""
+    from bubblecal.sim.minimize import STATUS_CONVERGED, STATUS_NONFINITE
+
+    R = backend.R
     status = [STATUS_OK] * R
     point_status = [[STATUS_OK] * n_points for _ in range(R)]
     steps = np.zeros((R, n_points), dtype=np.int64)
@@ -258,38 +456,34 @@ def _run_chain(batch: _Batch, n_points: int, make_energy_forces: Callable[[int, 
     strain = np.full((R, n_points), np.nan)
     volume = np.full((R, n_points), np.nan)
     obs: dict[str, np.ndarray] = {}
+    t0 = time.perf_counter()
     for j in range(n_points):
         alive = np.array([s not in _FAILED for s in status])
         if not alive.any():
             for r in range(R):
                 point_status[r][j:] = [status[r]] * (n_points - j)
             break
-        groups = np.where(alive[batch.groups], batch.groups, -1)
-        res = fire_minimize(make_energy_forces(j, alive), x, groups, n_groups=R, free=free, ftol=fire.ftol,
-                            max_steps=fire.max_steps, dt=fire.dt, dt_max=fire.dt_max, max_move=fire.max_move)
-        xn = res.x
-        finite_rows = np.isfinite(batch.view(xn)).all(axis=(1, 2))
-        xs = np.where(np.repeat(finite_rows, batch.nv)[:, None], xn, batch.x_ref)
-        eps = batch.max_area_strain(xs)
-        vols = batch.volumes(xs)
-        m = measure(xs, j)
+        if set_point is not None:
+            set_point(j)
+        fstatus, fsteps, ffmax = backend.minimize(j, alive)
+        finite_rows, eps, vols, m = backend.point_state(j)
         for r in range(R):
             if not alive[r]:
                 point_status[r][j] = status[r]
                 continue
-            if res.status[r] == STATUS_NONFINITE or not finite_rows[r]:
+            if fstatus[r] == STATUS_NONFINITE or not finite_rows[r]:
                 ps = STATUS_NONFINITE
             elif eps[r] > rupture_strain:
                 ps = STATUS_RUPTURED
-            elif res.status[r] != STATUS_CONVERGED:
+            elif fstatus[r] != STATUS_CONVERGED:
                 ps = STATUS_NOT_CONVERGED
             else:
                 ps = STATUS_OK
             point_status[r][j] = ps
             if ps in _FAILED or status[r] == STATUS_OK:
                 status[r] = ps if ps != STATUS_OK else status[r]
-            steps[r, j] = res.steps[r]
-            fmax[r, j] = res.fmax[r]
+            steps[r, j] = fsteps[r]
+            fmax[r, j] = ffmax[r]
             if ps in _FAILED:
                 continue
             strain[r, j] = eps[r]
@@ -297,10 +491,12 @@ def _run_chain(batch: _Batch, n_points: int, make_energy_forces: Callable[[int, 
             for k, v in m.items():
                 obs.setdefault(k, np.full((R, n_points), np.nan))[r, j] = v[r]
         # failed replicas restart from (and stay frozen at) the reference so their rows stay finite
-        failed_rows = np.repeat(np.array([s in _FAILED for s in status]), batch.nv)
-        x = np.where(failed_rows[:, None], batch.x_ref, xn)
+        backend.reset_failed(np.array([s in _FAILED for s in status]))
+        if progress is not None:
+            progress(j, n_points, time.perf_counter() - t0)
     return {"status": status, "point_status": point_status, "fire_steps": steps, "fmax": fmax,
-            "max_area_strain": strain, "volume": volume, "obs": obs, "x": x}
+            "max_area_strain": strain, "volume": volume, "obs": obs, "x": backend.x_final(),
+            "fire_evaluations": int(backend.n_evaluations)}
 
 
 def _refine_grid(grid: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
@@ -326,18 +522,23 @@ def _select_points(out: dict, keep: np.ndarray) -> dict:
     return sel
 
 
-def _check_common(rupture_strain: float, fire: FireSettings) -> None:
+def _check_common(rupture_strain: float, fire: FireSettings, minimizer: str = "device") -> None:
     if not (math.isfinite(rupture_strain) and rupture_strain > 0):
         raise ValueError(f"rupture_strain must be a positive finite number, got {rupture_strain!r}")
     if not isinstance(fire, FireSettings):
         raise ValueError(f"fire must be a FireSettings, got {type(fire).__name__}")
+    if minimizer not in MINIMIZERS:
+        raise ValueError(f"minimizer must be one of {MINIMIZERS}, got {minimizer!r}")
+
+
+def _dtype_name(dtype) -> str:
+    return "float64" if dtype is None else str(getattr(dtype, "__name__", dtype))
 
 
 def _mean_free(f: np.ndarray, R: int, nv: int, comps: slice) -> np.ndarray:
     fr = f.reshape(R, nv, 3)
     fr[:, :, comps] -= fr[:, :, comps].mean(axis=1, keepdims=True)
     return fr.reshape(-1, 3)
-
 
 # ------------------------------------------------------------------------------------------------
 # indentation
@@ -372,7 +573,9 @@ class IndentationResult:
 def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
                             forces_dpd: Sequence[float] | np.ndarray, *, gas: IdealGas | None = IdealGas(),
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
-                            rupture_strain: float = 1.0, fraction_loaded: float = 0.01) -> IndentationResult:
+                            rupture_strain: float = 1.0, fraction_loaded: float = 0.01, minimizer: str = "device",
+                            sync_every: int | None = None,
+                            progress: Callable[[int, int, float], None] | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
 
     Args:
@@ -384,46 +587,60 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         fire: :class:`FireSettings` (ftol in DPD force per vertex).
         rupture_strain: max |A_t/A0_t - 1| above which a replica is 'ruptured'.
         fraction_loaded: k = max(1, floor(fraction_loaded N_v)) loaded vertices per pole.
+        minimizer: ``"device"`` (default: :class:`bubblecal.sim.minimize_device.DeviceFire`, all state
+            and forces on the Warp device) or ``"numpy"`` (host FIRE, the reference implementation).
+        sync_every: device FIRE iterations between host status checks (default 25 CUDA / 4 CPU).
+        progress: optional ``progress(j, n_points, seconds)`` called after every load point
+            (compression: every sub-step).
 
     Returns: :class:`IndentationResult`; displacement in DPD length.
     """
     t0 = time.perf_counter()
     forces = validate_grid(forces_dpd, "forces_dpd")
-    _check_common(rupture_strain, fire)
+    _check_common(rupture_strain, fire, minimizer)
     if not (0 < fraction_loaded < 0.5):
         raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {fraction_loaded!r}")
-    b = _Batch(params, mesh, gas, device, dtype)
-    R, nv = b.R, b.nv
+    params = _check_params(params, mesh, gas)
+    R, nv = len(params), mesh.n_vertices
     z0 = mesh.vertices[:, 2]
     zc = float(mesh.vertices[:, 2].mean())
     k = max(1, int(math.floor(fraction_loaded * nv)))
     order = np.argsort(z0, kind="stable")
     bottom, top = order[:k], order[::-1][:k]
     equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
-    free = np.ones((R, nv, 3), dtype=bool)
-    free[:, equator, 2] = False
-    free = free.reshape(-1, 3)
+    free_v = np.ones((nv, 3), dtype=bool)
+    free_v[equator, 2] = False
     unit = np.zeros((nv, 3))
     unit[top, 2] = -1.0 / k
     unit[bottom, 2] = 1.0 / k
-    unit_all = np.tile(unit, (R, 1))
+    if minimizer == "device":
+        tag = np.zeros(nv, dtype=np.int32)
+        tag[top], tag[bottom] = 1, -1
+        dc = _DeviceChain(params, mesh, gas, device, dtype, fire, free_v=free_v, remove_mean=(True, True, True),
+                          unit=unit, tag=tag, sync_every=sync_every)
+        out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
+                         progress=progress)
+    else:
+        b = _Batch(params, mesh, gas, device, dtype)
+        unit_all = np.tile(unit, (R, 1))
 
-    def make(j, alive):
-        fext = forces[j] * unit_all
+        def make(j, alive):
+            fext = forces[j] * unit_all
 
-        def ef(x):
-            f = b.shell_gas_forces(x) + fext
-            return None, _mean_free(f, R, nv, slice(0, 3))
+            def ef(x):
+                f = b.shell_gas_forces(x) + fext
+                return None, _mean_free(f, R, nv, slice(0, 3))
 
-        return ef
+            return ef
 
-    def measure(x, j):
-        xr = b.view(x)
-        h = xr[:, :, 2].max(axis=1) - xr[:, :, 2].min(axis=1)
-        patch = xr[:, top, 2].mean(axis=1) - xr[:, bottom, 2].mean(axis=1)
-        return {"H": h, "patch": patch}
+        def measure(x, j):
+            xr = b.view(x)
+            h = xr[:, :, 2].max(axis=1) - xr[:, :, 2].min(axis=1)
+            patch = xr[:, top, 2].mean(axis=1) - xr[:, bottom, 2].mean(axis=1)
+            return {"H": h, "patch": patch}
 
-    out = _run_chain(b, len(forces), make, free, fire, rupture_strain, measure)
+        hc = _HostChain(b, make, np.tile(free_v, (R, 1)), fire, measure)
+        out = _run_chain(hc, len(forces), rupture_strain, progress=progress)
     h0 = float(z0.max() - z0.min())
     patch0 = float(z0[top].mean() - z0[bottom].mean())
     H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
@@ -432,7 +649,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                 "gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
                 "com": "mean force removed (x, y, z)", "equator": "|z - z_c| < 0.25 l_min anchored in z",
                 "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,
-                "rupture_strain": rupture_strain, "n_vertices": nv}
+                "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
+                "dtype": _dtype_name(dtype), "fire_evaluations": out["fire_evaluations"]}
     return IndentationResult(forces=forces, displacement=h0 - H, axial_diameter=H,
                              axial_diameter0=np.full(R, h0), d_patch=patch0 - P, volume=out["volume"],
                              max_area_strain=out["max_area_strain"], fmax=out["fmax"],
@@ -475,7 +693,9 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                             displacements_dpd: Sequence[float] | np.ndarray, *,
                             gas: IdealGas | None = IdealGas(), contact: PlateContact = PlateContact(),
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
-                            rupture_strain: float = 1.0, max_plate_step: float = 0.03) -> CompressionResult:
+                            rupture_strain: float = 1.0, max_plate_step: float = 0.03, minimizer: str = "device",
+                            sync_every: int | None = None,
+                            progress: Callable[[int, int, float], None] | None = None) -> CompressionResult:
     """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
 
     Args:
@@ -484,7 +704,8 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         displacements_dpd: imposed total plate displacement d at each point (DPD length, >= 0,
             strictly increasing); each plate moves d/2.
         gas: enclosed ideal gas or None.  contact: plate-vertex :class:`PlateContact`.
-        device, dtype, fire, rupture_strain: as in :func:`quasistatic_indentation`.
+        device, dtype, fire, rupture_strain, minimizer, sync_every, progress: as in
+            :func:`quasistatic_indentation`.
         max_plate_step: largest plate move between two minimisations (DPD length); longer load steps
             are split into relaxed sub-steps (a 0.12 jump into the stiff WCA wall makes FIRE diverge).
 
@@ -493,49 +714,59 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     """
     t0 = time.perf_counter()
     requested = validate_grid(displacements_dpd, "displacements_dpd")
-    _check_common(rupture_strain, fire)
+    _check_common(rupture_strain, fire, minimizer)
     if not (math.isfinite(max_plate_step) and max_plate_step > 0):
         raise ValueError(f"max_plate_step must be a positive finite DPD length, got {max_plate_step!r}")
     disp, keep = _refine_grid(requested, 2.0 * max_plate_step)
     if not isinstance(contact, PlateContact):
         raise ValueError(f"contact must be a PlateContact, got {type(contact).__name__}")
-    b = _Batch(params, mesh, gas, device, dtype)
-    R, nv = b.R, b.nv
+    params = _check_params(params, mesh, gas)
+    R, nv = len(params), mesh.n_vertices
     zc = float(mesh.vertices[:, 2].mean())
     h0 = float(np.max(np.abs(mesh.vertices[:, 2] - zc)))
     if np.any(disp / 2 >= h0 + contact.gap):
         raise ValueError(f"displacements_dpd must stay below 2 (h0 + gap) = {2 * (h0 + contact.gap):.3f}")
     plate = zc + h0 + contact.gap - disp / 2.0  # top plate z; bottom = 2 zc - plate
+    if minimizer == "device":
+        dc = _DeviceChain(params, mesh, gas, device, dtype, fire, free_v=np.ones((nv, 3), dtype=bool),
+                          remove_mean=(True, True, False), contact=contact, sync_every=sync_every)
+        out = _run_chain(dc, len(disp), rupture_strain,
+                         set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress)
+    else:
+        b = _Batch(params, mesh, gas, device, dtype)
 
-    def plate_forces(x, j):
-        z = x[:, 2]
-        ft, et = plate_force_energy(plate[j] - z, contact)
-        fb, eb = plate_force_energy(z - (2 * zc - plate[j]), contact)
-        return ft, fb
+        def plate_forces(x, j):
+            z = x[:, 2]
+            ft, et = plate_force_energy(plate[j] - z, contact)
+            fb, eb = plate_force_energy(z - (2 * zc - plate[j]), contact)
+            return ft, fb
 
-    def make(j, alive):
-        def ef(x):
-            f = b.shell_gas_forces(x)
+        def make(j, alive):
+            def ef(x):
+                f = b.shell_gas_forces(x)
+                ft, fb = plate_forces(x, j)
+                f[:, 2] += fb - ft
+                return None, _mean_free(f, R, nv, slice(0, 2))
+
+            return ef
+
+        def measure(x, j):
             ft, fb = plate_forces(x, j)
-            f[:, 2] += fb - ft
-            return None, _mean_free(f, R, nv, slice(0, 2))
+            z = x[:, 2]
+            return {"top": ft.reshape(R, nv).sum(axis=1), "bottom": fb.reshape(R, nv).sum(axis=1),
+                    "contacts": (plate[j] - z < contact.cutoff).reshape(R, nv).sum(axis=1).astype(float)}
 
-        return ef
-
-    def measure(x, j):
-        ft, fb = plate_forces(x, j)
-        z = x[:, 2]
-        return {"top": ft.reshape(R, nv).sum(axis=1), "bottom": fb.reshape(R, nv).sum(axis=1),
-                "contacts": (plate[j] - z < contact.cutoff).reshape(R, nv).sum(axis=1).astype(float)}
-
-    out = _select_points(_run_chain(b, len(disp), make, np.ones((R * nv, 3), dtype=bool), fire, rupture_strain,
-                                    measure), keep)
+        hc = _HostChain(b, make, np.ones((R * nv, 3), dtype=bool), fire, measure)
+        out = _run_chain(hc, len(disp), rupture_strain, progress=progress)
+    fire_evaluations = out["fire_evaluations"]
+    out = _select_points(out, keep)
     nan = np.full((R, len(keep)), np.nan)
     settings = {"gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
                 "contact": {**contact.__dict__, "cutoff": contact.cutoff},
                 "plates": "z = z_c +- (h0 + gap - d/2)", "h0": h0, "com": "mean x, y force removed",
                 "observable": "force on the top plate (one plate), positive compressive",
-                "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv}
+                "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
+                "dtype": _dtype_name(dtype), "fire_evaluations": fire_evaluations}
     return CompressionResult(displacements=requested, force=out["obs"].get("top", nan),
                              force_bottom=out["obs"].get("bottom", nan),
                              n_contacts=out["obs"].get("contacts", nan), plate_z=plate[keep], volume=out["volume"],

@@ -179,3 +179,42 @@ def test_indentation_close_to_published_training_row(shared_reference):
     assert r.status == ["ok"]
     ratio = r.displacement[0, -1] / (diam[0] - diam[-1])
     assert 0.75 < ratio < 1.05, ratio
+
+
+# ----- device-resident FIRE (default) vs the NumPy reference FIRE ----------------------------------
+@pytest.mark.parametrize("protocol", ["compression", "indentation"])
+def test_device_minimizer_reproduces_numpy_fire(mesh, protocol):
+    p = [_p(), ShellParams(ka=KA / 4, kb=KB, b1=0.7, b2=0.75, a3=-2.0, a4=8.0, self_avoid=False)]
+    if protocol == "compression":
+        run, grid, key = quasistatic_compression, [0.0, 0.12, 0.24], "force"
+    else:
+        run, grid, key = quasistatic_indentation, [0.0, 20.0, 40.0], "displacement"
+    ref = run(p, mesh, grid, minimizer="numpy")
+    dev = run(p, mesh, grid)  # default: device FIRE, float64
+    assert dev.settings["minimizer"] == "device" and ref.settings["minimizer"] == "numpy"
+    assert dev.status == ref.status == ["ok", "ok"]
+    np.testing.assert_array_equal(dev.fire_steps, ref.fire_steps)  # same FIRE iterates (float64, CPU)
+    np.testing.assert_allclose(getattr(dev, key), getattr(ref, key), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(dev.volume, ref.volume, rtol=1e-12)
+    np.testing.assert_allclose(dev.max_area_strain, ref.max_area_strain, rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(dev.x_final, ref.x_final, atol=1e-9)
+    if protocol == "compression":
+        np.testing.assert_allclose(dev.force_bottom, ref.force_bottom, rtol=1e-9, atol=1e-12)
+        np.testing.assert_array_equal(dev.n_contacts, ref.n_contacts)
+    else:
+        np.testing.assert_allclose(dev.d_patch, ref.d_patch, rtol=1e-9, atol=1e-12)
+
+
+def test_device_minimizer_float32_close_to_float64(mesh, compression, indentation):
+    wp = pytest.importorskip("warp")
+    c32 = quasistatic_compression([_p(), _p(ka=KA / 4)], mesh, [0.0, 0.12, 0.24, 0.36], dtype=wp.float32)
+    i32 = quasistatic_indentation([_p(), _p(ka=KA / 4)], mesh, [0.0, 10.0, 20.0, 40.0], dtype=wp.float32)
+    assert c32.status == i32.status == ["ok", "ok"] and c32.settings["dtype"] == "float32"
+    # measured (s2, ftol 0.05): compression 4.2e-4, indentation 7.3e-4 of the curve's largest value
+    for a, b in ((c32.force, compression.force), (i32.displacement, indentation.displacement)):
+        assert np.max(np.abs(a - b)) < 1e-2 * np.max(np.abs(b))
+
+
+def test_minimizer_choice_validated(mesh):
+    with pytest.raises(ValueError, match="minimizer"):
+        quasistatic_indentation([_p()], mesh, [0.0], minimizer="scipy")
