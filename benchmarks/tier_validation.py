@@ -14,7 +14,7 @@ and ``overlay_<d>um.png`` (published vs tiers, up to 4 rows).  Last stdout line:
 Usage (CPU smoke):
   python benchmarks/tier_validation.py --device cpu --diameters 2.1 --rows 2 --scale 0.002 --subdivisions 2 \
       --out /tmp/tv
-GPU (see benchmarks/results_tiers.md for the recommended calls, each < 9 minutes):
+GPU (see benchmarks/RESULTS.md for the recommended calls, each < 9 minutes):
   python benchmarks/tier_validation.py --device cuda --diameters 2.1 --rows 5 --tiers explicit --out out/tv21
 """
 

@@ -59,7 +59,7 @@ DEVICES = ("cpu", "gpu")
 #: Default particles per phase: both agents (reduced-acoustic) finish on 2 loaded CPU cores in < 10 min
 #: (compile-dominated with the synthetic bundle: N = 1000, 2000, 5000 take 118, 116, 134 s unloaded; larger
 #: shipped MLPs cost more per particle, hence not more)
-#: (benchmarks/results_calibrate.md).
+#: (benchmarks/RESULTS.md).
 DEFAULT_POPULATION = 2000
 #: The published settings (``--paper``): N = 50,000 per phase, target CoV 0.8 (phase 1) / 0.6 (phases 2, 3),
 #: covariance scaling s² = 0.04.

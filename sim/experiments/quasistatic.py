@@ -14,7 +14,7 @@ every ``sync_every`` iterations (CUDA: those iterations replay as one CUDA graph
 reference implementation (:func:`bubblecal.sim.minimize.fire_minimize`, one host round trip per
 force evaluation); both follow the same FIRE rules and give the same curves (float64: equal to
 round-off on the CPU; tests/sim/test_minimize_device.py).  ``dtype=wp.float32`` is offered for GPU
-throughput (curves within ~1e-3 relative of float64, see benchmarks/results_quasistatic.md).
+throughput (curves within ~1e-3 relative of float64, see benchmarks/RESULTS.md).
 
 Choices (stated once; also returned in ``result.settings``):
 

@@ -242,6 +242,43 @@ def radius_from_volume(volume):
 # ------------------------------------------------------------------------------------------------
 # the protocol
 # ------------------------------------------------------------------------------------------------
+
+def _equilibrate(system, volumes, check, eq_steps: int, every: int, hev: int, report) -> np.ndarray:
+    """Step ``eq_steps`` (``check()`` every ``hev`` steps); returns the mean R [R] over the last 10 %,
+    sampled every ``every`` steps (DPD length)."""
+    tail = max(every, eq_steps // 10) if eq_steps else 0
+    head = eq_steps - tail
+    done = 0
+    while done < head:
+        n = min(hev, head - done)
+        system.step(n)
+        done += n
+        check()
+        report("equilibration", done)
+    r_eq = []
+    while done < eq_steps:
+        n = min(every, eq_steps - done)
+        system.step(n)
+        done += n
+        r_eq.append(radius_from_volume(volumes()))
+    return np.nanmean(np.array(r_eq), axis=0) if r_eq else radius_from_volume(volumes())
+
+
+def _record(system, sample, check, n_rec: int, every: int, hev: int, report):
+    """``sample(k)`` at k = 0..n_rec-1, ``every`` steps apart; ``check()`` every ``hev`` steps and at the end.
+    Returns the last ``check()`` result (None if never called)."""
+    sample(0)
+    since, last = 0, None
+    for k in range(1, n_rec):
+        system.step(every)
+        since += every
+        sample(k)
+        if since >= hev or k == n_rec - 1:
+            last = check()
+            since = 0
+            report(k)
+    return last
+
 def ringdown_batch(diameter_um: float, params: Mapping[str, np.ndarray], seeds: Sequence[int], *,
                    tier: str = "explicit", device: str = "cpu", mass_factor: float = 160.0,
                    perturbation: float = 0.015, equilibration_steps: int | None = None,
@@ -371,25 +408,13 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
             progress(phase, int(done), int(total))
 
     # ---- equilibration (mean R over its last 10 %) ----
-    tail = max(every, eq_steps // 10) if eq_steps else 0
-    head = eq_steps - tail
-    done = 0
-    while done < head:
-        n = min(hev, head - done)
-        system.step(n)
-        done += n
-        monitor.check(system)
-        report("equilibration", done)
-    r_eq = []
-    while done < eq_steps:
-        n = min(every, eq_steps - done)
-        system.step(n)
-        done += n
-        r_eq.append(radius_from_volume(system.shell_area_volume()[1]))
+    def volumes():
+        return system.shell_area_volume()[1]
+
+    r_equil = _equilibrate(system, volumes, lambda: monitor.check(system), eq_steps, every, hev, report)
     if eq_steps:
         monitor.check(system)
-        report("equilibration", done)
-    r_equil = np.nanmean(np.array(r_eq), axis=0) if r_eq else radius_from_volume(system.shell_area_volume()[1])
+        report("equilibration", eq_steps)
     # gas pressure inside from the ideal-gas law (gas-gas a = 0)
     _, vol = system.shell_area_volume()
     n_gas = system.solvent_counts()[:, GAS].astype(np.float64)
@@ -445,16 +470,7 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
             verts.append(frame)
             vt.append(k * every * dt)
 
-    sample(0)
-    since = 0
-    for k in range(1, n_rec):
-        system.step(every)
-        since += every
-        sample(k)
-        if since >= hev or k == n_rec - 1:
-            monitor.check(system)
-            since = 0
-            report("record", eq_steps + k * every)
+    _record(system, sample, lambda: monitor.check(system), n_rec, every, hev, lambda k: report("record", eq_steps + k * every))
     final = monitor.reports[-1] if monitor.reports else None
     names = final.status if final is not None else ["OK"] * R
     status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in names]
@@ -522,25 +538,11 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
         if progress is not None:
             progress(phase, int(done), int(total))
 
-    tail = max(every, eq_steps // 10) if eq_steps else 0
-    head = eq_steps - tail
-    done = 0
-    while done < head:
-        n = min(hev, head - done)
-        system.step(n)
-        done += n
-        system.check_health(thresholds)
-        report("equilibration", done)
-    r_eq = []
-    while done < eq_steps:
-        n = min(every, eq_steps - done)
-        system.step(n)
-        done += n
-        r_eq.append(radius_from_volume(system.volumes()))
-    r_equil = np.nanmean(np.array(r_eq), axis=0) if r_eq else radius_from_volume(system.volumes())
+    r_equil = _equilibrate(system, system.volumes, lambda: system.check_health(thresholds), eq_steps, every, hev,
+                           report)
     p_gas = system.gas_pressure()
     h_eq = system.check_health(thresholds)
-    report("equilibration", done)
+    report("equilibration", eq_steps)
 
     # perturbation: homothety of every live shell about its centroid (the gas law follows V)
     x = np.asarray(system.vertices(), dtype=np.float64)
@@ -561,17 +563,8 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
             verts.append(np.asarray(system.vertices())[:, vidx].astype(np.float32))
             vt.append(k * every * dt)
 
-    sample(0)
-    since = 0
-    health = h_eq
-    for k in range(1, n_rec):
-        system.step(every)
-        since += every
-        sample(k)
-        if since >= hev or k == n_rec - 1:
-            health = system.check_health(thresholds)
-            since = 0
-            report("record", eq_steps + k * every)
+    health = _record(system, sample, lambda: system.check_health(thresholds), n_rec, every, hev,
+                     lambda k: report("record", eq_steps + k * every)) or h_eq
     status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in health["status"]]
     status = [("failed" if st == "ok" and not np.all(np.isfinite(radius[r])) else st) for r, st in enumerate(status)]
     pred = breathing_mode_prediction(p["ka"], r_equil, p_gas, shell_mass,

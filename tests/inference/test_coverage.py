@@ -14,7 +14,7 @@ it inside the central 99 % binomial band for every parameter. The fast version r
 only and checks the code path and that the intervals are sane (inside the prior, σ's interval about
 as wide as the noise level, truths within a wide 99.8 % interval).
 
-Set ``BUBBLECAL_VALIDITY_OUT=FILE.json`` to write the measured rates (benchmarks/results_validity.md).
+Set ``BUBBLECAL_VALIDITY_OUT=FILE.json`` to write the measured rates (benchmarks/RESULTS.md).
 """
 
 from __future__ import annotations

@@ -154,7 +154,7 @@ def test_staged_and_joint_agree(tmp_path, closed_form):
     """k_a, k_b, d0 free, larger populations: ψ passes compare_staged_joint's strict verdict (0.2 sd central,
     0.3 sd tails, KS 0.1); each Θ_i agrees within 0.6 sd / KS 0.2.
 
-    Measured (benchmarks/results_validity.md): ψ and the 3.0 µm bubble pass the strict verdict, the 2.1 and
+    Measured (benchmarks/RESULTS.md): ψ and the 3.0 µm bubble pass the strict verdict, the 2.1 and
     2.9 µm bubbles differ by up to 0.45 sd along the k_a–k_b ridge (opposite signs for k_a and k_b), an
     open point: which sampler is off along the ridge is not settled yet.
     """

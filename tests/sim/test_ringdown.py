@@ -156,7 +156,7 @@ def test_explicit_ringdown_physics():
     """Explicit tier (water + gas), 1.5 um, level 2, CPU (~5 min per mass factor): a clean damped ringdown whose
     omega0 lies between the water-loaded estimate and ~1.1x check 7 (measured 0.94x check 7 at mass factor 160;
     at 40 the water contact layer stiffens it to 1.28x: f ~ M^-1/2 does NOT hold with explicit water, see
-    benchmarks/results_ringdown.md)."""
+    benchmarks/RESULTS.md)."""
     import warp as wp
 
     wp.config.quiet = True
