@@ -93,6 +93,15 @@ def fit_figure(result, plan, path: Path) -> Path:
     return _save(fig, path)
 
 
+def _tick_label(v: float, _pos=None) -> str:
+    """Plain numbers between 0.01 and 10^4, otherwise m x 10^e in mathtext."""
+    if v <= 0 or 1e-2 <= v < 1e4:
+        return f"{v:g}"
+    e = int(np.floor(np.log10(v) + 1e-9))
+    m = v / 10**e
+    return f"$10^{{{e}}}$" if abs(m - 1) < 1e-6 else f"${m:g}\\times10^{{{e}}}$"
+
+
 def ka_kb_figure(result, plan, path: Path) -> Path | None:
     from bubblecal.workflows.report import dataset_posteriors
 
@@ -122,14 +131,16 @@ def ka_kb_figure(result, plan, path: Path) -> Path | None:
         i += 1
     lo_e, hi_e = E(np.array(spec.parameters["ka"].prior.as_tuple()))
     lo_k, hi_k = K(np.array(spec.parameters["kb"].prior.as_tuple()))
-    from matplotlib.ticker import NullFormatter
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-    if hi_e / lo_e > 30:
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())
-    if hi_k / lo_k > 30:
-        ax.set_yscale("log")
-        ax.yaxis.set_minor_formatter(NullFormatter())
+    # 1-2-5 ticks labelled in plain numbers: a prior box of 1-2 decades otherwise gets a single label
+    for axis, ratio in ((ax.xaxis, hi_e / lo_e), (ax.yaxis, hi_k / lo_k)):
+        if ratio > 30:
+            (ax.set_xscale if axis is ax.xaxis else ax.set_yscale)("log")
+            if ratio < 1e3:
+                axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+                axis.set_major_formatter(FuncFormatter(_tick_label))
+            axis.set_minor_formatter(NullFormatter())
     ax.set_xlim(lo_e, hi_e)
     ax.set_ylim(lo_k, hi_k)
     ax.set_xlabel("Young's modulus E [MPa]  (from $k_a$, ν = 1/2)")

@@ -26,7 +26,7 @@ import numpy as np
 
 from bubblecal.data.units import DEFAULT_UNITS
 
-__all__ = ["PHYSICAL", "dataset_posteriors", "summarise_agent", "summary_table", "write_report", "POPULATION_ROW"]
+__all__ = ["PHYSICAL", "hyperprior_bound_notes", "dataset_posteriors", "summarise_agent", "summary_table", "write_report", "POPULATION_ROW"]
 
 POPULATION_ROW = "population (new bubble)"
 
@@ -260,6 +260,25 @@ def _fmt(v, digits=4) -> str:
     return "–" if v is None or not math.isfinite(v) else f"{v:.{digits}g}"
 
 
+def hyperprior_bound_notes(hyp, spec, frac: float = 0.02) -> list[str]:
+    """One line per hyperparameter whose 5 % or 95 % posterior quantile lies within ``frac`` of the
+    hyperprior range of a bound (``hyp``: summary rows with parameter 'm_ka', 'tau_kb', ... in DPD units)."""
+    notes = []
+    for r in hyp.itertuples():
+        which, name = r.parameter.split("_", 1)
+        prior = spec.parameters.get(name)
+        bounds = None if prior is None else (prior.hyper_m if which == "m" else prior.hyper_tau)
+        if bounds is None:
+            continue
+        lo, hi = bounds.as_tuple()
+        tol = frac * (hi - lo)
+        for q, edge, label in ((r.q05, lo, "lower"), (r.q95, hi, "upper")):
+            if abs(q - edge) <= tol:
+                notes.append(f"{r.parameter}: {'5' if label == 'lower' else '95'} % quantile {q:.4g} at the {label} "
+                             f"hyperprior bound {edge:.4g} [DPD] (range [{lo:.4g}, {hi:.4g}])")
+    return notes
+
+
 def write_report(result, plan) -> Path:
     """Write ``report.md`` (one page) for one agent and return its path."""
     ap = result.plan
@@ -303,6 +322,10 @@ def write_report(result, plan) -> Path:
         lines += ["Population hyperparameters ψ (posterior mean [5 %, 95 %], physical units): "
                   + "; ".join(f"{r.parameter} = {r.mean_phys:.3g} [{r.q05_phys:.3g}, {r.q95_phys:.3g}] {r.physical_unit}"
                               for r in hyp.itertuples()), ""]
+        notes = hyperprior_bound_notes(hyp, ap.spec)
+        if notes:
+            lines += ["**Hyperparameters at a hyperprior bound** (the posterior there is set by the priors file, "
+                      f"`{ap.priors_path}`, not by the data):", ""] + [f"- {n}" for n in notes] + [""]
     if result.staged is not None:
         st = result.staged
         lines += ["## Evidence and importance sampling", "",
