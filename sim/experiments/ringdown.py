@@ -264,9 +264,21 @@ def _equilibrate(system, volumes, check, eq_steps: int, every: int, hev: int, re
     return np.nanmean(np.array(r_eq), axis=0) if r_eq else radius_from_volume(volumes())
 
 
-def _record(system, sample, check, n_rec: int, every: int, hev: int, report):
-    """``sample(k)`` at k = 0..n_rec-1, ``every`` steps apart; ``check()`` every ``hev`` steps and at the end.
-    Returns the last ``check()`` result (None if never called)."""
+def _record(system, volumes, frame, vertex_every: int, check, rec_steps: int, every: int, dt: float, hev: int,
+            report):
+    """Record R(t) = (3 V / 4 pi)^(1/3) [R, T] (DPD length) every ``every`` steps over ``rec_steps``;
+    ``frame()`` -> vertices [R, Nv', 3] every ``vertex_every``-th record when given (else None);
+    ``check()`` every ``hev`` steps and at the end.  Returns (radius, frames or None, their times, last check)."""
+    n_rec = rec_steps // every + 1
+    radius = np.full((np.asarray(volumes()).shape[0], n_rec), np.nan)
+    verts, vt = ([], []) if frame is not None else (None, None)
+
+    def sample(k):
+        radius[:, k] = radius_from_volume(volumes())
+        if frame is not None and k % vertex_every == 0:
+            verts.append(np.asarray(frame(), dtype=np.float32))
+            vt.append(k * every * dt)
+
     sample(0)
     since, last = 0, None
     for k in range(1, n_rec):
@@ -277,7 +289,7 @@ def _record(system, sample, check, n_rec: int, every: int, hev: int, report):
             last = check()
             since = 0
             report(k)
-    return last
+    return radius, verts, vt, last
 
 def ringdown_batch(diameter_um: float, params: Mapping[str, np.ndarray], seeds: Sequence[int], *,
                    tier: str = "explicit", device: str = "cpu", mass_factor: float = 160.0,
@@ -457,20 +469,14 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
 
     # ---- record ----
     vidx = _vertex_subset(nv, max_vertices) if record_vertices else None
-    n_rec = rec_steps // every + 1
-    radius = np.full((R, n_rec), np.nan)
-    verts = [] if record_vertices else None
-    vt = [] if record_vertices else None
 
-    def sample(k):
-        radius[:, k] = radius_from_volume(system.shell_area_volume()[1])
-        if record_vertices and k % vertex_every == 0:
-            allv = system.xv.numpy()
-            frame = np.stack([allv[int(system.vertex_offset[r]) + vidx] for r in range(R)]).astype(np.float32)
-            verts.append(frame)
-            vt.append(k * every * dt)
+    def frame():
+        allv = system.xv.numpy()
+        return np.stack([allv[int(system.vertex_offset[r]) + vidx] for r in range(R)])
 
-    _record(system, sample, lambda: monitor.check(system), n_rec, every, hev, lambda k: report("record", eq_steps + k * every))
+    radius, verts, vt, _ = _record(
+        system, lambda: system.shell_area_volume()[1], frame if record_vertices else None, vertex_every,
+        lambda: monitor.check(system), rec_steps, every, dt, hev, lambda k: report("record", eq_steps + k * every))
     final = monitor.reports[-1] if monitor.reports else None
     names = final.status if final is not None else ["OK"] * R
     status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in names]
@@ -490,7 +496,7 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
         "prediction": {k: np.asarray(v).tolist() for k, v in pred.items()},
         "neighbor_rebuilds": int(system.n_rebuilds), "warp_version": wp.config.version,
     }
-    return RingdownBatch(t=np.arange(n_rec) * every * dt, radius=radius, status=status, params=p, seeds=seeds,
+    return RingdownBatch(t=np.arange(radius.shape[1]) * every * dt, radius=radius, status=status, params=p, seeds=seeds,
                          info=info, vertices=None if verts is None else np.stack(verts, axis=1),
                          vertex_t=None if vt is None else np.asarray(vt), vertex_indices=vidx)
 
@@ -552,19 +558,11 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
     system.set_vertices(x)
 
     vidx = _vertex_subset(nv, max_vertices) if record_vertices else None
-    n_rec = rec_steps // every + 1
-    radius = np.full((R, n_rec), np.nan)
-    verts = [] if record_vertices else None
-    vt = [] if record_vertices else None
-
-    def sample(k):
-        radius[:, k] = radius_from_volume(system.volumes())
-        if record_vertices and k % vertex_every == 0:
-            verts.append(np.asarray(system.vertices())[:, vidx].astype(np.float32))
-            vt.append(k * every * dt)
-
-    health = _record(system, sample, lambda: system.check_health(thresholds), n_rec, every, hev,
-                     lambda k: report("record", eq_steps + k * every)) or h_eq
+    radius, verts, vt, health = _record(
+        system, system.volumes, (lambda: np.asarray(system.vertices())[:, vidx]) if record_vertices else None,
+        vertex_every, lambda: system.check_health(thresholds), rec_steps, every, dt, hev,
+        lambda k: report("record", eq_steps + k * every))
+    health = health or h_eq
     status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in health["status"]]
     status = [("failed" if st == "ok" and not np.all(np.isfinite(radius[r])) else st) for r, st in enumerate(status)]
     pred = breathing_mode_prediction(p["ka"], r_equil, p_gas, shell_mass,
@@ -580,6 +578,6 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
         "prediction": {k: np.asarray(v).tolist() for k, v in pred.items()},
     }
     info["system"].pop("n_vertices", None)
-    return RingdownBatch(t=np.arange(n_rec) * every * dt, radius=radius, status=status, params=p, seeds=seeds,
+    return RingdownBatch(t=np.arange(radius.shape[1]) * every * dt, radius=radius, status=status, params=p, seeds=seeds,
                          info=info, vertices=None if verts is None else np.stack(verts, axis=1),
                          vertex_t=None if vt is None else np.asarray(vt), vertex_indices=vidx)
