@@ -65,6 +65,8 @@ import zlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
+from bubblecal.data.files import atomic_write
+
 __all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "STATUSES", "SETUPS", "PARAM_NAMES",
            "StoreError", "CampaignStore", "make_record", "validate_record"]
 
@@ -180,9 +182,7 @@ class CampaignStore:
         store.path.mkdir(parents=True, exist_ok=True)
         header = {"format": STORE_FORMAT, "format_version": STORE_FORMAT_VERSION, "created_utc": _utc_now(),
                   "description": description, "meta": dict(meta or {}), "code_version": _code_version()}
-        tmp = store.header_path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(header, indent=2))
-        os.replace(tmp, store.header_path)
+        atomic_write(store.header_path, lambda tmp: tmp.write_text(json.dumps(header, indent=2)))
         store.records_path.touch()
         return store
 

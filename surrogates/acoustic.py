@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import warnings
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
@@ -45,6 +44,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
+from bubblecal.data.files import atomic_write
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 
 __all__ = ["RingdownFit", "fit_ringdown", "damped_sine", "DiameterFit", "fit_quadratic", "AcousticSurrogate",
@@ -425,12 +425,7 @@ class AcousticSurrogate:
                 "diameters": [self.fits[d].to_dict() for d in self.diameters]}
 
     def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=2))
-        os.replace(tmp, path)
-        return path
+        return atomic_write(path, lambda tmp: tmp.write_text(json.dumps(self.to_dict(), indent=2)))
 
     @classmethod
     def load(cls, path: str | Path) -> AcousticSurrogate:

@@ -50,9 +50,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
-import os
 import shutil
-import tempfile
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -61,6 +59,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
+from bubblecal.data.files import atomic_write
 from bubblecal.surrogates.mlp import mlp_forward
 
 __all__ = [
@@ -109,20 +108,13 @@ def _utc_now() -> str:
 
 
 def _atomic_write_bytes(path: Path, writer) -> None:
-    """Write through a temporary file in the same directory and rename (no half-written files)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
+    """Atomic write (:func:`bubblecal.data.files.atomic_write`) through a binary handle ``writer(fh)``."""
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
             writer(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 # --------------------------------------------------------------------------------------------

@@ -38,8 +38,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import os
-import tempfile
 import time
 import warnings
 from collections.abc import Callable, Mapping
@@ -47,6 +45,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from bubblecal.data.files import atomic_write
 
 __all__ = ["AGENTS", "WORKFLOWS", "SAMPLERS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "CalibrationError",
            "CalibrationConfig", "AgentPlan", "Plan", "PhaseStore", "AgentResult", "make_plan", "run_calibration",
@@ -399,19 +399,6 @@ def _array_hash(*arrays) -> str:
     return h.hexdigest()[:16]
 
 
-def _atomic(path: Path, writer: Callable[[Path], None]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        writer(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 class PhaseStore:
     """Phase files of one agent/workflow folder plus ``manifest.json`` (config hash per phase).
 
@@ -442,7 +429,7 @@ class PhaseStore:
 
     def write_manifest(self) -> None:
         text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
-        _atomic(self.manifest_path, lambda p: p.write_text(text))
+        atomic_write(self.manifest_path, lambda p: p.write_text(text))
 
     def path(self, name: str) -> Path:
         return self.folder / (f"{name}.nc" if self.netcdf else f"{name}.npz")
@@ -497,7 +484,7 @@ def write_phase(path: Path, result, loglik, attrs: Mapping) -> Path:
         idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
                                           ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
                                       for k, v in meta.items()})
-        _atomic(path, lambda p: idata.to_netcdf(str(p)))
+        atomic_write(path, lambda p: idata.to_netcdf(str(p)))
     else:
         arrays = {f"sample__{k}": np.asarray(v) for k, v in result.samples.items()}
         if loglik is not None:
@@ -508,7 +495,7 @@ def write_phase(path: Path, result, loglik, attrs: Mapping) -> Path:
             with open(p, "wb") as fh:
                 np.savez(fh, **arrays)
 
-        _atomic(path, _w)
+        atomic_write(path, _w)
     return path
 
 
