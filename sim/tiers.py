@@ -128,13 +128,9 @@ class CurveRequest:
     def shell_params(self) -> list:
         """One :class:`bubblecal.sim.kernels.shell_params.ShellParams` per replica (mu = ka / 3), with the
         published kb mapped to our kernel's by :data:`KB_KERNEL_SCALE` (module docstring)."""
-        from bubblecal.sim.kernels.shell_params import ShellParams
+        from bubblecal.sim.kernels.shell_params import shell_params_from_arrays
 
-        p = self.params
-        scale = KB_KERNEL_SCALE[self.protocol]
-        return [ShellParams(ka=float(p["ka"][r]), kb=scale * float(p["kb"][r]), b1=float(p["b1"][r]),
-                            b2=float(p["b2"][r]), a3=float(p["a3"][r]), a4=float(p["a4"][r]))
-                for r in range(self.n_replicas)]
+        return shell_params_from_arrays(self.params, KB_KERNEL_SCALE[self.protocol])
 
 
 @dataclass

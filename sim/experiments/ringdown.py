@@ -505,7 +505,7 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
                   record_every, dt, subdivisions, record_vertices, vertex_every, max_vertices, n_periods,
                   samples_per_period, health_every, progress, settings) -> RingdownBatch:
     from bubblecal.sim.implicit import HealthThresholds, ImplicitShellSystem, default_vertex_friction
-    from bubblecal.sim.kernels.shell_params import ShellParams
+    from bubblecal.sim.kernels.shell_params import shell_params_from_arrays
     from bubblecal.sim.mesh import mesh_for_diameter
     from bubblecal.sim.particles import RHO_SHELL_KG_M3
 
@@ -515,7 +515,6 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
         raise ValueError(f"unknown implicit-tier ringdown setting(s) {unknown}; allowed: {sorted(known)}")
     mesh = mesh_for_diameter(diameter_um, subdivisions)
     nv = mesh.n_vertices
-    R = len(seeds)
     m_v = mesh.vertex_mass(float(settings.get("rho_shell_kg_m3", RHO_SHELL_KG_M3)), mass_factor=mass_factor)
     shell_mass = nv * m_v
     if dt is None:
@@ -529,8 +528,7 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
     eq_steps, rec_steps, every = _schedule(pred0["omega0"], dt, equilibration_steps, record_steps, record_every,
                                            n_periods, samples_per_period)
     hev = int(health_every) if health_every is not None else max(every, (5000 // every) * every)
-    params = [ShellParams(ka=float(p["ka"][r]), kb=float(p["kb"][r]), b1=float(p["b1"][r]), b2=float(p["b2"][r]),
-                          a3=float(p["a3"][r]), a4=float(p["a4"][r])) for r in range(R)]
+    params = shell_params_from_arrays(p)
     gamma = settings.get("gamma")
     gamma = default_vertex_friction(mesh) if gamma is None else float(gamma)
     system = ImplicitShellSystem(mesh, params, p0=p0, p_back=float(settings.get("p_back", 91.0)),

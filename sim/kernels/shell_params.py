@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-__all__ = ["ShellParams", "BENDING_MODELS"]
+__all__ = ["ShellParams", "BENDING_MODELS", "shell_params_from_arrays"]
 
 BENDING_MODELS = ("kantor", "juelicher")
 
@@ -79,3 +79,11 @@ class ShellParams:
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def shell_params_from_arrays(params, kb_scale: float = 1.0) -> list[ShellParams]:
+    """One :class:`ShellParams` per replica from a mapping of ``ka, kb, b1, b2, a3, a4`` -> sequences [R]
+    (DPD units; mu = ka / 3), with kb multiplied by ``kb_scale`` (a bending-convention factor)."""
+    names = ("ka", "kb", "b1", "b2", "a3", "a4")
+    return [ShellParams(**{k: float(params[k][r]) * (kb_scale if k == "kb" else 1.0) for k in names})
+            for r in range(len(params["ka"]))]
