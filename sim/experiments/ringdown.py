@@ -291,6 +291,25 @@ def _record(system, volumes, frame, vertex_every: int, check, rec_steps: int, ev
             report(k)
     return radius, verts, vt, last
 
+
+def _replica_status(health_names, radius: np.ndarray) -> list[str]:
+    """tiers.STATUSES per replica from the health verdicts; an 'ok' replica with a non-finite R(t) is 'failed'."""
+    status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in health_names]
+    return [("failed" if st == "ok" and not np.all(np.isfinite(radius[r])) else st) for r, st in enumerate(status)]
+
+
+def _common_info(tier, diameter_um, dt, eq_steps, rec_steps, every, mass_factor, perturbation, mesh, m_v, r_equil,
+                 p_gas, pred) -> dict:
+    """The ``RingdownBatch.info`` entries both tiers report (DPD units)."""
+    return {
+        "tier": tier, "diameter_um": diameter_um, "dt": dt, "equilibration_steps": eq_steps,
+        "record_steps": rec_steps, "record_every": every, "mass_factor": mass_factor,
+        "perturbation": perturbation, "n_vertices": mesh.n_vertices, "vertex_mass": m_v,
+        "shell_mass": mesh.n_vertices * m_v, "mesh_subdivisions": mesh.subdivisions,
+        "radius_reference": mesh.radius_dpd, "radius_equilibrium": np.asarray(r_equil).tolist(),
+        "p_gas": np.asarray(p_gas).tolist(), "prediction": {k: np.asarray(v).tolist() for k, v in pred.items()},
+    }
+
 def ringdown_batch(diameter_um: float, params: Mapping[str, np.ndarray], seeds: Sequence[int], *,
                    tier: str = "explicit", device: str = "cpu", mass_factor: float = 160.0,
                    perturbation: float = 0.015, equilibration_steps: int | None = None,
@@ -479,21 +498,17 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
         lambda: monitor.check(system), rec_steps, every, dt, hev, lambda k: report("record", eq_steps + k * every))
     final = monitor.reports[-1] if monitor.reports else None
     names = final.status if final is not None else ["OK"] * R
-    status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in names]
-    status = [("failed" if st == "ok" and not np.all(np.isfinite(radius[r])) else st) for r, st in enumerate(status)]
+    status = _replica_status(names, radius)
     pred = breathing_mode_prediction(p["ka"], r_equil, p_gas, shell_mass, explicit=True, box=box,
                                      area_ratio=mesh.area() / (4.0 * math.pi * mesh.radius_dpd**2))
     info = {
-        "tier": "explicit", "diameter_um": diameter_um, "dt": dt, "equilibration_steps": eq_steps,
-        "record_steps": rec_steps, "record_every": every, "mass_factor": mass_factor,
-        "perturbation": perturbation, "n_vertices": nv, "vertex_mass": m_v, "shell_mass": shell_mass,
-        "mesh_subdivisions": mesh.subdivisions, "radius_reference": mesh.radius_dpd,
-        "radius_equilibrium": r_equil.tolist(), "p_gas": p_gas.tolist(), "box": box.tolist(),
+        **_common_info("explicit", diameter_um, dt, eq_steps, rec_steps, every, mass_factor, perturbation, mesh, m_v,
+                       r_equil, p_gas, pred),
+        "box": box.tolist(),
         "n_particles": int(system.N), "device": str(system.device), "dtype": str(np.dtype(npf)),
         "water_layer": water_layer, "pin_com": bool(settings.get("pin_com", False)),
         "health_after_perturbation": None if rep_after is None else rep_after.as_dict(),
         "health_final": None if final is None else final.as_dict(),
-        "prediction": {k: np.asarray(v).tolist() for k, v in pred.items()},
         "neighbor_rebuilds": int(system.n_rebuilds), "warp_version": wp.config.version,
     }
     return RingdownBatch(t=np.arange(radius.shape[1]) * every * dt, radius=radius, status=status, params=p, seeds=seeds,
@@ -561,19 +576,14 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
         vertex_every, lambda: system.check_health(thresholds), rec_steps, every, dt, hev,
         lambda k: report("record", eq_steps + k * every))
     health = health or h_eq
-    status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in health["status"]]
-    status = [("failed" if st == "ok" and not np.all(np.isfinite(radius[r])) else st) for r, st in enumerate(status)]
+    status = _replica_status(health["status"], radius)
     pred = breathing_mode_prediction(p["ka"], r_equil, p_gas, shell_mass,
                                      area_ratio=mesh.area() / (4.0 * math.pi * mesh.radius_dpd**2))
     info = {
-        "tier": "implicit", "diameter_um": diameter_um, "dt": dt, "equilibration_steps": eq_steps,
-        "record_steps": rec_steps, "record_every": every, "mass_factor": mass_factor,
-        "perturbation": perturbation, "n_vertices": nv, "vertex_mass": m_v, "shell_mass": shell_mass,
-        "mesh_subdivisions": mesh.subdivisions, "radius_reference": mesh.radius_dpd,
-        "radius_equilibrium": np.asarray(r_equil).tolist(), "p_gas": np.asarray(p_gas).tolist(),
+        **_common_info("implicit", diameter_um, dt, eq_steps, rec_steps, every, mass_factor, perturbation, mesh, m_v,
+                       r_equil, p_gas, pred),
         "device": str(system.device), "system": system.settings(),
         "health_final": {k: (np.asarray(v).tolist() if not isinstance(v, list) else v) for k, v in health.items()},
-        "prediction": {k: np.asarray(v).tolist() for k, v in pred.items()},
     }
     info["system"].pop("n_vertices", None)
     return RingdownBatch(t=np.arange(radius.shape[1]) * every * dt, radius=radius, status=status, params=p, seeds=seeds,
