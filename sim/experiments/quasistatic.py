@@ -541,10 +541,30 @@ def _mean_free(f: np.ndarray, R: int, nv: int, comps: slice) -> np.ndarray:
     return fr.reshape(-1, 3)
 
 # ------------------------------------------------------------------------------------------------
+# results
+# ------------------------------------------------------------------------------------------------
+@dataclass(kw_only=True)
+class _ChainResult:
+    """Fields every quasi-static result has: per load point ``volume``, ``max_area_strain``, ``fmax``
+    (final per-vertex residual), ``fire_steps`` [R, P]; ``status [R]``, ``point_status [R][P]``;
+    ``x_final`` [R*Nv, 3]; ``settings`` (choices); ``seconds`` (wall time)."""
+
+    volume: np.ndarray
+    max_area_strain: np.ndarray
+    fmax: np.ndarray
+    fire_steps: np.ndarray
+    status: list[str]
+    point_status: list[list[str]]
+    x_final: np.ndarray
+    settings: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+# ------------------------------------------------------------------------------------------------
 # indentation
 # ------------------------------------------------------------------------------------------------
-@dataclass
-class IndentationResult:
+@dataclass(kw_only=True)
+class IndentationResult(_ChainResult):
     """Quasi-static indentation curves of R replicas at P forces (DPD units).
 
     ``forces [P]`` (total per pole), ``displacement [R, P]`` = d(F) = H0 - H (axial extent
@@ -559,15 +579,6 @@ class IndentationResult:
     axial_diameter: np.ndarray
     axial_diameter0: np.ndarray
     d_patch: np.ndarray
-    volume: np.ndarray
-    max_area_strain: np.ndarray
-    fmax: np.ndarray
-    fire_steps: np.ndarray
-    status: list[str]
-    point_status: list[list[str]]
-    x_final: np.ndarray
-    settings: dict = field(default_factory=dict)
-    seconds: float = 0.0
 
 
 def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
@@ -662,8 +673,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
 # ------------------------------------------------------------------------------------------------
 # compression
 # ------------------------------------------------------------------------------------------------
-@dataclass
-class CompressionResult:
+@dataclass(kw_only=True)
+class CompressionResult(_ChainResult):
     """Quasi-static compression curves of R replicas at P imposed total displacements (DPD units).
 
     ``displacements [P]``, ``force [R, P]`` = compressive force on the top plate (one plate),
@@ -678,15 +689,6 @@ class CompressionResult:
     force_bottom: np.ndarray
     n_contacts: np.ndarray
     plate_z: np.ndarray
-    volume: np.ndarray
-    max_area_strain: np.ndarray
-    fmax: np.ndarray
-    fire_steps: np.ndarray
-    status: list[str]
-    point_status: list[list[str]]
-    x_final: np.ndarray
-    settings: dict = field(default_factory=dict)
-    seconds: float = 0.0
 
 
 def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
