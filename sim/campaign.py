@@ -67,6 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.data.files import jsonable
 from bubblecal.data.store import STATUSES as STORE_STATUSES
 from bubblecal.data.store import CampaignStore, make_record
 from bubblecal.data.units import radius_dpd_from_diameter_um
@@ -342,7 +343,7 @@ class CampaignConfig:
             elif isinstance(v, tuple):
                 v = list(v)
             out[k] = v
-        out["tier_settings"] = _jsonable(out["tier_settings"])
+        out["tier_settings"] = jsonable(out["tier_settings"])
         return out
 
     def design_hash(self) -> str:
@@ -577,32 +578,13 @@ def _execute_task(simulate: Callable[[CampaignTask], TaskResult], task: Campaign
 # ------------------------------------------------------------------------------------------------
 # records
 # ------------------------------------------------------------------------------------------------
-def _jsonable(obj):
-    """Plain JSON types (numpy scalars/arrays converted; others as str)."""
-    if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj)
-    if obj is None or isinstance(obj, str):
-        return obj
-    return str(obj)
-
-
 def _replica_info(info: Mapping, r: int, n: int) -> dict:
     out = {}
     for k, v in info.items():
         if isinstance(v, (list, tuple, np.ndarray)) and len(v) == n and n > 1:
-            out[k] = _jsonable(v[r])
+            out[k] = jsonable(v[r])
         else:
-            out[k] = _jsonable(v)
+            out[k] = jsonable(v)
     return out
 
 

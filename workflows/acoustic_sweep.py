@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.data.files import jsonable
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 
 __all__ = ["AGENT_KB", "ACOUSTIC_PRIOR", "SweepResult", "default_ka_values", "ringdown_sweep", "fit_sweep",
@@ -202,23 +203,6 @@ def fit_sweep(results: SweepResult | Sequence[SweepResult]) -> dict:
     return out
 
 
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.bool_,)):
-        return bool(obj)
-    return obj
-
-
 def write_sweep_outputs(result: SweepResult, out_dir: str | Path, fit=None, plot: bool = True) -> dict[str, Path]:
     """Write ``ringdown_<agent>_<d>um.csv`` / ``.json`` / ``.png`` (and ``_traces.npz``) into ``out_dir``.
 
@@ -242,7 +226,7 @@ def write_sweep_outputs(result: SweepResult, out_dir: str | Path, fit=None, plot
                      "radius_equilibrium": "DPD length", "p_gas": "DPD pressure"},
            "batch_info": [{k: v for k, v in b.items() if k not in ("health_final", "health_after_perturbation")}
                           for b in result.batch_info]}
-    paths["json"].write_text(json.dumps(_jsonable(doc), indent=1))
+    paths["json"].write_text(json.dumps(jsonable(doc, nonfinite_as_none=True), indent=1))
     lens = {t.size for t, _ in result.traces}
     if len(lens) == 1 and result.traces:
         np.savez_compressed(paths["npz"], t=result.traces[0][0], radius=np.stack([r for _, r in result.traces]),
