@@ -513,8 +513,9 @@ def _refine_grid(grid: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndar
 def _select_points(out: dict, keep: np.ndarray) -> dict:
     """Restrict the per-point arrays of :func:`_run_chain` to the reported points (failures are kept)."""
     sel = dict(out)
-    for k in ("fire_steps", "fmax", "max_area_strain", "volume"):
+    for k in ("fmax", "max_area_strain", "volume"):
         sel[k] = out[k][:, keep]
+    # FIRE steps of a reported point include those of its sub-steps
     sel["fire_steps"] = np.add.reduceat(out["fire_steps"], np.r_[0, keep[:-1] + 1], axis=1) \
         if len(keep) else out["fire_steps"][:, :0]
     sel["point_status"] = [[ps[j] for j in keep] for ps in out["point_status"]]
