@@ -35,6 +35,7 @@ import numpy as np
 
 from bubblecal.sim.tiers import CurveRequest, get_tier
 from bubblecal.surrogates.dataset import filter_curves, read_published
+from bubblecal.surrogates.synthetic import relative_l2
 
 HEADS = (("compression", 2.1), ("compression", 2.9), ("compression", 3.0),
          ("indentation", 3.2), ("indentation", 5.8))
@@ -50,11 +51,6 @@ def _request(setup, diameter, ts, sub, rows=None):
     params = {k: ts.params[rows, i] for i, k in enumerate(("ka", "kb", "b1", "b2", "a3", "a4"))}
     return CurveRequest(protocol=setup, diameter_um=diameter, grid=tuple(ts.x[0]), params=params,
                         seeds=tuple(int(r) for r in rows), subdivisions=sub)
-
-
-def rel_l2(sim, pub):
-    """Relative L2 distance per curve, ||sim - pub|| / ||pub|| (dimensionless)."""
-    return np.linalg.norm(sim - pub, axis=1) / np.linalg.norm(pub, axis=1)
 
 
 # fallback parameter boxes (ka, kb, b1, b2, a3, a4; DPD) from the published training heads' valid rows
@@ -272,7 +268,7 @@ def main() -> None:
         wall = time.perf_counter() - t0
         pub = ts.y[ts_rows]
         ok = batch.ok
-        err = rel_l2(batch.observable[ok], pub[ok])
+        err = relative_l2(batch.observable[ok], pub[ok])
         ratio = np.nanmedian(batch.observable[ok][:, 1:] / pub[ok][:, 1:], axis=0)
         res = {"setup": setup, "diameter_um": diameter, "n": int(ts_rows.size), "n_ok": int(ok.sum()),
                "median_rel_l2": float(np.median(err)) if err.size else None,
