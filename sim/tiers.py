@@ -191,11 +191,7 @@ def _load_builtin_tiers() -> None:
     # the MD tiers live in their own module (Warp kernels); import lazily so that configuration code
     # can validate requests without compiling anything
     if "explicit" not in _REGISTRY:
-        try:
-            import bubblecal.sim.experiments.md_loading  # noqa: F401  (registers explicit / implicit)
-        except ModuleNotFoundError as exc:  # pragma: no cover - only while that module is absent
-            if exc.name != "bubblecal.sim.experiments.md_loading":
-                raise
+        import bubblecal.sim.experiments.md_loading  # noqa: F401  (registers explicit / implicit)
 
 
 # ------------------------------------------------------------------------------------------------
