@@ -16,7 +16,7 @@
    the largest curve deviation from the NumPy FIRE.
 
     python benchmarks/quasistatic_gpu.py --device cuda --out OUT --no-validation --throughput 256,1024,4096 \
-        [--setups compression:3.0:4,indentation:5.8:5] [--dtype float32] [--budget-s 500]
+        [--setups compression:3.0:4,indentation:5.8:5] [--dtype float32] [--budget-s 500] [--self-avoid]
     python benchmarks/quasistatic_gpu.py --device cpu --out OUT --no-validation --micro 8
 
 Prints tables and a final JSON line; writes OUT/quasistatic_validation.json, OUT/quasistatic_throughput.json,
@@ -123,7 +123,7 @@ def throughput(args, out: Path, ref: Path, t_start: float) -> list:
             rng = np.random.default_rng(R)
             vals = rng.uniform(lo, hi, size=(R, 6))
             params = [ShellParams(**dict(zip(PARAM_KEYS, map(float, row), strict=True)),
-                                  self_avoid=not args.no_self_avoid) for row in vals]
+                                  self_avoid=args.self_avoid) for row in vals]
 
             def progress(j, n, sec, R=R):
                 left = sec / (j + 1) * (n - j - 1)
@@ -143,7 +143,10 @@ def throughput(args, out: Path, ref: Path, t_start: float) -> list:
                    "fire_iterations": iters, "mean_fire_steps": float(steps.mean()),
                    "lockstep_efficiency": float(steps.mean() / max(iters, 1)),
                    "seconds_per_iteration": wall / max(iters, 1), "param_box": box_src, "device": args.device,
-                   "self_avoid": not args.no_self_avoid, "sync_every": args.sync_every}
+                   "self_avoid": args.self_avoid, "extrapolate": not args.no_extrapolate,
+                   "sync_every": args.sync_every,
+                   "max_fire_steps_point": int(res.fire_steps.max()), "n_not_converged_points": int(
+                       sum(ps.count("not_converged") for ps in res.point_status))}
             runs.append(row)
             print(f"{setup:12s} {diameter:5.1f} {sub:3d} {mesh.n_vertices:6d} {R:6d} {n_ok:6d} {wall:8.1f} "
                   f"{row['curves_per_hour']:10.0f} {iters:7d} {row['lockstep_efficiency']:8.2f}", flush=True)
@@ -159,6 +162,7 @@ def _run_qs(setup, params, mesh, grid, args, fire, tier, comp, ind, IdealGas, pr
                   rupture_strain=tier.rupture_strain, minimizer=minimizer, progress=progress)
     if minimizer == "device":
         common["sync_every"] = args.sync_every
+        common["extrapolate"] = not getattr(args, "no_extrapolate", False)
     if setup == "compression":
         return comp(params, mesh, grid, **common)
     return ind(params, mesh, grid, **common)
@@ -233,8 +237,10 @@ def main() -> None:
     ap.add_argument("--budget-s", type=float, default=500.0, help="skip throughput runs predicted to end later")
     ap.add_argument("--sync-every", type=int, default=None, help="device FIRE iterations per host check")
     ap.add_argument("--no-validation", action="store_true")
-    ap.add_argument("--no-self-avoid", action="store_true",
-                    help="throughput runs without shell self-avoidance (the tier keeps ShellParams' default: on)")
+    ap.add_argument("--self-avoid", action="store_true",
+                    help="throughput runs with shell self-avoidance (the tier's default is off)")
+    ap.add_argument("--no-extrapolate", action="store_true",
+                    help="start every load point from the last minimum (the tier extrapolates by default)")
     ap.add_argument("--micro", type=int, default=0, help="R for the old-vs-new micro benchmark (0: skip)")
     ap.add_argument("--micro-sub", default="2,3")
     ap.add_argument("--diameters", default="", help="comma list, e.g. 2.1,3.2 (default: all heads)")
@@ -252,7 +258,8 @@ def main() -> None:
         print(json.dumps(summary))
         return
     want = {float(v) for v in args.diameters.split(",") if v}
-    tier = get_tier("quasistatic", subdivisions=args.subdivisions, dtype=_wp_dtype(args.dtype))
+    tier = get_tier("quasistatic", subdivisions=args.subdivisions, dtype=args.dtype, self_avoid=args.self_avoid,
+                    extrapolate=not args.no_extrapolate)
     rows_out, results = [], {}
     for setup, diameter in HEADS:
         if want and diameter not in want:

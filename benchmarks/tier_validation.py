@@ -96,6 +96,29 @@ def estimate_seconds(tier: str, mesh, n_rep: int, steps: int, device: str) -> fl
     return None
 
 
+def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
+    """``ts`` plus ``n`` LHS rows (seeded) from the shipped campaign's prior box for this diameter, on the
+    same grid and radius; their published curve is NaN (tier-vs-tier comparison only)."""
+    import dataclasses
+
+    from bubblecal.sim.campaign import lhs_design
+    from bubblecal.surrogates.dataset import PARAM_NAMES
+    from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
+
+    names = [c for c in available_campaigns() if c.endswith(f"_{protocol}_{diameter:g}um")]
+    if not names:
+        raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
+    cfg = load_campaign_file(names[0]).config
+    des = lhs_design(dataclasses.replace(cfg, n_samples=n, seed=cfg.seed + 7919 * seed))
+    p_new = np.stack([np.asarray(des[k], dtype=np.float64) for k in PARAM_NAMES], axis=1)
+    m = ts.x.shape[1]
+    return dataclasses.replace(
+        ts, params=np.vstack([ts.params, p_new]), radius_dpd=np.r_[ts.radius_dpd, np.full(n, ts.radius_dpd[0])],
+        x=np.vstack([ts.x, np.tile(ts.x[0], (n, 1))]), y=np.vstack([ts.y, np.full((n, m), np.nan)]),
+        curve_id=np.r_[ts.curve_id, [f"lhs{i + 1}" for i in range(n)]],
+        status=None if ts.status is None else np.r_[ts.status, ["ok"] * n])
+
+
 def rel_l2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise ||a - b|| / ||b|| (NaN where a row is not finite)."""
     num = np.linalg.norm(a - b, axis=1)
@@ -155,6 +178,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="tier_validation_out")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--plan-only", action="store_true", help="print the cost estimate and exit")
+    ap.add_argument("--lhs", type=int, default=0,
+                    help="add N Latin-hypercube parameter sets from the diameter's shipped campaign prior box "
+                         "(tier-vs-tier rows: no published curve; the <= 3 %% gate needs >= 20 per diameter)")
+    ap.add_argument("--qs-subdivisions", default="",
+                    help="comma list of extra mesh levels for the quasi-static tier (e.g. 3): reported as "
+                         "quasistatic_s<level> beside the tier at the common mesh")
+    ap.add_argument("--qs-dtype", default="float64", choices=("float64", "float32"))
     args = ap.parse_args(argv)
 
     import warp as wp
@@ -172,6 +202,9 @@ def main(argv=None) -> int:
         if t not in TIERS:
             ap.error(f"--tiers: unknown tier {t!r} (choose from {TIERS})")
     tiers.sort(key=TIERS.index)  # explicit first: the others are compared with it
+    extra_qs = [int(v) for v in args.qs_subdivisions.split(",") if v.strip()]
+    if extra_qs:
+        tiers += [f"quasistatic_s{v}" for v in extra_qs]
     diameters = [float(d) for d in args.diameters.split(",") if d.strip()]
     ref = find_reference(args.reference)
     summary = {"device": args.device, "scale": args.scale, "rows": args.rows, "tiers": tiers,
@@ -189,6 +222,8 @@ def main(argv=None) -> int:
         if ts is None:
             print(f"{d:g} um: no training_head rows for it in {ref} -> skipped")
             continue
+        if args.lhs > 0:
+            ts = with_lhs_rows(ts, protocol, d, args.lhs, args.seed)
         dia = diameter_um_from_radius(float(np.median(ts.radius_dpd)))
         mesh = mesh_for_diameter(dia, args.subdivisions)
         n_steps = steps_per_curve(steps, ts.x[0])
@@ -214,11 +249,16 @@ def main(argv=None) -> int:
         rep = args.replicas or ts.n_curves
         for t in tiers:
             settings: dict = {"subdivisions": mesh.subdivisions}
+            tier_name = t
+            if t.startswith("quasistatic_s"):
+                tier_name, settings["subdivisions"] = "quasistatic", int(t.rsplit("_s", 1)[1])
+            if tier_name == "quasistatic":
+                settings["dtype"] = args.qs_dtype
             if t in ("explicit", "implicit"):
                 settings.update(scale=args.scale, verbose=True, max_seconds=args.max_seconds)
             if t == "implicit":
                 settings["dt"] = args.implicit_dt
-            tier = get_tier(t, **settings)
+            tier = get_tier(tier_name, **settings)
             y = np.full_like(y_pub, np.nan)
             status: list[str] = []
             t0 = time.perf_counter()
@@ -227,7 +267,7 @@ def main(argv=None) -> int:
                 params = {name: ts.params[idx, j] for j, name in enumerate(PARAM_NAMES)}
                 req = CurveRequest(protocol=protocol, diameter_um=dia, grid=tuple(ts.x[idx[0]]), params=params,
                                    seeds=tuple(args.seed + 1000 * k + int(i) for i in idx),
-                                   subdivisions=mesh.subdivisions)
+                                   subdivisions=settings["subdivisions"])
                 print(f"  {t}: rows {idx[0] + 1}-{idx[-1] + 1} ...", flush=True)
                 batch = tier.run(req, device=args.device)
                 y[idx] = batch.observable

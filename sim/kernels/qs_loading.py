@@ -12,6 +12,7 @@ replica r sits at row ``row_start[r] + v``.  DPD units throughout.
   analytic plates z = top_r (pushing down) and z = bottom_r (pushing up).
 * Observables: plate reactions and contacts, axial extent and loaded-patch heights, non-finite rows,
   and the reset of failed replicas to their reference rows.
+* ``extrapolate_kernel``: linear predictor of the next load point's state from the last two minima.
 """
 
 # (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)
@@ -152,5 +153,16 @@ def qs_kernels(dtype):
         i = wp.tid()
         if flag[row_rep[i]] != 0:
             x[i] = x_ref[i]
+
+    @kern
+    def extrapolate_kernel(x: wp.array(dtype=V), x_prev: wp.array(dtype=V), row_rep: wp.array(dtype=wp.int32),
+                           flag: wp.array(dtype=wp.int32), c: T):
+        """Start of the next load point: x <- x + c (x - x_prev) on flagged replicas; x_prev <- old x
+        everywhere (so it always holds the last converged state)."""
+        i = wp.tid()
+        xi = x[i]
+        if flag[row_rep[i]] != 0:
+            x[i] = xi + c * (xi - x_prev[i])
+        x_prev[i] = xi
 
     return {k: val for k, val in locals().items() if isinstance(val, wp.Kernel)}

@@ -132,9 +132,11 @@ def _kernels(dtype):
     def lim_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i),
                    ref: wp.array(dtype=V4), tri_rep: wp.array(dtype=wp.int32),
                    params: wp.array2d(dtype=T), avr: wp.array2d(dtype=T), use_global: wp.int32,
-                   energy: wp.array2d(dtype=T), want_energy: wp.int32):
+                   energy: wp.array2d(dtype=T), want_energy: wp.int32, skip: wp.array(dtype=wp.int32)):
         t = wp.tid()
         r = tri_rep[t]
+        if skip[r] != 0:
+            return
         idx = tri[t]
         f0, f1, f2, w = lim_triangle(x, idx, ref[t], params, r, avr, use_global)
         wp.atomic_add(f, idx[0], f0)
@@ -166,11 +168,12 @@ def _kernels(dtype):
     @kern
     def kantor_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), dih: wp.array(dtype=wp.vec4i),
                       theta0: wp.array(dtype=T), edge_rep: wp.array(dtype=wp.int32),
-                      params: wp.array2d(dtype=T), energy: wp.array2d(dtype=T), want_energy: wp.int32):
+                      params: wp.array2d(dtype=T), energy: wp.array2d(dtype=T), want_energy: wp.int32,
+                      skip: wp.array(dtype=wp.int32)):
         e = wp.tid()
         r = edge_rep[e]
         kb = params[r, P_KB_KANTOR]
-        if kb == T(0.0):
+        if kb == T(0.0) or skip[r] != 0:
             return
         q = dih[e]
         theta, ga, gb, gc, gd = dihedral(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
@@ -190,13 +193,16 @@ def _kernels(dtype):
                              tri_slot: wp.array(dtype=wp.int32), dih: wp.array(dtype=wp.vec4i),
                              theta0: wp.array(dtype=T), dih_start: wp.array(dtype=wp.int32),
                              dih_slot: wp.array(dtype=wp.int32), params: wp.array2d(dtype=T),
-                             avr: wp.array2d(dtype=T), use_global: wp.int32, do_kantor: wp.int32):
+                             avr: wp.array2d(dtype=T), use_global: wp.int32, do_kantor: wp.int32,
+                             skip: wp.array(dtype=wp.int32)):
         """Lim (+ constraints) and Kantor forces gathered per vertex: no atomics, one write per vertex.
 
         ``tri_slot`` / ``dih_slot`` encode (element id) * 4 + (the vertex's corner / role).
         """
         s = wp.tid()
         r = vrep[s]
+        if skip[r] != 0:
+            return
         fi = V()
         for k in range(tri_start[s], tri_start[s + 1]):
             code = tri_slot[k]
@@ -359,11 +365,11 @@ def _kernels(dtype):
     def self_avoid_kernel(grid: wp.uint64, xs: wp.array(dtype=wp.vec3), x: wp.array(dtype=V),
                           f: wp.array(dtype=V), gidx: wp.array(dtype=wp.int32), vrep: wp.array(dtype=wp.int32),
                           params: wp.array2d(dtype=T), query_radius: float, energy: wp.array2d(dtype=T),
-                          want_energy: wp.int32):
+                          want_energy: wp.int32, skip: wp.array(dtype=wp.int32)):
         s = wp.tid()
         r = vrep[s]
         eps = params[r, P_SA_EPS]
-        if eps == T(0.0):
+        if eps == T(0.0) or skip[r] != 0:
             return
         rc = params[r, P_SA_RC]
         rc2 = rc * rc
@@ -547,6 +553,8 @@ class ShellForceField:
         self._health = wp.zeros((R, 3), dtype=dtype, device=dev)
         self._energy = wp.zeros((R, len(ENERGY_TERMS)), dtype=dtype, device=dev)
         self._dummy_energy = wp.zeros((1, len(ENERGY_TERMS)), dtype=dtype, device=dev)
+        self._no_skip = wp.zeros(R, dtype=wp.int32, device=dev)
+        self._skip = self._no_skip
         n_shell = int(nv.sum())
         self.n_shell_vertices = n_shell
         self._msum = wp.zeros(n_shell, dtype=dtype, device=dev)
@@ -619,8 +627,9 @@ class ShellForceField:
         if a.shape[0] < self.n_rows_min:
             raise ValueError(f"{name} has {a.shape[0]} rows, the shells need {self.n_rows_min}")
 
-    def _launch_forces(self, x, f, v, energy, want_energy: int) -> None:
+    def _launch_forces(self, x, f, v, energy, want_energy: int, skip=None) -> None:
         k, dev = self._k, self.device
+        skip = self._no_skip if skip is None else skip
         if self.use_constraints_av:
             self._avr.zero_()
             wp.launch(k["area_volume_kernel"], dim=self.n_triangles,
@@ -629,15 +638,15 @@ class ShellForceField:
             wp.launch(k["vertex_gather_kernel"], dim=self.n_shell_vertices,
                       inputs=[x, f, self._gidx, self._vrep, self._tri, self._ref, self._tri_start, self._tri_slot,
                               self._dih, self._theta0, self._dih_start, self._dih_slot, self._params, self._avr,
-                              int(self.use_global), int(self.use_kantor)], device=dev)
+                              int(self.use_global), int(self.use_kantor), skip], device=dev)
         else:
             wp.launch(k["lim_kernel"], dim=self.n_triangles,
                       inputs=[x, f, self._tri, self._ref, self._tri_rep, self._params, self._avr,
-                              int(self.use_global), energy, want_energy], device=dev)
+                              int(self.use_global), energy, want_energy, skip], device=dev)
             if self.use_kantor:
                 wp.launch(k["kantor_kernel"], dim=self.n_edges,
                           inputs=[x, f, self._dih, self._theta0, self._edge_rep, self._params, energy,
-                                  want_energy], device=dev)
+                                  want_energy, skip], device=dev)
         if self.use_juelicher:
             self._msum.zero_()
             self._avert.zero_()
@@ -659,7 +668,7 @@ class ShellForceField:
             self._grid.build(self._xs, self.sa_cell)
             wp.launch(k["self_avoid_kernel"], dim=self.n_shell_vertices,
                       inputs=[self._grid.id, self._xs, x, f, self._gidx, self._vrep, self._params,
-                              self.sa_query_radius, energy, want_energy], device=dev)
+                              self.sa_query_radius, energy, want_energy, skip], device=dev)
         if self.use_viscosity and v is not None:
             wp.launch(k["bond_viscosity_kernel"], dim=self.n_edges,
                       inputs=[x, v, f, self._dih, self._edge_rep, self._params], device=dev)
@@ -673,7 +682,20 @@ class ShellForceField:
         self._check_array(f, "f")
         if v is not None:
             self._check_array(v, "v")
-        self._launch_forces(x, f, v, self._dummy_energy, 0)
+        self._launch_forces(x, f, v, self._dummy_energy, 0, self._skip)
+
+    def set_skip(self, skip: wp.array | None) -> None:
+        """Bind a per-replica int32 device array [R]: :meth:`accumulate_forces` adds no Lim, Kantor or
+        self-avoidance forces for replicas whose entry is nonzero (read at launch time, so a minimiser's
+        status array can be bound once and CUDA graphs see its updates).  None unbinds.  Why: a batched
+        minimiser's converged replicas cost almost nothing while the slowest ones finish.  The Juelicher
+        and bond-viscosity terms are never skipped; energies ignore the binding."""
+        if skip is None:
+            self._skip = self._no_skip
+            return
+        if skip.dtype != wp.int32 or skip.shape != (self.n_replicas,) or skip.device != self.device:
+            raise ValueError(f"skip must be an int32 array of shape ({self.n_replicas},) on {self.device}")
+        self._skip = skip
 
     def areas_volumes(self, x: wp.array) -> tuple[np.ndarray, np.ndarray]:
         """Total area A[R] and enclosed volume V[R] of every replica's shell (synchronises)."""

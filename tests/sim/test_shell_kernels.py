@@ -232,3 +232,35 @@ def test_gather_and_scatter_modes_agree(dtype, tol):
     assert np.abs(f_gather - f_scatter).max() / np.abs(f_scatter).max() < tol
     with pytest.raises(ValueError, match="force_mode"):
         ShellForceField(m, [P_KANTOR], device="cpu", force_mode="both")
+
+
+@pytest.mark.parametrize("mode", ["scatter", "gather"])
+def test_skip_binding_drops_only_flagged_replicas(mode):
+    m, ff, x, offsets = two_replicas(wp.float64)
+    P_K2 = ShellParams(ka=10.0, mu=4.0, kb=3.0, self_avoid_cutoff=1.0, self_avoid_epsilon=0.5)
+    ff = ShellForceField([m, m.translated([10.0, 0.0, 0.0])], [P_KANTOR, P_K2], device="cpu", dtype=wp.float64,
+                         offsets=offsets, force_mode=mode)
+    xa = wp.array(x, dtype=ff.vec3, device="cpu")
+    full = wp.zeros_like(xa)
+    ff.accumulate_forces(xa, full)
+    skip = wp.array(np.array([0, 1], dtype=np.int32), dtype=wp.int32, device="cpu")
+    ff.set_skip(skip)
+    part = wp.zeros_like(xa)
+    ff.accumulate_forces(xa, part)
+    f_full, f_part = full.numpy(), part.numpy()
+    a, b = offsets[0], offsets[1]
+    n = m.n_vertices
+    np.testing.assert_array_equal(f_part[a:a + n], f_full[a:a + n])
+    assert np.abs(f_full[b:b + n]).max() > 0
+    assert np.all(f_part[b:b + n] == 0.0)
+    # the binding is read at launch time: flipping the flag restores the forces
+    skip.assign(np.array([0, 0], dtype=np.int32))
+    part.zero_()
+    ff.accumulate_forces(xa, part)
+    np.testing.assert_array_equal(part.numpy(), f_full)
+    e_before = ff.energies(xa)
+    skip.assign(np.array([1, 1], dtype=np.int32))
+    np.testing.assert_array_equal(ff.energies(xa), e_before)  # energies ignore the binding
+    ff.set_skip(None)
+    with pytest.raises(ValueError, match="skip must be an int32"):
+        ff.set_skip(wp.zeros(3, dtype=wp.int32, device="cpu"))

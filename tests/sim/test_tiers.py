@@ -28,3 +28,18 @@ def test_bad_request_names_the_field():
         CurveRequest("compression", 3.0, (0.5, 0.1), PARAMS, (1, 2))
     with pytest.raises(ValueError, match="CurveRequest.protocol must be one of"):
         CurveRequest("shear", 3.0, (0.0, 0.5), PARAMS, (1, 2))
+
+
+def test_quasistatic_tier_self_avoidance_inert_and_dtype_checked():
+    pytest.importorskip("warp")
+    from bubblecal.sim.tiers import get_tier
+
+    req = CurveRequest("compression", 1.5, (0.0, 0.12, 0.24, 0.36), PARAMS, (1, 2), subdivisions=2)
+    off = get_tier("quasistatic").run(req)
+    on = get_tier("quasistatic", self_avoid=True).run(req)
+    assert off.info["self_avoid"] is False and on.info["self_avoid"] is True
+    assert off.status == on.status == ["ok", "ok"]
+    # the repulsion never engages in athermal plate loading: the same curves to round-off
+    np.testing.assert_allclose(off.observable, on.observable, rtol=1e-10, atol=1e-9)
+    with pytest.raises(ValueError, match="dtype must be 'float64' or 'float32'"):
+        get_tier("quasistatic", dtype="float16")
