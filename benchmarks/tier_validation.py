@@ -105,7 +105,7 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
     from bubblecal.surrogates.dataset import PARAM_NAMES
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
-    names = [c for c in available_campaigns() if c.endswith(f"_{protocol}_{diameter:g}um")]
+    names = [c for c in available_campaigns() if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
     if not names:
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     cfg = load_campaign_file(names[0]).config

@@ -13,6 +13,8 @@ A directory ``STORE/`` holding
   "format_version": 1, "created_utc": ..., "description": ..., "meta": {...}}``;
 * ``records.jsonl`` - **append-only JSON lines**, one record per finished sample (UTF-8, ``\\n``
   terminated). A path ending in ``.jsonl`` is accepted as a bare records file (no header).
+* A path ending in ``.jsonl.gz`` is a gzip-compressed bare records file: read-only (how finished training
+  sets ship with the package, :func:`export_compressed`).
 
 Record (one JSON object per line; all keys required unless marked optional)
 --------------------------------------------------------------------------
@@ -57,6 +59,7 @@ One writing process per store is assumed (Dask: gather results and write from th
 from __future__ import annotations
 
 import datetime as _dt
+import gzip
 import json
 import math
 import os
@@ -68,7 +71,7 @@ from pathlib import Path
 from bubblecal.data.files import atomic_write
 
 __all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "STATUSES", "SETUPS", "PARAM_NAMES",
-           "StoreError", "CampaignStore", "make_record", "validate_record"]
+           "StoreError", "CampaignStore", "make_record", "validate_record", "export_compressed"]
 
 STORE_FORMAT = "bubblecal-campaign-store"
 STORE_FORMAT_VERSION = 1
@@ -155,7 +158,8 @@ class CampaignStore:
     def __init__(self, path: str | Path, fsync: bool = True):
         self.path = Path(path)
         self.fsync = fsync
-        if self.path.suffix == ".jsonl":
+        self.compressed = self.path.name.endswith(".jsonl.gz")
+        if self.path.suffix == ".jsonl" or self.compressed:
             self.records_path = self.path
             self.header_path = None
         else:
@@ -224,6 +228,9 @@ class CampaignStore:
 
     def append_many(self, records: Iterable[Mapping]) -> int:
         """Append several records; each line is complete and checksummed. Returns the count."""
+        if self.compressed:
+            raise StoreError(f"{self.path}: a compressed (.jsonl.gz) store is read-only; campaigns append to a "
+                             f"store directory")
         if self.header_path is not None and not self.header_path.exists():
             raise StoreError(f"{self.path}: not a campaign store (use CampaignStore.create first)")
         lines = []
@@ -256,7 +263,7 @@ class CampaignStore:
             self.header()
         if not self.records_path.exists():
             raise FileNotFoundError(f"campaign store records not found: {self.records_path}")
-        with open(self.records_path, "rb") as fh:
+        with (gzip.open if self.compressed else open)(self.records_path, "rb") as fh:
             for lineno, raw in enumerate(fh, start=1):
                 if not raw.strip():
                     continue
@@ -305,3 +312,31 @@ class CampaignStore:
         for r in self.read(warn=False):
             out[r["status"]] = out.get(r["status"], 0) + 1
         return out
+
+
+def export_compressed(store: CampaignStore | str | Path, out: str | Path) -> Path:
+    """Write the latest record of every sample of ``store`` (all statuses, checksums kept) to the gzip
+    file ``out`` (must end in ``.jsonl.gz``), atomically; a read-only store for shipping finished sets.
+    Gzip's header time is fixed so the same records give the same bytes.  Returns ``out``."""
+    out = Path(out)
+    if not out.name.endswith(".jsonl.gz"):
+        raise StoreError(f"{out}: a compressed store's name must end in .jsonl.gz")
+    src = store if isinstance(store, CampaignStore) else CampaignStore(store)
+    records = src.read()
+    if not records:
+        raise StoreError(f"{src.path}: no records to export")
+    lines = []
+    for rec in records:
+        rec = dict(rec)
+        rec["crc32"] = zlib.crc32(_canonical(rec).encode())
+        lines.append(_canonical(rec) + "\n")
+    data = "".join(lines).encode()
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=9, mtime=0,
+                                                   filename="") as gz:
+            gz.write(data)
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(out, write)
+    return out

@@ -75,6 +75,8 @@ class StagedResult:
     phase1: list[PhaseResult]
     phase2: PhaseResult
     phase3: list[PhaseResult]
+    #: importance ESS of the phase-3 re-weighting per dataset (empty for the published phase 3)
+    phase3_ess: dict[str, float] = field(default_factory=dict)
 
     @property
     def psi_samples(self) -> dict[str, np.ndarray]:
@@ -114,6 +116,7 @@ def run_staged(
     phase2_options: Mapping | None = None,
     phase3_options: Mapping | None = None,
     phase2_max_samples: int | None = None,
+    phase3_reweight: Callable[[int, dict, dict, dict], np.ndarray] | None = None,
     load: Callable[[str], PhaseResult | None] | None = None,
     save: Callable[[PhaseResult], None] | None = None,
     progress: Callable[[str], None] | None = None,
@@ -126,6 +129,13 @@ def run_staged(
     ψ) returns dataset i's phase-3 model with the dataset's data bound. ``*_options`` are :class:`TMCMC` keyword arguments (published:
     N = 50,000, target CoV 0.8 in phase 1, 0.6 in phases 2 and 3). ``load(name)`` may return a stored
     result to reuse and ``save(result)`` persists each finished phase; ``progress(message)`` reports.
+
+    ``phase3_reweight(i, phase1_samples_i, m_samples, tau_samples)`` -> (S,) normalised log weights of the
+    phase-2 draws: phase 3 of dataset i then uses the draws resampled by those weights.  With
+    :func:`bubblecal.models.staged.leave_one_out_log_weights` they are draws of p(ψ | D_{-i}), so Θ_i's
+    posterior is the joint model's marginal rather than the published Korali phase 3, which counts D_i
+    twice (importance ESS per dataset in ``StagedResult.phase3_ess``; the phase names stay ``phase3_<name>``, so
+    a ``load`` that reuses phases must tell the two variants apart).  None (default): the published phase 3.
     """
     if not datasets:
         raise ValueError("run_staged needs at least one dataset")
@@ -153,9 +163,27 @@ def run_staged(
     phase2 = _run("phase2", phase2_factory(thinned, names), (), {}, keys[len(datasets)], phase2_options)
     m_samples = {k.removeprefix("m_"): v for k, v in phase2.samples.items() if k.startswith("m_")}
     tau_samples = {k.removeprefix("tau_"): v for k, v in phase2.samples.items() if k.startswith("tau_")}
-    phase3 = [_run(f"phase3_{d.name}", phase3_factory(i, m_samples, tau_samples), (), {},
-                   keys[len(datasets) + 1 + i], phase3_options) for i, d in enumerate(datasets)]
-    return StagedResult(phase1=phase1, phase2=phase2, phase3=phase3)
+    reweight_ess: dict[str, float] = {}
+
+    def _population(i: int):
+        if phase3_reweight is None:
+            return m_samples, tau_samples
+        lw = np.asarray(phase3_reweight(i, thinned[i], m_samples, tau_samples), dtype=np.float64)
+        w = np.exp(lw - np.max(lw))
+        w = w / w.sum()
+        reweight_ess[names[i]] = float(1.0 / np.sum(w * w))
+        # resample S draws (seeded by the phase's key): phase 3's population prior stays an equal-weight mean
+        seed = int(np.asarray(jax.random.key_data(keys[len(datasets) + 1 + i])).ravel()[-1])
+        idx = np.random.default_rng(seed).choice(w.size, size=w.size, p=w)
+        return ({k: np.asarray(v)[idx] for k, v in m_samples.items()},
+                {k: np.asarray(v)[idx] for k, v in tau_samples.items()})
+
+    phase3 = []
+    for i, d in enumerate(datasets):
+        m_i, tau_i = _population(i)
+        phase3.append(_run(f"phase3_{d.name}", phase3_factory(i, m_i, tau_i), (), {},
+                           keys[len(datasets) + 1 + i], phase3_options))
+    return StagedResult(phase1=phase1, phase2=phase2, phase3=phase3, phase3_ess=reweight_ess)
 
 
 def _thin(samples: Mapping[str, np.ndarray], max_samples: int | None) -> dict[str, np.ndarray]:

@@ -11,6 +11,11 @@ likelihood of ``shared/docs/inference.md`` section 4::
 ``population=(m_samples, tau_samples)`` to its single-level model (a factor
 log mean_s p(θ | ψ_s) − log p0(θ); p0 is constant on the box, so the prior is not counted twice).
 
+Phase 3 as published uses ψ_s ~ p(ψ | D), which already contains dataset i's own data, so D_i enters its
+phase-3 posterior twice (once directly, once through ψ) and Θ_i is not the joint model's marginal.  The
+exact marginal p(Θ_i | D) needs ψ ~ p(ψ | D_{-i}) ∝ p(ψ | D) / L_i(ψ), with L_i(ψ) the dataset's own
+term of log L(ψ) above: :func:`leave_one_out_log_weights` gives those importance weights.
+
 Units: DPD for shell parameters (see :mod:`bubblecal.data.units`).
 """
 
@@ -18,14 +23,19 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+import math
+
 import jax.numpy as jnp
+import numpy as np
+from jax.scipy.special import logsumexp
 import numpyro
 import numpyro.distributions as dist
 
 from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
 from bubblecal.priors.spec import PriorSpec
 
-__all__ = ["hyperprior_sites", "phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name"]
+__all__ = ["hyperprior_sites", "phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name",
+           "leave_one_out_log_weights"]
 
 #: Name of the factor site that carries log L(ψ) (TMCMC tempers it as the likelihood).
 PHASE2_FACTOR = "population_likelihood"
@@ -75,3 +85,33 @@ def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: Prio
                              f"{', '.join(bounds)}")
         numpyro.deterministic(ess_site_name(name), importance_ess(importance_log_weights(m, tau, samples, bounds)))
     numpyro.factor(PHASE2_FACTOR, staged_log_likelihood(m, tau, datasets, bounds))
+
+
+def leave_one_out_log_weights(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
+                              phase1_samples: Mapping[str, np.ndarray], bounds: Mapping[str, tuple[float, float]],
+                              chunk: int = 256) -> np.ndarray:
+    """Normalised log importance weights that turn phase-2 draws ψ_s ~ p(ψ | D) into draws of p(ψ | D_{-i}).
+
+    log w_s = −log L_i(ψ_s) + const with log L_i(ψ) = logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k)) − log N_i,
+    dataset i's own phase-2 term (``phase1_samples``: its (N_i,) phase-1 draws, DPD).  ``m_samples`` /
+    ``tau_samples`` map pooled names to (S,) arrays; ``bounds`` the pooled prior ranges.  Returns (S,) with
+    logsumexp = 0.  Evaluated in chunks of ``chunk`` ψ draws (memory S x N_i otherwise).
+    """
+    names = [k for k in m_samples if k in phase1_samples and k in bounds]
+    if not names:
+        raise ValueError("leave_one_out_log_weights: the dataset has none of the pooled parameters")
+    S = int(np.asarray(m_samples[names[0]]).shape[0])
+    th = {k: jnp.asarray(phase1_samples[k]) for k in names}
+    n_i = int(th[names[0]].shape[0])
+    out = np.empty(S)
+    for a in range(0, S, chunk):
+        m = {k: jnp.asarray(m_samples[k][a:a + chunk]) for k in names}
+        tau = {k: jnp.asarray(tau_samples[k][a:a + chunk]) for k in names}
+        lw = importance_log_weights(m, tau, th, bounds, names=names)  # (chunk, N_i)
+        out[a:a + chunk] = -(np.asarray(logsumexp(lw, axis=-1)) - math.log(n_i))
+    finite = np.isfinite(out)
+    if not finite.any():
+        raise ValueError("leave_one_out_log_weights: no phase-2 draw gives the dataset a finite likelihood")
+    out = np.where(finite, out, -np.inf)
+    top = out[finite].max()
+    return out - (top + math.log(np.sum(np.exp(out[finite] - top))))

@@ -343,9 +343,9 @@ def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSe
 
 
 def read_dataset(path: str | Path, setup: str | None = None, n_points: int | str = PUBLISHED_POINTS) -> TrainingSet:
-    """Read a campaign store (directory or ``.jsonl``) or a published-layout table."""
+    """Read a campaign store (directory, ``.jsonl`` or compressed ``.jsonl.gz``) or a published-layout table."""
     path = Path(path)
-    if path.is_dir() or path.suffix == ".jsonl":
+    if path.is_dir() or path.suffix == ".jsonl" or path.name.endswith(".jsonl.gz"):
         return read_store_dataset(path, setup=setup)
     return read_published(path, setup=setup, n_points=n_points)
 

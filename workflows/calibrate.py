@@ -48,13 +48,15 @@ import numpy as np
 
 from bubblecal.data.files import atomic_write
 
-__all__ = ["AGENTS", "WORKFLOWS", "SAMPLERS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "CalibrationError",
+__all__ = ["AGENTS", "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "CalibrationError",
            "CalibrationConfig", "AgentPlan", "Plan", "PhaseStore", "AgentResult", "make_plan", "run_calibration",
            "run_agent", "resolve_bundle", "phase_tmcmc_options", "min_population"]
 
 AGENTS = ("definity", "sonovue")
 WORKFLOWS = ("reduced-acoustic", "reduced", "full")
 SAMPLERS = ("tmcmc", "nuts")
+#: phase 3 of the staged hierarchy: the published (Korali) target or the joint model's marginal
+PHASE3_TARGETS = ("published", "exact")
 DEVICES = ("cpu", "gpu")
 #: Default particles per phase: both agents (reduced-acoustic) finish on 2 loaded CPU cores in < 10 min
 #: (compile-dominated with the synthetic bundle: N = 1000, 2000, 5000 take 118, 116, 134 s unloaded; larger
@@ -91,7 +93,9 @@ class CalibrationConfig:
     ``chunk_size``: TMCMC evaluates the likelihood this many particles at a time (GPU memory at N = 50,000);
     ``curves``: restrict to these curve names (e.g. 'definity_compression_2.1um'; empty: all);
     ``netcdf``: write ArviZ NetCDF (else .npz); ``figures``: draw figures and the report; ``summaries``:
-    compute summary.csv / ess.csv (needs pandas; ``figures`` needs it too).
+    compute summary.csv / ess.csv (needs pandas; ``figures`` needs it too); ``phase3``: 'published' (the
+    Korali phase 3: population prior over p(ψ | D), which holds the dataset's own data) or 'exact'
+    (over p(ψ | D_{-i}) by leave-one-out weights: Θ_i is the joint model's marginal).
     """
 
     agents: tuple[str, ...] = AGENTS
@@ -118,6 +122,7 @@ class CalibrationConfig:
     netcdf: bool = True
     figures: bool = True
     summaries: bool = True
+    phase3: str = "published"
 
     @property
     def num_particles(self) -> int:
@@ -269,6 +274,8 @@ def make_plan(config: CalibrationConfig) -> Plan:
         raise CalibrationError(f"--workflow must be one of {', '.join(WORKFLOWS)}, got {config.workflow!r}")
     if config.sampler not in SAMPLERS:
         raise CalibrationError(f"--sampler must be one of {', '.join(SAMPLERS)}, got {config.sampler!r}")
+    if config.phase3 not in PHASE3_TARGETS:
+        raise CalibrationError(f"--phase3 must be one of {', '.join(PHASE3_TARGETS)}, got {config.phase3!r}")
     if config.device not in DEVICES:
         raise CalibrationError(f"--device must be one of {', '.join(DEVICES)}, got {config.device!r}")
     _check_device(config.device)
@@ -582,8 +589,10 @@ def _phase_hashes(ap: AgentPlan, config: CalibrationConfig, bundle_hashes: Mappi
     hashes["phase2"] = _hash({**common, "phase": 2, "upstream": p1, "options": o23,
                               "phase2_samples": _phase2_samples(config)})
     for n in ap.dataset_names:
-        hashes[f"phase3_{n}"] = _hash({**common, "phase": 3, "self": hashes[f"phase1_{n}"], "upstream": hashes["phase2"],
-                                       "options": o23})
+        h3 = {**common, "phase": 3, "self": hashes[f"phase1_{n}"], "upstream": hashes["phase2"], "options": o23}
+        if config.phase3 != "published":  # keeps the hashes of earlier (published) runs unchanged
+            h3["phase3"] = config.phase3
+        hashes[f"phase3_{n}"] = _hash(h3)
     return hashes
 
 
@@ -654,9 +663,21 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
         o1, o23 = phase_tmcmc_options(config)
         with _on_device(config.device), warnings.catch_warnings():
             warnings.simplefilter("ignore", category=FutureWarning)
+            reweight = None
+            if config.phase3 == "exact":
+                from bubblecal.models.staged import leave_one_out_log_weights, pooled_bounds
+
+                bounds = pooled_bounds(ap.spec)
+
+                def reweight(i, phase1_i, m_samples, tau_samples):
+                    return leave_one_out_log_weights(m_samples, tau_samples, phase1_i, bounds)
+
             staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1, phase2_options=o23,
                                 phase3_options=o23, phase2_max_samples=_phase2_samples(config), load=load,
-                                save=store.save, progress=say)
+                                save=store.save, progress=say, phase3_reweight=reweight)
+            if staged.phase3_ess:
+                say("phase 3 leave-one-out importance ESS: "
+                    + ", ".join(f"{k} {v:.0f}" for k, v in staged.phase3_ess.items()))
         for r in [*staged.phase1, staged.phase2, *staged.phase3]:
             seconds[r.name] = r.seconds
     else:

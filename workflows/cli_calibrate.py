@@ -56,6 +56,9 @@ def calibrate(
     nuts_chains: int = typer.Option(2, "--nuts-chains"),
     netcdf: bool = typer.Option(True, "--netcdf/--npz", help="Phase files as ArviZ NetCDF (else .npz)."),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Draw figures and report.md."),
+    phase3: str = typer.Option("published", "--phase3", help="published (Korali: population prior over p(psi | D), "
+                               "which holds the curve's own data) | exact (leave-one-out psi weights: the joint "
+                               "model's per-bubble marginal)."),
 ) -> None:
     """Calibrate the shell parameters of Definity and/or SonoVue: staged hierarchical TMCMC (or joint NUTS)
     on the shipped curves, acoustic data, priors and surrogates; writes NetCDF per phase, summary.csv,
@@ -78,7 +81,7 @@ def calibrate(
                                    priors=priors_map, data_dir=data_dir, curves=tuple(curve or ()),
                                    phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
                                    nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
-                                   netcdf=netcdf, figures=figures)
+                                   netcdf=netcdf, figures=figures, phase3=phase3)
         plan = make_plan(config)
     except CalibrationError as exc:
         raise fail(str(exc)) from None

@@ -288,7 +288,9 @@ def write_report(result, plan) -> Path:
     if plan.synthetic_bundle:
         lines += ["> **WARNING: SYNTHETIC surrogate bundle** (closed-form laws, for development/tests, not DPD). "
                   "The numbers below are NOT physical results.", ""]
-    o_sampler = ("staged TMCMC (phases 1 → 2 → 3)" if config.sampler == "tmcmc" else
+    phase3 = ("published Korali phase 3: population prior over p(ψ | all data)" if config.phase3 == "published"
+              else "exact phase 3: population prior over p(ψ | the other datasets), the joint model's marginal")
+    o_sampler = (f"staged TMCMC (phases 1 → 2 → 3; {phase3})" if config.sampler == "tmcmc" else
                  f"joint model, NUTS ({config.nuts_chains} chains × {config.nuts_samples} draws, "
                  f"{config.nuts_warmup} warm-up)")
     lines += [

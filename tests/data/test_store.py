@@ -106,3 +106,19 @@ def test_invalid_status_and_ringdown_setup_roundtrip(tmp_path):
     with pytest.raises(StoreError, match="field 'setup'"):
         make_record(sample_id="x", setup="shear", params=P, radius_dpd=1.0, x=[0.0], y=[0.0], status="ok", seed=0,
                     tier="explicit")
+
+
+def test_compressed_export_is_exact_deterministic_and_read_only(tmp_path):
+    from bubblecal.data.store import export_compressed
+
+    store = CampaignStore.create(tmp_path / "s", fsync=False)
+    store.append_many([rec(0, status="failed"), rec(1), rec(2, status="ruptured")])
+    store.append(rec(0))  # the retried sample: only its latest record is exported
+    out = export_compressed(store, tmp_path / "set.jsonl.gz")
+    packed = CampaignStore(out)
+    assert packed.compressed and packed.read() == store.read()
+    assert export_compressed(tmp_path / "s", tmp_path / "again.jsonl.gz").read_bytes() == out.read_bytes()
+    with pytest.raises(StoreError, match="read-only"):
+        packed.append(rec(3))
+    with pytest.raises(StoreError, match="must end in .jsonl.gz"):
+        export_compressed(store, tmp_path / "set.gz")

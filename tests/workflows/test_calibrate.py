@@ -73,6 +73,7 @@ def test_population_too_small_and_other_fields(tmp_path, synthetic_bundle):
     assert r.exit_code == 1 and "--population 50 is too small" in r.output and "phase" in r.output
     assert not _phase_files(tmp_path / "out")
     for kwargs, match in (({"workflow": "medium"}, "--workflow"), ({"sampler": "hmc"}, "--sampler"),
+                          ({"phase3": "joint"}, "--phase3"),
                           ({"agents": ("optison",)}, "--agent"), ({"bundle": tmp_path}, "manifest.json")):
         base = {"agents": ("definity",), "bundle": synthetic_bundle, "population": 200, "out": tmp_path / "o"}
         with pytest.raises(CalibrationError, match=match):
@@ -167,6 +168,14 @@ def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
     assert all(h_new[k] == h_old[k] for k in h_old if k.startswith("phase1"))
     assert h_new["phase2"] != h_old["phase2"] and all(h_new[k] != h_old[k] for k in h_old if k.startswith("phase3"))
     assert PhaseStore(run_dir).manifest["phases"].keys() == manifest["phases"].keys()
+
+    # --phase3 exact: phases 1 and 2 are reused, phase 3 reruns with leave-one-out ψ weights
+    r = _cli(*args, "--phase3", "exact")
+    assert r.exit_code == 0, r.output
+    assert "leave-one-out importance ESS" in r.output, r.output
+    exact = json.loads((run_dir / "manifest.json").read_text())["phases"]
+    assert all(exact[k]["config_hash"] == h_old[k] for k in h_old if not k.startswith("phase3"))
+    assert all(exact[k]["config_hash"] != h_old[k] for k in h_old if k.startswith("phase3"))
 
 
 @pytest.mark.slow

@@ -1,0 +1,36 @@
+"""Run a shipped campaign in-process on the lent GPU (no CLI / Dask needed there), resumable.
+
+    python3 benchmarks/device/run_campaign.py NAME STORE_DIR [--limit N] [--device cuda]
+
+Prints one progress line per finished task and the campaign summary as JSON.  Same records as
+``bubblecal sim campaign NAME --scheduler inline --store STORE_DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("name")
+    ap.add_argument("store")
+    ap.add_argument("--limit", type=int, default=None)
+    ap.add_argument("--device", default="cuda")
+    args = ap.parse_args(argv)
+    from bubblecal.sim.campaign import run_campaign
+    from bubblecal.workflows.campaign import load_campaign_file
+
+    cf = load_campaign_file(args.name, store=args.store)
+    config = dataclasses.replace(cf.config, device=args.device)
+    summary = run_campaign(config, scheduler_address="inline", progress=True, limit=args.limit)
+    print(json.dumps(dataclasses.asdict(summary) if dataclasses.is_dataclass(summary) else vars(summary),
+                     default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
