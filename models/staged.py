@@ -21,15 +21,14 @@ Units: DPD for shell parameters (see :mod:`bubblecal.data.units`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-
 import math
+from collections.abc import Mapping, Sequence
 
 import jax.numpy as jnp
 import numpy as np
-from jax.scipy.special import logsumexp
 import numpyro
 import numpyro.distributions as dist
+from jax.scipy.special import logsumexp
 
 from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
 from bubblecal.priors.spec import PriorSpec
