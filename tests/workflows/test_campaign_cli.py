@@ -61,7 +61,12 @@ def test_shipped_campaigns_are_valid():
     assert len(mech) == 6 and {"definity_ringdown", "sonovue_ringdown"} <= set(names)
     for n in mech:
         c = load_campaign_config(n)
-        assert c.n_samples == 6000 and c.design == "lhs" and c.tier == "implicit"  # the tier validated against explicit (RESULTS.md)
+        assert c.n_samples == 6000 and c.design == "lhs"
+        # the fastest tier that passed the 3 % gate against explicit at this diameter (benchmarks/RESULTS.md)
+        if c.diameter_um == 3.2:
+            assert c.tier == "quasistatic" and c.tier_settings == {"dtype": "float64"}
+        else:
+            assert c.tier == "implicit"
         agent = "definity" if c.protocol == "compression" else "sonovue"
         assert n.startswith(agent) and f"{c.diameter_um}um" in n
         assert c.ranges["ka"] == ((5580.0, 27900.0) if agent == "definity" else (558.0, 558000.0))
