@@ -919,8 +919,11 @@ class StoreStatus:
                 "n_pending": self.n_pending}
 
 
-def store_status(path: str | Path) -> StoreStatus:
-    """Read a campaign store (directory or .jsonl) and count statuses; pending needs the campaign header."""
+def store_status(path: str | Path, retry_statuses: Sequence[str] | None = None) -> StoreStatus:
+    """Read a campaign store (directory or .jsonl) and count statuses; pending needs the campaign header.
+
+    ``retry_statuses``: the statuses counted as pending (default: those of the config the store was created
+    with; pass the current config's when it retries more, e.g. 'unstable')."""
     store = CampaignStore(path)
     n_records = sum(1 for _ in store.iter_records())
     skipped = len(store.problems)
@@ -931,6 +934,6 @@ def store_status(path: str | Path) -> StoreStatus:
         d = cfg.get("diameter_um")
         n_diameters = len(d) if isinstance(d, list) else 1
         n_design = cfg["n_samples"] * (n_diameters if cfg.get("design") == "grid" else 1)
-    retry = tuple(cfg.get("retry_statuses", RETRY_STATUSES))
+    retry = tuple(cfg.get("retry_statuses", RETRY_STATUSES)) if retry_statuses is None else tuple(retry_statuses)
     return StoreStatus(path=str(path), name=cfg.get("name"), n_design=n_design, counts=store.counts(),
                        n_records=n_records, n_lines_skipped=skipped, retry_statuses=retry, config=cfg)

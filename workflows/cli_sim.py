@@ -190,16 +190,21 @@ def campaign(
 
 
 @app.command("campaign-status")
-def campaign_status(store: Path = typer.Argument(..., help="Campaign store directory (or .jsonl file).")) -> None:
+def campaign_status(store: Path = typer.Argument(..., help="Campaign store directory (or .jsonl file)."),
+                    config: str = typer.Option(None, "--config", help="Campaign TOML or shipped name whose "
+                                               "retry_statuses define 'pending' (default: the store's own)."),
+                    ) -> None:
     """Counts by status (latest record per sample) and what is still pending; exit 1 if STORE is unreadable."""
     from bubblecal.data.store import StoreError
     from bubblecal.sim.campaign import store_status
+    from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file
 
     if not store.exists():
         raise fail(f"{store}: no such campaign store")
     try:
-        st = store_status(store)
-    except (StoreError, FileNotFoundError) as exc:
+        retry = None if config is None else load_campaign_file(config, store=store).config.retry_statuses
+        st = store_status(store, retry_statuses=retry)
+    except (StoreError, FileNotFoundError, CampaignFileError) as exc:
         raise fail(str(exc)) from None
     _status_table(f"campaign store {store}" + (f" (campaign {st.name})" if st.name else ""), st.counts)
     pending = "unknown (no campaign header)" if st.n_pending is None else f"{st.n_pending} of {st.n_design}"

@@ -146,6 +146,14 @@ def test_cli_dry_run_run_resume_and_status(tmp_path):
     assert res.exit_code == 0, res.output
     status = json.loads(res.output.strip().splitlines()[-1])
     assert status["counts"]["ok"] == 1 and status["n_pending"] == 1 and status["name"] == "tiny"
+    # --config: 'pending' follows that config's retry statuses (here one that also retries 'unstable')
+    retry = write(tmp_path, GOOD.replace("n_samples = 2", 'n_samples = 2\nretry_statuses = ["failed", "unstable"]'),
+                  name="retry.toml")
+    res = runner.invoke(app, ["sim", "campaign-status", str(tmp_path / "stores" / "tiny"), "--config", str(retry)])
+    assert res.exit_code == 0, res.output
+    assert "failed/unstable" in plain(res.output) and json.loads(res.output.strip().splitlines()[-1])["n_pending"] == 1
+    res = runner.invoke(app, ["sim", "campaign-status", str(tmp_path / "stores" / "tiny"), "--config", "nosuch"])
+    assert res.exit_code == 1 and "shipped: definity_compression_2.1um" in plain(res.output)
 
     res = runner.invoke(app, ["sim", "campaign", str(path), "--no-progress"])
     assert res.exit_code == 0, res.output
