@@ -156,7 +156,8 @@ def campaign(
         n_done = n_pending = None
         note = "(not created yet)"
         st = CampaignStore(c.store_path)
-        if st.header_path is not None and st.header_path.exists():
+        bare = st.header_path is None and st.records_path.exists()  # a bare .jsonl store (no header)
+        if bare or (st.header_path is not None and st.header_path.exists()):
             try:
                 meta = st.header().get("meta", {})
                 if meta.get("design_hash") not in (None, c.design_hash()):

@@ -161,6 +161,11 @@ def test_cli_dry_run_run_resume_and_status(tmp_path):
     assert summary["n_done_before"] == 1 and summary["n_written"] == 1 and summary["store_counts"]["ok"] == 2
     res = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run"])
     assert "done / pending │ 2 / 0" in plain(res.output)
+    # a bare .jsonl copy of the records (e.g. a decompressed shipped set) resumes the same design
+    bare = tmp_path / "copy.jsonl"
+    bare.write_bytes((tmp_path / "stores" / "tiny" / "records.jsonl").read_bytes())
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run", "--store", str(bare)])
+    assert "done / pending │ 2 / 0" in plain(res.output) and "(exists)" in plain(res.output)
 
 
 def test_cli_errors_exit_1(tmp_path):
