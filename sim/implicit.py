@@ -61,6 +61,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.graphs import ChunkGraph
 from bubblecal.sim.health import Status
 from bubblecal.sim.kernels.common import kernel_decorator
 from bubblecal.sim.kernels.shell import ShellForceField, ShellParams
@@ -300,7 +301,8 @@ class ImplicitShellSystem:
         self.dt = float(dt)
         self.pin_com = bool(pin_com)
         self.chunk = int(chunk)
-        self.use_graph = (self.device.is_cuda if use_graph is None else bool(use_graph)) and self.device.is_cuda
+        self._chunks = ChunkGraph(self._one_step, self.device,
+                                  (self.device.is_cuda if use_graph is None else bool(use_graph)) and self.device.is_cuda)
         self._k = _kernels(self.dtype)
 
         nv = np.array([m.n_vertices for m in meshes], dtype=np.int64)
@@ -391,8 +393,6 @@ class ImplicitShellSystem:
         self.v = wp.array(v0.astype(npf), dtype=self.vec3, device=dev)
         self.force_callbacks: list[Callable[[ImplicitShellSystem], None]] = []
         self.steps_done = 0
-        self._graph = None
-        self._warm = False
         self._need_forces = True
 
     # ------------------------------------------------------------------------------------------
@@ -435,7 +435,7 @@ class ImplicitShellSystem:
         """``cb(system)`` adds forces into ``system.f`` (a wp.array of vec3, packed rows) after the
         internal forces every step; it must only launch kernels (CUDA-graph capture)."""
         self.force_callbacks.append(cb)
-        self._graph = None
+        self._chunks.invalidate()
         self._need_forces = True
 
     def set_anchor_z(self, mask) -> None:
@@ -503,6 +503,11 @@ class ImplicitShellSystem:
                   inputs=[self.v, self.f, self.fext, self.fstore, self.vrep, self.anchor, self.tab, self.fsum, pin,
                           self.status, self.dtype(self.dt)], device=dev)
 
+    @property
+    def use_graph(self) -> bool:
+        """Whether full chunks replay as CUDA graphs (False on the CPU or after a failed capture)."""
+        return self._chunks.enabled
+
     def _one_step(self) -> None:
         k, dev = self._k, self.device
         pin = int(self.pin_com)
@@ -534,30 +539,11 @@ class ImplicitShellSystem:
             raise ValueError("n must be >= 0")
         if self._need_forces:
             self._prime()
-            self._graph = None
+            self._chunks.invalidate()
         done = 0
         while done < n:
             k = min(self.chunk, n - done)
-            if self.use_graph and k == self.chunk:
-                if not self._warm:
-                    self._warm = True  # first chunk uncaptured: lazy allocations (HashGrid) happen here
-                    for _ in range(k):
-                        self._one_step()
-                elif self._graph is None:
-                    try:
-                        with wp.ScopedCapture(device=self.device, force_module_load=True) as cap:
-                            for _ in range(k):
-                                self._one_step()
-                        self._graph = cap.graph
-                    except Exception:  # pragma: no cover - capture unsupported -> plain launches
-                        self.use_graph = False
-                        for _ in range(k):
-                            self._one_step()
-                else:
-                    wp.capture_launch(self._graph)
-            else:
-                for _ in range(k):
-                    self._one_step()
+            self._chunks.run(k, capture=k == self.chunk)
             done += k
         self.steps_done += n
 

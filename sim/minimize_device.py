@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.graphs import ChunkGraph
 from bubblecal.sim.kernels.fire import ACTIVE, CONVERGED, FROZEN, MAX_STEPS, NONFINITE, fire_kernels
 
 __all__ = ["DeviceFire", "DeviceFireResult", "numpy_force_fn", "STATUS_NAMES"]
@@ -126,7 +127,8 @@ class DeviceFire:
         max_rows = int(np.max(np.diff(rs)))
         self.nthr = int(threads_per_replica) if threads_per_replica else (min(64, max_rows) if cuda else 1)
         capturable = bool(getattr(force_fn, "capturable", True))
-        self.use_graph = cuda and capturable and (True if use_graph is None else bool(use_graph))
+        self._chunks = ChunkGraph(self._iteration, self.device,
+                                  cuda and capturable and (True if use_graph is None else bool(use_graph)))
         self.consts = dict(dt=float(dt), dt_max=10.0 * dt if dt_max is None else float(dt_max),
                            dt_min=dt / 50.0 if dt_min is None else float(dt_min),
                            max_move=-1.0 if max_move is None else float(max_move), n_delay=int(n_delay),
@@ -157,8 +159,6 @@ class DeviceFire:
         self.mean_acc = wp.zeros(R, dtype=V, device=dev)
         self.tol = z()
         self.max_steps = wp.zeros(1, dtype=wp.int32, device=dev)
-        self._graph = None
-        self._warm = False
 
     # ------------------------------------------------------------------------------------------
     def set_positions(self, x: np.ndarray) -> None:
@@ -194,30 +194,10 @@ class DeviceFire:
                   inputs=[self.x, self.v, self.f, self.free, self.row_start, self.status, self.nthr, self.dt_r,
                           self.alpha_r, self.fnorm, self.vsq_acc, T(c["max_move"])], device=dev)
 
-    def _chunk(self) -> None:
-        n = self.sync_every
-        if self.use_graph:
-            if self._graph is None and not self._warm:
-                self._warm = True  # first chunk uncaptured: lazy allocations (HashGrid) happen here
-                for _ in range(n):
-                    self._iteration()
-                return
-            if self._graph is None:
-                try:
-                    with wp.ScopedCapture(device=self.device, force_module_load=True) as cap:
-                        for _ in range(n):
-                            self._iteration()
-                    self._graph = cap.graph
-                except Exception:  # pragma: no cover - capture unsupported -> plain launches
-                    self.use_graph = False
-                    self._graph = None
-                    for _ in range(n):
-                        self._iteration()
-                    return
-            wp.capture_launch(self._graph)
-        else:
-            for _ in range(n):
-                self._iteration()
+    @property
+    def use_graph(self) -> bool:
+        """Whether the ``sync_every`` iterations between status checks replay as one CUDA graph."""
+        return self._chunks.enabled
 
     def minimize(self, ftol: float | np.ndarray = 1e-3, max_steps: int = 10_000,
                  active: np.ndarray | None = None) -> DeviceFireResult:
@@ -253,7 +233,7 @@ class DeviceFire:
         st = np.where(act, ACTIVE, FROZEN).astype(np.int32)
         if act.any():
             for _ in range(max_chunks):
-                self._chunk()
+                self._chunks.run(self.sync_every)
                 n_eval += self.sync_every
                 st = self.status.numpy()
                 n_sync += 1

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.graphs import ChunkGraph
 from bubblecal.sim.kernels.bounce import bounce_kernels
 from bubblecal.sim.kernels.integrate import integrate_kernels
 from bubblecal.sim.kernels.pairs import pair_kernels
@@ -202,7 +203,8 @@ class ParticleSystem:
         #: factor on (max speed x dt x chunk) when predicting whether the lists survive a chunk; a
         #: particle that still moves more than skin/2 sets the overrun flag (counted, forces a rebuild)
         self.safety = float(safety)
-        self.use_graph = (self.device.is_cuda if use_graph is None else bool(use_graph)) and self.device.is_cuda
+        self._chunks = ChunkGraph(self._one_step, self.device,
+                                  (self.device.is_cuda if use_graph is None else bool(use_graph)) and self.device.is_cuda)
         self.bounce_eps = (2e-5 if self.dtype is wp.float64 else 1e-4) if bounce_eps is None else float(bounce_eps)
         self.kp = pair_kernels(self.dtype)
         self.kn = neighbor_kernels(self.dtype)
@@ -213,8 +215,6 @@ class ParticleSystem:
         self.n_rebuilds = 0
         self.n_overruns = 0
         self.timers: dict[str, float] = {}
-        self._graph = None
-        self._warm = False
         self._nbr_capacity = int(nbr_capacity)
         self._vnbr_capacity = int(vnbr_capacity)
         self._build()
@@ -406,7 +406,7 @@ class ParticleSystem:
                 grown = True
             if not grown:
                 break
-            self._graph = None
+            self._chunks.invalidate()
         if self.Nv:
             self.tri_count.zero_()
             margin = self.skin + 1e-3
@@ -420,7 +420,7 @@ class ParticleSystem:
             total = int(self._maxcount.numpy()[2])
             if total > self.tri_cols.shape[0]:
                 self.tri_cols = wp.zeros(int(total * 1.5) + 16, dtype=wp.int32, device=dev)
-                self._graph = None
+                self._chunks.invalidate()
             self.tri_count.zero_()
             wp.launch(kn["triangle_candidates"], dim=self.Nf,
                       inputs=[*common, 1, self.tri_count, self.tri_row, self.tri_cols], device=dev)
@@ -475,28 +475,12 @@ class ParticleSystem:
         self._integrate()
 
     def _advance(self, n: int) -> None:
-        if self.use_graph and n == self.chunk:
-            if self._graph is None and not self._warm:
-                self._warm = True  # first chunk uncaptured: lets lazy allocations (HashGrid) happen
-                for _ in range(n):
-                    self._one_step()
-                return
-            if self._graph is None:
-                try:
-                    with wp.ScopedCapture(device=self.device, force_module_load=True) as cap:
-                        for _ in range(n):
-                            self._one_step()
-                    self._graph = cap.graph
-                except Exception:  # pragma: no cover - capture unsupported -> plain launches
-                    self.use_graph = False
-                    self._graph = None
-                    for _ in range(n):
-                        self._one_step()
-                    return
-            wp.capture_launch(self._graph)
-        else:
-            for _ in range(n):
-                self._one_step()
+        self._chunks.run(n, capture=n == self.chunk)
+
+    @property
+    def use_graph(self) -> bool:
+        """Whether full chunks replay as CUDA graphs (False on the CPU or after a failed capture)."""
+        return self._chunks.enabled
 
     def _schedule_rebuild(self) -> None:
         """Decide from the max displacement / speed whether the lists survive another chunk."""

@@ -28,7 +28,7 @@ def test_graph_and_plain_launches_agree(cuda):
     b = ParticleSystem([spec], dt=1e-3, device=cuda, chunk=10, use_graph=False)
     a.step(100)
     b.step(100)
-    assert a._graph is not None
+    assert a._chunks.graph is not None
     np.testing.assert_allclose(a.solvent_numpy()["x"], b.solvent_numpy()["x"], atol=1e-3)
 
 
