@@ -35,6 +35,18 @@ def fire_kernels(dtype):
     V = wp.vec3d if T is wp.float64 else wp.vec3f
     kern = kernel_decorator(T, "fire")
 
+    @wp.func
+    def clear_accumulators(r: wp.int32, fmax_acc: wp.array(dtype=T), fsq_acc: wp.array(dtype=T),
+                           pow_acc: wp.array(dtype=T), nonfin_acc: wp.array(dtype=wp.int32),
+                           vsq_acc: wp.array(dtype=T), mean_acc: wp.array(dtype=V)):
+        """Zero replica r's reductions (refilled by the row passes of the next iteration)."""
+        fmax_acc[r] = T(0.0)
+        fsq_acc[r] = T(0.0)
+        pow_acc[r] = T(0.0)
+        nonfin_acc[r] = 0
+        vsq_acc[r] = T(0.0)
+        mean_acc[r] = V()
+
     @kern
     def reset_kernel(active: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32),
                      iters: wp.array(dtype=wp.int32), steps: wp.array(dtype=wp.int32),
@@ -55,12 +67,7 @@ def fire_kernels(dtype):
         npos[r] = 0
         down[r] = 0
         fmax_out[r] = T(0.0)
-        fmax_acc[r] = T(0.0)
-        fsq_acc[r] = T(0.0)
-        pow_acc[r] = T(0.0)
-        nonfin_acc[r] = 0
-        vsq_acc[r] = T(0.0)
-        mean_acc[r] = V()
+        clear_accumulators(r, fmax_acc, fsq_acc, pow_acc, nonfin_acc, vsq_acc, mean_acc)
 
     @kern
     def mean_accum_kernel(f: wp.array(dtype=V), row_start: wp.array(dtype=wp.int32),
@@ -125,12 +132,7 @@ def fire_kernels(dtype):
         fsq = fsq_acc[r]
         pw = pow_acc[r]
         nf = nonfin_acc[r]
-        fmax_acc[r] = T(0.0)
-        fsq_acc[r] = T(0.0)
-        pow_acc[r] = T(0.0)
-        nonfin_acc[r] = 0
-        vsq_acc[r] = T(0.0)
-        mean_acc[r] = V()
+        clear_accumulators(r, fmax_acc, fsq_acc, pow_acc, nonfin_acc, vsq_acc, mean_acc)
         if status[r] != ACTIVE:
             return
         it = iters[r]
