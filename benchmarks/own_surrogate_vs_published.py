@@ -16,18 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
-
-
-def _reference_dir(arg: str | None) -> Path:
-    if arg:
-        return Path(arg)
-    return Path(os.environ.get("BUBBLECAL_SHARED_REFERENCE",
-                               Path(__file__).resolve().parents[2] / "shared" / "reference"))
+from tier_validation import find_reference  # sibling script (benchmarks/ is on sys.path when run)
 
 
 def main(argv=None) -> int:
@@ -42,9 +35,9 @@ def main(argv=None) -> int:
     from bubblecal.surrogates.dataset import filter_curves, read_published
     from bubblecal.surrogates.synthetic import relative_l2
 
-    ref = _reference_dir(args.reference)
-    path = ref / f"training_head_{args.setup}_{args.diameter:g}um.csv"
-    if not path.is_file():
+    ref = Path(args.reference) if args.reference else find_reference(None)
+    path = Path(ref or ".") / f"training_head_{args.setup}_{args.diameter:g}um.csv"
+    if ref is None or not path.is_file():
         print(f"reference file {path} absent: skipped")
         print(json.dumps({"skipped": str(path)}))
         return 0

@@ -41,7 +41,12 @@ IMPLICIT_FLOOR_S = 150e-6
 
 
 def find_reference(arg: str | None) -> Path | None:
+    """The shared reference folder: ``arg``, $BUBBLECAL_SHARED_REFERENCE, $BUBBLECAL_SHARED/reference, or
+    ``shared/reference`` beside / inside the checkout; None when none exists.  (Also used by the other
+    benchmark scripts.)"""
     cands = [Path(arg)] if arg else []
+    if os.environ.get("BUBBLECAL_SHARED_REFERENCE"):
+        cands.append(Path(os.environ["BUBBLECAL_SHARED_REFERENCE"]))
     if os.environ.get("BUBBLECAL_SHARED"):
         cands.append(Path(os.environ["BUBBLECAL_SHARED"]) / "reference")
     here = Path(__file__).resolve().parents[1]
