@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 from tier_validation import find_reference  # sibling script (benchmarks/ is on sys.path when run)
 
+from bubblecal.sim.system import resolve_dtype
 from bubblecal.sim.tiers import CurveRequest, get_tier
 from bubblecal.surrogates.dataset import filter_curves, read_published
 from bubblecal.surrogates.synthetic import relative_l2
@@ -69,12 +70,6 @@ def _box(ref: Path, setup: str, diameter: float):
         raise SystemExit(f"no parameter box for {setup} {diameter} um (reference file {path} absent)")
     lo, hi = FALLBACK_BOX[(setup, diameter)]
     return np.asarray(lo), np.asarray(hi), "built-in box"
-
-
-def _wp_dtype(name: str):
-    import warp as wp
-
-    return wp.float32 if name == "float32" else wp.float64
 
 
 def throughput(args, out: Path, ref: Path, t_start: float) -> list:
@@ -158,7 +153,7 @@ def throughput(args, out: Path, ref: Path, t_start: float) -> list:
 def _run_qs(setup, params, mesh, grid, args, fire, tier, comp, ind, IdealGas, progress=None, minimizer="device",
             dtype=None):
     common = dict(gas=IdealGas(p0=tier.gas_p0), device=args.device,
-                  dtype=_wp_dtype(args.dtype) if dtype is None else dtype, fire=fire,
+                  dtype=resolve_dtype(args.dtype) if dtype is None else dtype, fire=fire,
                   rupture_strain=tier.rupture_strain, minimizer=minimizer, progress=progress)
     if minimizer == "device":
         common["sync_every"] = args.sync_every

@@ -241,13 +241,14 @@ class QuasistaticTier:
             quasistatic_indentation,
         )
         from bubblecal.sim.mesh import mesh_for_diameter
+        from bubblecal.sim.system import resolve_dtype
 
         t0 = time.perf_counter()
         sub = self.subdivisions if self.subdivisions is not None else request.subdivisions
         mesh = mesh_for_diameter(request.diameter_um, sub)
         fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps)
         gas = IdealGas(p0=self.gas_p0)
-        common = dict(gas=gas, device=device, dtype=_warp_dtype(self.dtype), fire=fire,
+        common = dict(gas=gas, device=device, dtype=None if self.dtype is None else resolve_dtype(self.dtype), fire=fire,
                       rupture_strain=self.rupture_strain, extrapolate=self.extrapolate)
         grid = request.grid_array()
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid)) for p in request.shell_params()]
@@ -264,18 +265,6 @@ class QuasistaticTier:
                 "settings": res.settings}
         return CurveBatch(tier=self.name, request=request, observable=obs, status=status, info=info,
                           seconds=time.perf_counter() - t0)
-
-
-def _warp_dtype(dtype):
-    """None / "float64" / "float32" / a Warp float type -> the Warp type (None stays None = float64)."""
-    if dtype is None or not isinstance(dtype, str):
-        return dtype
-    import warp as wp
-
-    names = {"float64": wp.float64, "float32": wp.float32}
-    if dtype not in names:
-        raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
-    return names[dtype]
 
 
 register_tier("quasistatic", QuasistaticTier)
