@@ -96,6 +96,13 @@ def _canonical(obj: Mapping) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=True)
 
 
+def _checksummed_line(rec: Mapping) -> str:
+    """One store line: the canonical JSON of ``rec`` (without any old checksum) plus its crc32, newline-ended."""
+    rec = {k: v for k, v in rec.items() if k != "crc32"}
+    rec["crc32"] = zlib.crc32(_canonical(rec).encode())
+    return _canonical(rec) + "\n"
+
+
 def _code_version() -> str:
     try:
         from bubblecal import __version__
@@ -237,8 +244,7 @@ class CampaignStore:
         for i, rec in enumerate(records):
             rec = {k: v for k, v in dict(rec).items() if k != "crc32"}
             validate_record(rec, where=f"{self.records_path} (record {i} to append)")
-            rec["crc32"] = zlib.crc32(_canonical(rec).encode())
-            lines.append(_canonical(rec) + "\n")
+            lines.append(_checksummed_line(rec))
         if not lines:
             return 0
         self._repair_tail()
@@ -325,12 +331,7 @@ def export_compressed(store: CampaignStore | str | Path, out: str | Path) -> Pat
     records = src.read()
     if not records:
         raise StoreError(f"{src.path}: no records to export")
-    lines = []
-    for rec in records:
-        rec = dict(rec)
-        rec["crc32"] = zlib.crc32(_canonical(rec).encode())
-        lines.append(_canonical(rec) + "\n")
-    data = "".join(lines).encode()
+    data = "".join(_checksummed_line(rec) for rec in records).encode()
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=9, mtime=0,
