@@ -108,9 +108,8 @@ def leave_one_out_log_weights(m_samples: Mapping[str, np.ndarray], tau_samples: 
         tau = {k: jnp.asarray(tau_samples[k][a:a + chunk]) for k in names}
         lw = importance_log_weights(m, tau, th, bounds, names=names)  # (chunk, N_i)
         out[a:a + chunk] = -(np.asarray(logsumexp(lw, axis=-1)) - math.log(n_i))
-    finite = np.isfinite(out)
-    if not finite.any():
+    out[~np.isfinite(out)] = -np.inf  # L_i(ψ_s) = 0 or undefined: that draw gets no weight
+    if np.all(np.isneginf(out)):
         raise ValueError("leave_one_out_log_weights: no phase-2 draw gives the dataset a finite likelihood")
-    out = np.where(finite, out, -np.inf)
-    top = out[finite].max()
-    return out - (top + math.log(np.sum(np.exp(out[finite] - top))))
+    top = out.max()
+    return out - (top + math.log(np.exp(out - top).sum()))  # float64 normalisation (jax's would be float32)
