@@ -54,13 +54,18 @@ def phase3_factory(i, m_samples, tau_samples):
     return model
 
 
-def quadrature_psi():
-    m = np.linspace(*M_RANGE, 601)
-    tau = np.linspace(*TAU_RANGE, 600)
-    mm, tt = np.meshgrid(m, tau, indexing="ij")
-    logp = sum(norm.logpdf(y, mm, np.sqrt(tt**2 + s**2)) for y, s in zip(Y, S, strict=True))
+def psi_posterior_grid(n_m: int, n_tau: int, leave_out: int | None = None):
+    """(m grid, τ grid, normalised posterior weights) of ψ from p(ȳ_j | m, τ) = N(ȳ_j | m, τ² + s_j²) over
+    every dataset j (except ``leave_out``)."""
+    mm, tt = np.meshgrid(np.linspace(*M_RANGE, n_m), np.linspace(*TAU_RANGE, n_tau), indexing="ij")
+    logp = sum(norm.logpdf(y, mm, np.sqrt(tt**2 + s**2)) for j, (y, s) in enumerate(zip(Y, S, strict=True))
+               if j != leave_out)
     p = np.exp(logp - logp.max())
-    p /= p.sum()
+    return mm, tt, p / p.sum()
+
+
+def quadrature_psi():
+    mm, tt, p = psi_posterior_grid(601, 600)
     mean_m, mean_tau = (p * mm).sum(), (p * tt).sum()
     sd_m = np.sqrt((p * (mm - mean_m) ** 2).sum())
     return mean_m, sd_m, mean_tau
@@ -105,14 +110,8 @@ def test_bad_inputs():
 def quadrature_theta(i: int, leave_out: bool) -> tuple[float, float]:
     """Posterior mean and sd of θ_i with the population prior averaged over p(ψ | D_{-i}) (leave_out: the
     joint model's marginal) or over p(ψ | D) (the published phase 3, which counts y_i twice)."""
-    m = np.linspace(*M_RANGE, 301)
-    tau = np.linspace(*TAU_RANGE, 300)
     th = np.linspace(-5.0, 5.0, 1001)
-    mm, tt = np.meshgrid(m, tau, indexing="ij")
-    logp = sum(norm.logpdf(y, mm, np.sqrt(tt**2 + s**2)) for j, (y, s) in enumerate(zip(Y, S, strict=True))
-               if not (leave_out and j == i))
-    w = np.exp(logp - logp.max())
-    w /= w.sum()
+    mm, tt, w = psi_posterior_grid(301, 300, leave_out=i if leave_out else None)
     prior = np.einsum("ab,abt->t", w, norm.pdf(th[None, None, :], mm[..., None], tt[..., None]))
     p = prior * norm.pdf(Y[i], th, S[i])
     p /= p.sum()
