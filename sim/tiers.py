@@ -248,8 +248,9 @@ class QuasistaticTier:
         mesh = mesh_for_diameter(request.diameter_um, sub)
         fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps)
         gas = IdealGas(p0=self.gas_p0)
-        common = dict(gas=gas, device=device, dtype=None if self.dtype is None else resolve_dtype(self.dtype), fire=fire,
-                      rupture_strain=self.rupture_strain, extrapolate=self.extrapolate)
+        dtype = None if self.dtype is None else resolve_dtype(self.dtype)
+        common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,
+                      extrapolate=self.extrapolate)
         grid = request.grid_array()
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid)) for p in request.shell_params()]
         if request.protocol == "compression":

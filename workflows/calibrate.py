@@ -48,8 +48,8 @@ import numpy as np
 
 from bubblecal.data.files import atomic_write
 
-__all__ = ["AGENTS", "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "CalibrationError",
-           "CalibrationConfig", "AgentPlan", "Plan", "PhaseStore", "AgentResult", "make_plan", "run_calibration",
+__all__ = ["AGENTS", "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION",
+           "CalibrationError", "CalibrationConfig", "AgentPlan", "Plan", "PhaseStore", "AgentResult", "make_plan", "run_calibration",
            "run_agent", "resolve_bundle", "phase_tmcmc_options", "min_population"]
 
 AGENTS = ("definity", "sonovue")
