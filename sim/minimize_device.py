@@ -246,3 +246,50 @@ class DeviceFire:
         return DeviceFireResult(status=status, converged=st == CONVERGED,
                                 steps=self.steps.numpy().astype(np.int64), fmax=fmax, n_evaluations=n_eval,
                                 n_syncs=n_sync, seconds=time.perf_counter() - t0)
+
+    # ----- replica-asynchronous use: each replica is (re)started on its own and reported when it stops -----
+    def begin(self, ftol: float | np.ndarray = 1e-3, max_steps: int = 10_000) -> None:
+        """Prepare replica-asynchronous minimisation: set ``ftol`` (scalar or [R]) and ``max_steps`` (per
+        start) and freeze every replica; :meth:`restart` then starts replicas one group at a time."""
+        if int(max_steps) < 0:
+            raise ValueError(f"max_steps must be >= 0, got {max_steps!r}")
+        tol = np.broadcast_to(np.asarray(ftol, dtype=np.float64), (self.R,))
+        self.tol.assign(tol.astype(self._np))
+        self.max_steps.assign(np.array([int(max_steps)], dtype=np.int32))
+        self.v.zero_()
+        self.f.zero_()
+        self.active.zero_()
+        c, T = self.consts, self.dtype
+        wp.launch(self._k["reset_kernel"], dim=self.R,
+                  inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
+                          self.down, self.fmax_out, self.fmax_acc, self.fsq_acc, self.pow_acc, self.nonfin,
+                          self.vsq_acc, self.mean_acc, T(c["dt"]), T(c["alpha0"])], device=self.device)
+
+    def restart(self, flags: np.ndarray) -> None:
+        """Start FIRE afresh (zero velocity, initial dt / alpha, step count 0) on the replicas flagged in
+        ``flags [R]`` from their current positions; the other replicas keep their state and go on."""
+        fl = np.asarray(flags, dtype=bool)
+        if fl.shape != (self.R,):
+            raise ValueError(f"flags must hold one flag per replica ({self.R})")
+        if not fl.any():
+            return
+        self.active.assign(fl.astype(np.int32))
+        c, T, dev = self.consts, self.dtype, self.device
+        wp.launch(self._k["zero_rows_kernel"], dim=self.R * self.nthr,
+                  inputs=[self.v, self.row_start, self.active, self.nthr], device=dev)
+        wp.launch(self._k["restart_kernel"], dim=self.R,
+                  inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
+                          self.down, self.fmax_out, T(c["dt"]), T(c["alpha0"])], device=dev)
+
+    def advance(self) -> np.ndarray:
+        """Run ``sync_every`` iterations (one CUDA-graph replay) and return the status codes [R]
+        (:data:`ACTIVE` while a replica still relaxes)."""
+        self._chunks.run(self.sync_every)
+        return self.status.numpy()
+
+    def replica_report(self) -> tuple[np.ndarray, np.ndarray]:
+        """FIRE updates [R] and the last convergence test's largest per-row force norm [R] (force unit;
+        inf where non-finite) of every replica's current or last minimisation."""
+        st = self.status.numpy()
+        fmax = np.where(st == NONFINITE, np.inf, self.fmax_out.numpy().astype(np.float64))
+        return self.steps.numpy().astype(np.int64), fmax

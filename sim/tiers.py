@@ -216,6 +216,8 @@ class QuasistaticTier:
     ~35-60 % of a force evaluation.  ``extrapolate`` starts each point from the linear prediction of the last
     two minima (1.8x fewer FIRE steps in compression, 4.8x in indentation; curves within 1.5e-3).
     ``dtype`` None = float64; ``"float32"`` / ``wp.float32`` for GPU production.
+    ``schedule`` ``"async"``: each replica moves to its next load point as soon as it has relaxed (same
+    iterates and curves as ``"lockstep"``, where the whole batch waits for its slowest replica at every point).
     """
 
     subdivisions: int | None = None
@@ -226,11 +228,14 @@ class QuasistaticTier:
     dtype: object = None
     self_avoid: bool = False
     extrapolate: bool = True
+    schedule: str = "async"
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
         if isinstance(self.dtype, str) and self.dtype not in ("float64", "float32"):
             raise ValueError(f"quasistatic tier: dtype must be 'float64' or 'float32', got {self.dtype!r}")
+        if self.schedule not in ("async", "lockstep"):
+            raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
 
     def run(self, request: CurveRequest, device: str = "cpu") -> CurveBatch:
         """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``."""
@@ -250,7 +255,7 @@ class QuasistaticTier:
         gas = IdealGas(p0=self.gas_p0)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,
-                      extrapolate=self.extrapolate)
+                      extrapolate=self.extrapolate, schedule=self.schedule)
         grid = request.grid_array()
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid)) for p in request.shell_params()]
         if request.protocol == "compression":

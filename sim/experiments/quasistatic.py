@@ -401,6 +401,14 @@ class _DeviceChain:
         """Plate heights (DPD length) for every replica."""
         self.plates.assign(np.tile([z_top, z_bottom], (self.R, 1)).astype(self._npf))
 
+    def set_load_rows(self, values: np.ndarray) -> None:
+        """Pole load of each replica (``[R]``, total force per pole, DPD force)."""
+        self.load.assign(np.asarray(values, dtype=np.float64).astype(self._npf))
+
+    def set_plate_rows(self, z_top: np.ndarray, z_bottom: np.ndarray) -> None:
+        """Plate heights of each replica (``[R]`` each, DPD length)."""
+        self.plates.assign(np.stack([z_top, z_bottom], axis=1).astype(self._npf))
+
     # ----- chain backend -----
     def _predict_start(self, j: int, alive: np.ndarray) -> None:
         """Start point j from x_{j-1} + (x_{j-1} - x_{j-2}) (L_j - L_{j-1}) / (L_{j-1} - L_{j-2}): the loading
@@ -449,6 +457,32 @@ class _DeviceChain:
         wp.launch(k["axial_obs_kernel"], dim=n, inputs=[x, self.row_rep, self.tag, self.obs], device=dev)
         o = self.obs.numpy().astype(np.float64)
         return {"H": o[:, 0] - o[:, 1], "patch": o[:, 2] / self.n_top - o[:, 3] / self.n_bottom}
+
+    # ----- replica-asynchronous chain backend -----
+    def predictor_coefficients(self, j: np.ndarray) -> np.ndarray:
+        """Linear-predictor coefficient of each replica's next point j[r] (0 = start from the last minimum)."""
+        L = self.loads
+        jj = np.asarray(j, dtype=np.int64)
+        c = np.zeros(jj.shape)
+        ok = (jj >= 2) & (jj < len(L))
+        jo = jj[ok]
+        den = L[jo - 1] - L[jo - 2]
+        c[ok] = np.where(den > 0, (L[jo] - L[jo - 1]) / np.where(den > 0, den, 1.0), 0.0)
+        return c
+
+    def start_rows(self, j: np.ndarray, flags: np.ndarray) -> None:
+        """(Re)start FIRE on the flagged replicas at their points ``j`` (loads already assigned), from the
+        linear prediction of their last two minima when the chain extrapolates."""
+        flags = np.asarray(flags, dtype=bool)
+        if not flags.any():
+            return
+        if self.loads is not None:
+            self.flag.assign(flags.astype(np.int32))
+            coef = self.wp.array(self.predictor_coefficients(j).astype(self._npf), dtype=self.dtype,
+                                 device=self.device)
+            self.wp.launch(self.k["extrapolate_rows_kernel"], dim=self.R * self.nv,
+                           inputs=[self.fire.x, self.x_prev, self.row_rep, self.flag, coef], device=self.device)
+        self.fire.restart(flags)
 
     def reset_failed(self, failed: np.ndarray) -> None:
         if not np.any(failed):
@@ -518,6 +552,94 @@ def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callabl
             "fire_evaluations": int(backend.n_evaluations)}
 
 
+def _classify(fire_code: int, finite: bool, eps: float, rupture_strain: float) -> str:
+    """Point verdict of one replica from its FIRE status code, finiteness and max area strain."""
+    from bubblecal.sim.kernels.fire import CONVERGED, NONFINITE
+
+    if fire_code == NONFINITE or not finite:
+        return STATUS_NONFINITE
+    if eps > rupture_strain:
+        return STATUS_RUPTURED
+    return STATUS_OK if fire_code == CONVERGED else STATUS_NOT_CONVERGED
+
+
+def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float,
+                     assign: Callable[[np.ndarray], None],
+                     progress: Callable[[int, int, float], None] | None = None,
+                     batch_fraction: float = 0.05) -> dict:
+    """Chain the load points with every replica at its own point (device FIRE only).
+
+    A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
+    point while the others go on relaxing, so no replica waits for the batch's slowest one at every point
+    (lock-step: the sum over points of the slowest replica's FIRE steps; here: the slowest replica's own
+    sum).  Each replica follows exactly the FIRE iterates of the lock-step chain: same curves, same steps.
+    Stopped replicas are measured in groups of at least ``batch_fraction`` of those still running (or
+    when none is running) to keep host round trips rare.  ``assign(j)`` sets each replica's load (plate
+    positions or pole force) of point ``j[r]``.  Returns the dict of :func:`_run_chain`.
+    """
+    from bubblecal.sim.kernels.fire import ACTIVE
+
+    R = backend.R
+    fs = backend.fire_settings
+    status = [STATUS_OK] * R
+    point_status = [[STATUS_OK] * n_points for _ in range(R)]
+    steps = np.zeros((R, n_points), dtype=np.int64)
+    fmax = np.full((R, n_points), np.nan)
+    strain = np.full((R, n_points), np.nan)
+    volume = np.full((R, n_points), np.nan)
+    obs: dict[str, np.ndarray] = {}
+    j = np.zeros(R, dtype=np.int64)
+    done = np.zeros(R, dtype=bool)
+    fire = backend.fire
+    t0 = time.perf_counter()
+    fire.begin(ftol=fs.ftol, max_steps=fs.max_steps)
+    assign(j)
+    backend.start_rows(j, ~done)
+    reported = 0
+    while not done.all():
+        code = fire.advance()
+        backend.n_evaluations += fire.sync_every
+        waiting = (code != ACTIVE) & ~done
+        n_wait, n_run = int(waiting.sum()), int((~done).sum())
+        if n_wait == 0 or (n_wait < n_run and n_wait < max(1, math.ceil(batch_fraction * n_run))):
+            continue
+        fsteps, ffmax = fire.replica_report()
+        finite_rows, eps, vols, m = backend.point_state(-1)
+        failed = np.zeros(R, dtype=bool)
+        for r in np.nonzero(waiting)[0]:
+            jr = int(j[r])
+            ps = _classify(int(code[r]), bool(finite_rows[r]), float(eps[r]), rupture_strain)
+            point_status[r][jr] = ps
+            steps[r, jr] = fsteps[r]
+            fmax[r, jr] = ffmax[r]
+            if ps in _FAILED:
+                status[r] = ps
+                point_status[r][jr + 1:] = [ps] * (n_points - jr - 1)
+                failed[r] = done[r] = True
+                continue
+            if ps != STATUS_OK and status[r] == STATUS_OK:
+                status[r] = ps
+            strain[r, jr] = eps[r]
+            volume[r, jr] = vols[r]
+            for key, v in m.items():
+                obs.setdefault(key, np.full((R, n_points), np.nan))[r, jr] = v[r]
+            j[r] = jr + 1
+            done[r] = j[r] >= n_points
+        # failed replicas return to (and stay frozen at) the reference so their rows stay finite
+        backend.reset_failed(failed)
+        restart = waiting & ~done
+        assign(np.minimum(j, n_points - 1))
+        backend.start_rows(j, restart)
+        if progress is not None:
+            finished = int(np.min(np.where(done, n_points, j)))
+            for jj in range(reported, finished):
+                progress(jj, n_points, time.perf_counter() - t0)
+            reported = max(reported, finished)
+    return {"status": status, "point_status": point_status, "fire_steps": steps, "fmax": fmax,
+            "max_area_strain": strain, "volume": volume, "obs": obs, "x": backend.x_final(),
+            "fire_evaluations": int(backend.n_evaluations)}
+
+
 def _refine_grid(grid: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
     """Insert sub-steps so no load step exceeds ``max_step``; returns (refined grid, indices of ``grid``)."""
     pts, keep, prev = [], [], 0.0
@@ -542,13 +664,25 @@ def _select_points(out: dict, keep: np.ndarray) -> dict:
     return sel
 
 
-def _check_common(rupture_strain: float, fire: FireSettings, minimizer: str = "device") -> None:
+SCHEDULES = ("async", "lockstep")
+
+
+def _check_common(rupture_strain: float, fire: FireSettings, minimizer: str = "device",
+                  schedule: str | None = None) -> str:
+    """Validate the shared arguments; returns the load-point schedule (default: async on the device FIRE)."""
+    if schedule is None:
+        schedule = "async" if minimizer == "device" else "lockstep"
+    if schedule not in SCHEDULES:
+        raise ValueError(f"schedule must be one of {SCHEDULES}, got {schedule!r}")
+    if schedule == "async" and minimizer != "device":
+        raise ValueError("schedule='async' needs minimizer='device' (the NumPy FIRE runs lock-step only)")
     if not (math.isfinite(rupture_strain) and rupture_strain > 0):
         raise ValueError(f"rupture_strain must be a positive finite number, got {rupture_strain!r}")
     if not isinstance(fire, FireSettings):
         raise ValueError(f"fire must be a FireSettings, got {type(fire).__name__}")
     if minimizer not in MINIMIZERS:
         raise ValueError(f"minimizer must be one of {MINIMIZERS}, got {minimizer!r}")
+    return schedule
 
 
 def _dtype_name(dtype) -> str:
@@ -605,7 +739,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                             forces_dpd: Sequence[float] | np.ndarray, *, gas: IdealGas | None = IdealGas(),
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
                             rupture_strain: float = 1.0, fraction_loaded: float = 0.01, minimizer: str = "device",
-                            sync_every: int | None = None, extrapolate: bool = True,
+                            sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
                             progress: Callable[[int, int, float], None] | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
 
@@ -623,6 +757,10 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         sync_every: device FIRE iterations between host status checks (default 25 CUDA / 4 CPU).
         extrapolate: (device minimiser) start each load point from the linear extrapolation of the last
             two minima instead of the last one: same minima (within ``fire.ftol``), fewer FIRE iterations.
+        schedule: ``"async"`` (default with the device minimiser: each replica advances to its next load
+            point as soon as it has relaxed, so the batch never waits for its slowest replica at every
+            point; same FIRE iterates and curves as lock-step) or ``"lockstep"`` (every replica at the same
+            point; the only schedule of the ``"numpy"`` minimiser).
         progress: optional ``progress(j, n_points, seconds)`` called after every load point
             (compression: every sub-step).
 
@@ -630,7 +768,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     """
     t0 = time.perf_counter()
     forces = validate_grid(forces_dpd, "forces_dpd")
-    _check_common(rupture_strain, fire, minimizer)
+    schedule = _check_common(rupture_strain, fire, minimizer, schedule)
     if not (0 < fraction_loaded < 0.5):
         raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {fraction_loaded!r}")
     params = _check_params(params, mesh, gas)
@@ -651,8 +789,12 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         tag[top], tag[bottom] = 1, -1
         dc = _DeviceChain(params, mesh, gas, device, dtype, fire, free_v=free_v, remove_mean=(True, True, True),
                           unit=unit, tag=tag, sync_every=sync_every, loads=forces if extrapolate else None)
-        out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
-                         progress=progress)
+        if schedule == "async":
+            out = _run_chain_async(dc, len(forces), rupture_strain, lambda jj: dc.set_load_rows(forces[jj]),
+                                   progress=progress)
+        else:
+            out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
+                             progress=progress)
     else:
         b = _Batch(params, mesh, gas, device, dtype)
         unit_all = np.tile(unit, (R, 1))
@@ -684,7 +826,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                 "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,
                 "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
                 "dtype": _dtype_name(dtype), "fire_evaluations": out["fire_evaluations"],
-                "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum"}
+                "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
+                "schedule": schedule}
     return IndentationResult(forces=forces, displacement=h0 - H, axial_diameter=H,
                              axial_diameter0=np.full(R, h0), d_patch=patch0 - P, volume=out["volume"],
                              max_area_strain=out["max_area_strain"], fmax=out["fmax"],
@@ -719,7 +862,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                             gas: IdealGas | None = IdealGas(), contact: PlateContact = PlateContact(),
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
                             rupture_strain: float = 1.0, max_plate_step: float = 0.06, minimizer: str = "device",
-                            sync_every: int | None = None, extrapolate: bool = True,
+                            sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
                             progress: Callable[[int, int, float], None] | None = None) -> CompressionResult:
     """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
 
@@ -729,7 +872,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         displacements_dpd: imposed total plate displacement d at each point (DPD length, >= 0,
             strictly increasing); each plate moves d/2.
         gas: enclosed ideal gas or None.  contact: plate-vertex :class:`PlateContact`.
-        device, dtype, fire, rupture_strain, minimizer, sync_every, extrapolate, progress: as in
+        device, dtype, fire, rupture_strain, minimizer, sync_every, extrapolate, schedule, progress: as in
             :func:`quasistatic_indentation`.
         max_plate_step: largest plate move between two minimisations (DPD length); longer load steps
             are split into relaxed sub-steps (a 0.12 jump into the stiff WCA wall makes FIRE diverge).
@@ -741,7 +884,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     """
     t0 = time.perf_counter()
     requested = validate_grid(displacements_dpd, "displacements_dpd")
-    _check_common(rupture_strain, fire, minimizer)
+    schedule = _check_common(rupture_strain, fire, minimizer, schedule)
     if not (math.isfinite(max_plate_step) and max_plate_step > 0):
         raise ValueError(f"max_plate_step must be a positive finite DPD length, got {max_plate_step!r}")
     disp, keep = _refine_grid(requested, 2.0 * max_plate_step)
@@ -758,8 +901,12 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         dc = _DeviceChain(params, mesh, gas, device, dtype, fire, free_v=np.ones((nv, 3), dtype=bool),
                           remove_mean=(True, True, False), contact=contact, sync_every=sync_every,
                           loads=disp if extrapolate else None)
-        out = _run_chain(dc, len(disp), rupture_strain,
-                         set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress)
+        if schedule == "async":
+            out = _run_chain_async(dc, len(disp), rupture_strain,
+                                   lambda jj: dc.set_plate_rows(plate[jj], 2 * zc - plate[jj]), progress=progress)
+        else:
+            out = _run_chain(dc, len(disp), rupture_strain,
+                             set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress)
     else:
         b = _Batch(params, mesh, gas, device, dtype)
 
@@ -795,7 +942,8 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                 "observable": "force on the top plate (one plate), positive compressive",
                 "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
                 "dtype": _dtype_name(dtype), "fire_evaluations": fire_evaluations,
-                "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum"}
+                "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
+                "schedule": schedule}
     return CompressionResult(displacements=requested, force=out["obs"].get("top", nan),
                              force_bottom=out["obs"].get("bottom", nan),
                              n_contacts=out["obs"].get("contacts", nan), plate_z=plate[keep], volume=out["volume"],

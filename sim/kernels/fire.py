@@ -70,6 +70,36 @@ def fire_kernels(dtype):
         clear_accumulators(r, fmax_acc, fsq_acc, pow_acc, nonfin_acc, vsq_acc, mean_acc)
 
     @kern
+    def restart_kernel(flag: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32),
+                       iters: wp.array(dtype=wp.int32), steps: wp.array(dtype=wp.int32),
+                       dt_r: wp.array(dtype=T), alpha_r: wp.array(dtype=T), npos: wp.array(dtype=wp.int32),
+                       down: wp.array(dtype=wp.int32), fmax_out: wp.array(dtype=T), dt0: T, alpha0: T):
+        """Fresh FIRE state (ACTIVE) for flagged replicas only; the others run on untouched."""
+        r = wp.tid()
+        if flag[r] == 0:
+            return
+        status[r] = ACTIVE
+        iters[r] = 0
+        steps[r] = 0
+        dt_r[r] = dt0
+        alpha_r[r] = alpha0
+        npos[r] = 0
+        down[r] = 0
+        fmax_out[r] = T(0.0)
+
+    @kern
+    def zero_rows_kernel(v: wp.array(dtype=V), row_start: wp.array(dtype=wp.int32), flag: wp.array(dtype=wp.int32),
+                         nthr: wp.int32):
+        """v <- 0 on the rows of flagged replicas (a restarted replica starts at rest)."""
+        tid = wp.tid()
+        r = tid // nthr
+        t = tid - r * nthr
+        if flag[r] == 0:
+            return
+        for i in range(row_start[r] + t, row_start[r + 1], nthr):
+            v[i] = V()
+
+    @kern
     def mean_accum_kernel(f: wp.array(dtype=V), row_start: wp.array(dtype=wp.int32),
                           status: wp.array(dtype=wp.int32), nthr: wp.int32, mean_acc: wp.array(dtype=V)):
         tid = wp.tid()

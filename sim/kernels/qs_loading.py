@@ -12,7 +12,8 @@ replica r sits at row ``row_start[r] + v``.  DPD units throughout.
   analytic plates z = top_r (pushing down) and z = bottom_r (pushing up).
 * Observables: plate reactions and contacts, axial extent and loaded-patch heights, non-finite rows,
   and the reset of failed replicas to their reference rows.
-* ``extrapolate_kernel``: linear predictor of the next load point's state from the last two minima.
+* ``extrapolate_kernel`` / ``extrapolate_rows_kernel``: linear predictor of the next load point's state from
+  the last two minima (all replicas at one point / each replica at its own point).
 """
 
 # (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)
@@ -163,6 +164,19 @@ def qs_kernels(dtype):
         xi = x[i]
         if flag[row_rep[i]] != 0:
             x[i] = xi + c * (xi - x_prev[i])
+        x_prev[i] = xi
+
+    @kern
+    def extrapolate_rows_kernel(x: wp.array(dtype=V), x_prev: wp.array(dtype=V), row_rep: wp.array(dtype=wp.int32),
+                                flag: wp.array(dtype=wp.int32), coef: wp.array(dtype=T)):
+        """Per-replica predictor (replica-asynchronous chains): on flagged replicas only,
+        x <- x + coef[r] (x - x_prev) and x_prev <- old x."""
+        i = wp.tid()
+        r = row_rep[i]
+        if flag[r] == 0:
+            return
+        xi = x[i]
+        x[i] = xi + coef[r] * (xi - x_prev[i])
         x_prev[i] = xi
 
     return {k: val for k, val in locals().items() if isinstance(val, wp.Kernel)}

@@ -239,3 +239,35 @@ def test_extrapolated_start_same_minima_fewer_iterations(mesh, protocol):
 def test_minimizer_choice_validated(mesh):
     with pytest.raises(ValueError, match="minimizer"):
         quasistatic_indentation([_p()], mesh, [0.0], minimizer="scipy")
+
+
+@pytest.mark.parametrize("protocol", ["compression", "indentation"])
+def test_async_schedule_same_iterates_as_lockstep(mesh, protocol):
+    # replicas of very different stiffness reach their points at different FIRE iterations; one hits max_steps
+    # at some point and one ruptures: every replica must follow exactly its lock-step iterates
+    p = [_p(), _p(ka=KA / 4), ShellParams(ka=KA / 8, kb=KB, b1=0.7, b2=0.75, a3=-2.0, a4=8.0, self_avoid=False),
+         _p(ka=200.0, kb=5.0)]
+    if protocol == "compression":
+        run, grid, key = quasistatic_compression, [0.0, 0.12, 0.24, 0.36, 0.48], "force"
+        fire = FireSettings(max_steps=400)
+    else:
+        run, grid, key = quasistatic_indentation, [0.0, 10.0, 20.0, 40.0, 2000.0], "displacement"
+        fire = FireSettings(max_steps=600)
+    lock = run(p, mesh, grid, fire=fire, schedule="lockstep", rupture_strain=0.5)
+    asy = run(p, mesh, grid, fire=fire, rupture_strain=0.5)
+    assert asy.settings["schedule"] == "async" and lock.settings["schedule"] == "lockstep"
+    assert asy.status == lock.status
+    assert len(set(lock.status)) >= 2, lock.status  # the set really mixes verdicts
+    assert asy.point_status == lock.point_status
+    np.testing.assert_array_equal(asy.fire_steps, lock.fire_steps)
+    np.testing.assert_array_equal(getattr(asy, key), getattr(lock, key))
+    np.testing.assert_array_equal(asy.volume, lock.volume)
+    np.testing.assert_array_equal(asy.max_area_strain, lock.max_area_strain)
+    np.testing.assert_array_equal(asy.x_final, lock.x_final)
+
+
+def test_schedule_validated(mesh):
+    with pytest.raises(ValueError, match="schedule"):
+        quasistatic_indentation([_p()], mesh, [0.0], schedule="eager")
+    with pytest.raises(ValueError, match="async"):
+        quasistatic_indentation([_p()], mesh, [0.0], minimizer="numpy", schedule="async")

@@ -43,3 +43,5 @@ def test_quasistatic_tier_self_avoidance_inert_and_dtype_checked():
     np.testing.assert_allclose(off.observable, on.observable, rtol=1e-10, atol=1e-9)
     with pytest.raises(ValueError, match="dtype must be 'float64' or 'float32'"):
         get_tier("quasistatic", dtype="float16")
+    with pytest.raises(ValueError, match="schedule must be"):
+        get_tier("quasistatic", schedule="eager")
