@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 TIERS = ("explicit", "implicit", "quasistatic")
-PROTOCOL_OF = {2.1: "compression", 2.9: "compression", 3.0: "compression", 3.2: "indentation", 5.8: "indentation"}
+PROTOCOL_OF = {2.1: "compression", 2.9: "compression", 3.0: "compression", 3.2: "indentation", 3.4: "indentation",
+               5.8: "indentation"}
 # H100 rates from benchmarks/RESULTS.md (Warp DPD engine): one 3 um bubble 262 us/step (launch bound),
 # 64 bubbles 1.04e9 particle-steps/s; implicit: shell force field 212 us / 64 s4 replicas + ~40 % integrate
 EXPLICIT_RATE = 1.0e9
@@ -122,6 +123,25 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
         x=np.vstack([ts.x, np.tile(ts.x[0], (n, 1))]), y=np.vstack([ts.y, np.full((n, m), np.nan)]),
         curve_id=np.r_[ts.curve_id, [f"lhs{i + 1}" for i in range(n)]],
         status=None if ts.status is None else np.r_[ts.status, ["ok"] * n])
+
+
+def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
+    """A diameter without published rows (e.g. 3.4 um): ``n`` LHS rows of the shipped campaign's box on its
+    grid and radius (tier-vs-tier comparison only)."""
+    from bubblecal.data.units import radius_dpd_from_diameter_um
+    from bubblecal.surrogates.dataset import PARAM_NAMES, TrainingSet
+    from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
+
+    names = [c for c in available_campaigns() if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
+    if not names:
+        raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
+    grid = np.asarray(load_campaign_file(names[0]).config.grid_for(diameter), dtype=np.float64)
+    # one carrier row holds the grid and radius that with_lhs_rows copies; it is dropped afterwards
+    carrier = TrainingSet(setup=protocol, params=np.zeros((1, len(PARAM_NAMES))),
+                          radius_dpd=np.array([radius_dpd_from_diameter_um(diameter)]), x=grid[None, :],
+                          y=np.full((1, grid.size), np.nan), curve_id=np.array(["grid"]), source=f"lhs:{names[0]}")
+    out = with_lhs_rows(carrier, protocol, diameter, n, seed)
+    return out.subset(np.arange(1, out.n_curves))  # drop the grid-carrier row
 
 
 def rel_l2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -224,10 +244,13 @@ def main(argv=None) -> int:
     plan = []
     for d in diameters:
         protocol, ts = load_rows(ref, d, args.rows, args.first_row)
-        if ts is None:
+        if ts is None and protocol is not None and args.lhs > 0:
+            ts = lhs_only_rows(protocol, d, args.lhs, args.seed)
+            print(f"{d:g} um: no training_head rows in {ref}: {args.lhs} LHS rows only (tier vs tier)")
+        elif ts is None:
             print(f"{d:g} um: no training_head rows for it in {ref} -> skipped")
             continue
-        if args.lhs > 0:
+        elif args.lhs > 0:
             ts = with_lhs_rows(ts, protocol, d, args.lhs, args.seed)
         dia = diameter_um_from_radius(float(np.median(ts.radius_dpd)))
         mesh = mesh_for_diameter(dia, args.subdivisions)

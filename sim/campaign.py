@@ -343,7 +343,9 @@ class CampaignConfig:
             elif isinstance(v, tuple):
                 v = list(v)
             out[k] = v
-        out["tier_settings"] = jsonable(out["tier_settings"])
+        # scheduling-only settings give the same curves (tested bit-identical), so they do not change the design
+        out["tier_settings"] = jsonable({k: v for k, v in out["tier_settings"].items()
+                                         if k not in EXECUTION_ONLY_TIER_SETTINGS})
         return out
 
     def design_hash(self) -> str:
@@ -354,9 +356,14 @@ class CampaignConfig:
     def to_dict(self) -> dict:
         """Every field, JSON-able (the store header keeps it)."""
         out = self.design_dict()
+        out["tier_settings"] = jsonable(self.tier_settings)
         out.update(replicas_per_task=self.replicas_per_task, device=self.device, store=str(self.store),
                    retry_statuses=list(self.retry_statuses))
         return out
+
+
+EXECUTION_ONLY_TIER_SETTINGS = ("schedule", "max_replicas")
+"""[tier] keys that change how curves are scheduled on the device, not the curves: left out of the design hash."""
 
 
 def _published_grid(protocol: str, diameter_um: float) -> tuple[float, ...]:
@@ -489,7 +496,31 @@ def pending_indices(config: CampaignConfig, store: CampaignStore | None = None) 
             store.header_path is not None and store.header_path.exists()):
         final = [s for s in STORE_STATUSES if s not in config.retry_statuses]
         done = store.finished_ids(statuses=final)
+        if "unstable" in config.retry_statuses:
+            budget = _fire_budget(config)
+            done |= {r["sample_id"] for r in store.read(statuses=["unstable"], warn=False)
+                     if not _unstable_retry_due(r, budget)}
     return [i for i, sid in enumerate(sample_ids(config)) if sid not in done]
+
+
+def _fire_budget(config: CampaignConfig) -> int | None:
+    """The minimiser's step budget per load point the config would run with (None: the tier has none)."""
+    if "max_steps" in config.tier_settings:
+        return int(config.tier_settings["max_steps"])
+    try:
+        from bubblecal.sim.tiers import get_tier
+
+        return getattr(get_tier(config.tier, **config.tier_settings), "max_steps", None)
+    except Exception:  # tier not importable here (no Warp): retry as configured
+        return None
+
+
+def _unstable_retry_due(record: Mapping, budget: int | None) -> bool:
+    """An 'unstable' record (minimiser step budget reached) is worth re-running only with a larger budget:
+    the quasi-static tier is deterministic, so the same budget gives the same verdict at the same cost."""
+    fire = record.get("provenance", {}).get("info", {}).get("settings", {}).get("fire", {})
+    ran = fire.get("max_steps") if isinstance(fire, Mapping) else None
+    return budget is None or ran is None or int(ran) < int(budget)
 
 
 def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[str, np.ndarray] | None = None
@@ -760,7 +791,7 @@ class _Progress:
 def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str | None = None,
                  n_workers: int | None = None, progress: bool = True, limit: int | None = None,
                  simulate: Callable[[CampaignTask], TaskResult] | None = None,
-                 on_error: str = "record") -> CampaignSummary:
+                 on_error: str = "record", diameters: Sequence[float] | None = None) -> CampaignSummary:
     """Run the pending part of ``config``'s design on Dask and append one record per sample to its store.
 
     ``client``: a ``distributed.Client`` to use (not closed); else ``scheduler_address`` ('tcp://host:port'
@@ -770,7 +801,9 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     pending samples (a partial run; the next call continues).  ``simulate(task) -> TaskResult``: the task
     function (default :func:`simulate_task`; must be picklable for Dask).  ``on_error``: a task that raises
     writes 'failed' records (re-run by the next call) with 'record', or stops the campaign with 'raise'
-    (records already written stay); 10 consecutive raising tasks stop it either way.
+    (records already written stay); 10 consecutive raising tasks stop it either way.  ``diameters`` [um]:
+    run only the pending samples of these diameters of a multi-diameter design (e.g. one process per
+    diameter sharing one GPU: the store takes whole-line appends from several processes).
     Returns a :class:`CampaignSummary` (counts by status, wall vs compute seconds).
     """
     if on_error not in ("record", "raise"):
@@ -783,6 +816,14 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     store = _open_store(config)
     design = design_points(config)
     pending = pending_indices(config, store)
+    if diameters is not None:
+        wanted = [float(d) for d in diameters]
+        unknown = [d for d in wanted if not any(abs(d - c) < 1e-9 for c in config.diameters)]
+        if unknown:
+            raise CampaignConfigError("diameter_um", f"{unknown} not in the design's diameters "
+                                                     f"{list(config.diameters)}")
+        keep = np.isin(np.round(design["diameter_um"], 9), np.round(wanted, 9))
+        pending = [i for i in pending if keep[i]]
     n_pending = len(pending)
     todo = pending[:limit] if limit is not None else pending
     tasks = make_tasks(config, todo, design)
@@ -900,6 +941,7 @@ class StoreStatus:
     n_lines_skipped: int
     retry_statuses: tuple[str, ...]
     config: dict
+    pending: int | None = None  # from the current config's pending_indices, when given
 
     @property
     def n_samples_stored(self) -> int:
@@ -911,6 +953,8 @@ class StoreStatus:
 
     @property
     def n_pending(self) -> int | None:
+        if self.pending is not None:
+            return self.pending
         return None if self.n_design is None else self.n_design - self.n_final
 
     def as_dict(self) -> dict:

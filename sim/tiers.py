@@ -218,6 +218,10 @@ class QuasistaticTier:
     ``dtype`` None = float64; ``"float32"`` / ``wp.float32`` for GPU production.
     ``schedule`` ``"async"``: each replica moves to its next load point as soon as it has relaxed (same
     iterates and curves as ``"lockstep"``, where the whole batch waits for its slowest replica at every point).
+    ``max_replicas`` (async only): at most this many replicas relax at once and a slot whose curve is done takes
+    the request's next parameter set (softest k_a first), so a request much larger than the GPU's batch runs at
+    full occupancy: the task's wall time follows the mean FIRE work per curve instead of the slowest curve's
+    (at 3.2 um the slowest needs ~100x the median).  None: one slot per replica of the request.
     """
 
     subdivisions: int | None = None
@@ -229,6 +233,7 @@ class QuasistaticTier:
     self_avoid: bool = False
     extrapolate: bool = True
     schedule: str = "async"
+    max_replicas: int | None = None
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
@@ -236,6 +241,12 @@ class QuasistaticTier:
             raise ValueError(f"quasistatic tier: dtype must be 'float64' or 'float32', got {self.dtype!r}")
         if self.schedule not in ("async", "lockstep"):
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
+        if self.max_replicas is not None:
+            m = self.max_replicas
+            if isinstance(m, bool) or not isinstance(m, int) or m < 1:
+                raise ValueError(f"quasistatic tier: max_replicas must be an integer >= 1, got {m!r}")
+            if self.schedule != "async":
+                raise ValueError("quasistatic tier: max_replicas needs schedule = 'async'")
 
     def run(self, request: CurveRequest, device: str = "cpu") -> CurveBatch:
         """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``."""
@@ -255,7 +266,7 @@ class QuasistaticTier:
         gas = IdealGas(p0=self.gas_p0)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,
-                      extrapolate=self.extrapolate, schedule=self.schedule)
+                      extrapolate=self.extrapolate, schedule=self.schedule, max_replicas=self.max_replicas)
         grid = request.grid_array()
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid)) for p in request.shell_params()]
         if request.protocol == "compression":

@@ -34,7 +34,8 @@ from bubblecal.data.files import jsonable
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 
 __all__ = ["AGENT_KB", "ACOUSTIC_PRIOR", "SweepResult", "default_ka_values", "ringdown_sweep", "fit_sweep",
-           "write_sweep_outputs", "ROW_FIELDS"]
+           "write_sweep_outputs", "ROW_FIELDS", "sweep_row", "sweeps_from_store", "sweeps_from_rows_csv",
+           "acoustic_surrogate_from_stores"]
 
 #: Fixed bending constant of the acoustic sweeps (DPD energy), physics.md section 5.
 AGENT_KB = {"definity": 389.23, "sonovue": 7850.29}
@@ -100,6 +101,96 @@ class SweepResult:
                 "seconds": self.seconds}
 
 
+def sweep_row(ka: float, kb: float, seed: int, status: str, t, radius, *, omega0_sq: float, omega0_sq_mesh: float,
+              radius_equilibrium: float, p_gas: float, mass_factor: float, units: UnitSystem = DEFAULT_UNITS,
+              t_start: float | None = None) -> tuple[dict, object]:
+    """Fit one R(t) trace (``t`` DPD time, ``radius`` DPD length) and build its :data:`ROW_FIELDS` row
+    (frequencies in MHz via ``mass_factor``; check-7 ratios against ``omega0_sq`` [rad^2 / DPD time^2]).
+    Returns (row, RingdownFit or None)."""
+    from bubblecal.surrogates.acoustic import fit_ringdown
+
+    r = np.asarray(radius, dtype=np.float64)
+    fit = None
+    if status == "ok" and np.all(np.isfinite(r)):
+        try:
+            fit = fit_ringdown(np.asarray(t, dtype=np.float64), r, t_start=t_start)
+        except (ValueError, RuntimeError):
+            fit = None
+    row = {"ka": float(ka), "kb": float(kb), "mu": float(ka) / 3.0, "seed": int(seed), "status": status,
+           "fit_success": bool(fit is not None and fit.success),
+           "omega0_check7": math.sqrt(omega0_sq) if omega0_sq > 0 else float("nan"),
+           "radius_equilibrium": float(radius_equilibrium), "p_gas": float(p_gas)}
+    if fit is not None:
+        mhz = fit.physical_MHz(mass_factor, units)
+        conv = float(units.frequency_to_physical(1.0, mass_factor)) / 1e6
+        w0 = 2 * math.pi * fit.f_0
+        row.update({"f_res_MHz": mhz["f_res"], "f_0_MHz": mhz["f_0"],
+                    "f_res_stderr_MHz": fit.f_res_stderr * conv, "f_res_dpd": fit.f_res, "f_0_dpd": fit.f_0,
+                    "f_d_dpd": fit.f_d, "lam_dpd": fit.lam, "r2": fit.r2, "rel_rmse": fit.rel_rmse,
+                    "n_cycles": fit.n_cycles, "check7_ratio": w0**2 / omega0_sq if omega0_sq > 0 else float("nan"),
+                    "check7_ratio_mesh": w0**2 / omega0_sq_mesh if omega0_sq_mesh > 0 else float("nan")})
+    return {k: row.get(k, float("nan")) for k in ROW_FIELDS}, fit
+
+
+def sweeps_from_store(store, agent: str | None = None, t_start: float | None = None,
+                      units: UnitSystem = DEFAULT_UNITS) -> list[SweepResult]:
+    """Refit the R(t) records of a ringdown campaign store (directory, .jsonl or .jsonl.gz): one
+    :class:`SweepResult` per diameter, rows sorted by k_a.  ``agent`` (default: from the campaign name,
+    'definity_ringdown' / 'sonovue_ringdown').  Records must be setup 'ringdown' (x = t [DPD time],
+    y = R(t) [DPD length]); the check-7 prediction is recomputed from each record's equilibrium radius,
+    gas pressure and shell mass (the area ratio of its mesh)."""
+    from bubblecal.data.store import CampaignStore
+    from bubblecal.sim.experiments.ringdown import breathing_mode_prediction
+
+    st = store if isinstance(store, CampaignStore) else CampaignStore(store)
+    recs = st.read(warn=False)
+    if not recs:
+        raise ValueError(f"{st.records_path}: no records")
+    bad = [r["sample_id"] for r in recs if r.get("setup") != "ringdown"]
+    if bad:
+        raise ValueError(f"{st.records_path}: {len(bad)} record(s) are not ringdown records (e.g. {bad[0]})")
+    if agent is None:
+        name = str(recs[0].get("provenance", {}).get("campaign", ""))
+        agent = next((a for a in AGENT_KB if name.startswith(a)), None)
+        if agent is None:
+            raise ValueError(f"{st.records_path}: cannot tell the agent from campaign {name!r}; pass agent=")
+    agent = _agent(agent)
+    by_d: dict[float, list[dict]] = {}
+    for r in recs:
+        by_d.setdefault(float(r["provenance"]["diameter_um"]), []).append(r)
+    out = []
+    for d, group in sorted(by_d.items()):
+        group.sort(key=lambda r: r["params"]["ka"])
+        rows, traces, fits, tiers, infos = [], [], [], set(), []
+        mass_factor = None
+        for r in group:
+            info = r["provenance"].get("info", {})
+            mf = float(info.get("mass_factor", 160.0))
+            if mass_factor is not None and mf != mass_factor:
+                raise ValueError(f"{st.records_path}: mixed mass factors at {d:g} um")
+            mass_factor = mf
+            tiers.add(r.get("tier"))
+            ka, kb = float(r["params"]["ka"]), float(r["params"]["kb"])
+            r_eq, p_gas = float(info.get("radius_equilibrium", np.nan)), float(info.get("p_gas", np.nan))
+            ratio = np.asarray(info.get("prediction", {}).get("area_ratio", [1.0]), dtype=float).ravel()
+            pred = breathing_mode_prediction(ka, r_eq, p_gas, float(info.get("shell_mass", np.nan)),
+                                             area_ratio=float(ratio[0]) if ratio.size else 1.0)
+            t, y = np.asarray(r["x"], dtype=float), np.asarray(r["y"], dtype=float)
+            row, fit = sweep_row(ka, kb, int(r["seed"]), r["status"], t, y, omega0_sq=float(pred["omega0_sq"]),
+                                 omega0_sq_mesh=float(pred["omega0_sq_mesh"]), radius_equilibrium=r_eq, p_gas=p_gas,
+                                 mass_factor=mf, units=units, t_start=t_start)
+            rows.append(row)
+            traces.append((t, y))
+            fits.append(fit)
+            infos.append({k: info.get(k) for k in ("dt", "mesh_subdivisions", "n_vertices", "record_steps")})
+        settings = {"agent": agent, "diameter_um": d, "tier": "/".join(sorted(map(str, tiers))),
+                    "mass_factor": mass_factor, "kb": rows[0]["kb"], "store": str(st.records_path),
+                    "n_ka": len(rows), "mesh_subdivisions": infos[0].get("mesh_subdivisions"), "t_start": t_start}
+        out.append(SweepResult(agent=agent, diameter_um=d, tier=settings["tier"], mass_factor=mass_factor, rows=rows,
+                               traces=traces, fits=fits, settings=settings, batch_info=infos))
+    return out
+
+
 def ringdown_sweep(agent: str, diameter_um: float, ka_values: Sequence[float] | None = None, kb: float | None = None,
                    *, tier: str = "implicit", device: str = "cpu", n_ka: int = 28, mass_factor: float = 160.0,
                    seed: int = 0, batch_size: int | None = None, t_start: float | None = None,
@@ -115,7 +206,6 @@ def ringdown_sweep(agent: str, diameter_um: float, ka_values: Sequence[float] | 
     :func:`bubblecal.sim.experiments.ringdown.ringdown_batch` (dt, subdivisions, step counts, tier settings).
     """
     from bubblecal.sim.experiments.ringdown import ringdown_batch
-    from bubblecal.surrogates.acoustic import fit_ringdown
 
     agent = _agent(agent)
     ka = default_ka_values(agent, n_ka) if ka_values is None else np.asarray(ka_values, dtype=np.float64).ravel()
@@ -141,32 +231,17 @@ def ringdown_sweep(agent: str, diameter_um: float, ka_values: Sequence[float] | 
         infos.append(info)
         pred = info.get("prediction", {})
         for j in range(kab.size):
-            r = batch.radius[j]
-            fit = None
-            if batch.status[j] == "ok" and np.all(np.isfinite(r)):
-                try:
-                    fit = fit_ringdown(batch.t, r, t_start=t_start)
-                except (ValueError, RuntimeError):
-                    fit = None
-            fits.append(fit)
-            traces.append((batch.t, r))
             w2 = float(pred["omega0_sq"][j]) if "omega0_sq" in pred else float("nan")
             w2m = float(pred["omega0_sq_mesh"][j]) if "omega0_sq_mesh" in pred else float("nan")
-            row = {"ka": float(kab[j]), "kb": kb, "mu": float(kab[j]) / 3.0, "seed": seeds[j],
-                   "status": batch.status[j], "fit_success": bool(fit is not None and fit.success),
-                   "omega0_check7": math.sqrt(w2) if w2 > 0 else float("nan"),
-                   "radius_equilibrium": float(np.asarray(info.get("radius_equilibrium", [np.nan] * kab.size))[j]),
-                   "p_gas": float(np.asarray(info.get("p_gas", [np.nan] * kab.size))[j])}
-            if fit is not None:
-                mhz = fit.physical_MHz(mass_factor, units)
-                conv = float(units.frequency_to_physical(1.0, mass_factor)) / 1e6
-                w0 = 2 * math.pi * fit.f_0
-                row.update({"f_res_MHz": mhz["f_res"], "f_0_MHz": mhz["f_0"],
-                            "f_res_stderr_MHz": fit.f_res_stderr * conv, "f_res_dpd": fit.f_res, "f_0_dpd": fit.f_0,
-                            "f_d_dpd": fit.f_d, "lam_dpd": fit.lam, "r2": fit.r2, "rel_rmse": fit.rel_rmse,
-                            "n_cycles": fit.n_cycles, "check7_ratio": w0**2 / w2 if w2 > 0 else float("nan"),
-                            "check7_ratio_mesh": w0**2 / w2m if w2m > 0 else float("nan")})
-            rows.append({k: row.get(k, float("nan")) for k in ROW_FIELDS})
+            row, fit = sweep_row(float(kab[j]), kb, seeds[j], batch.status[j], batch.t, batch.radius[j],
+                                 omega0_sq=w2, omega0_sq_mesh=w2m,
+                                 radius_equilibrium=float(np.asarray(info.get("radius_equilibrium",
+                                                                              [np.nan] * kab.size))[j]),
+                                 p_gas=float(np.asarray(info.get("p_gas", [np.nan] * kab.size))[j]),
+                                 mass_factor=mass_factor, units=units, t_start=t_start)
+            fits.append(fit)
+            traces.append((batch.t, batch.radius[j]))
+            rows.append(row)
         if progress is not None:
             done = sl.stop
             el = time.perf_counter() - t0
@@ -276,3 +351,99 @@ def _plot(result: SweepResult, fit, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def sweeps_from_rows_csv(path: str | Path, agent: str | None = None) -> list[SweepResult]:
+    """Read fitted ringdown rows (CSV of ``diameter_um`` + :data:`ROW_FIELDS`, e.g. the shipped
+    ``data/training/<agent>_ringdown_rows.csv``): one :class:`SweepResult` per diameter (no traces).
+    ``agent`` default: from the file name.  Raises ValueError naming the file, row and column on bad input."""
+    path = Path(path)
+    if agent is None:
+        agent = next((a for a in AGENT_KB if path.name.startswith(a)), None)
+        if agent is None:
+            raise ValueError(f"{path}: cannot tell the agent from the file name; pass agent=")
+    agent = _agent(agent)
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in ("diameter_um", *ROW_FIELDS) if c not in (reader.fieldnames or [])]
+        if missing:
+            raise ValueError(f"{path}: missing column(s) {missing}")
+        by_d: dict[float, list[dict]] = {}
+        for i, raw in enumerate(reader, start=2):
+            row = {}
+            for k in ROW_FIELDS:
+                v = raw[k]
+                if k == "status":
+                    row[k] = v
+                elif k == "fit_success":
+                    if v not in ("True", "False"):
+                        raise ValueError(f"{path}: row {i}, column fit_success: must be True or False, got {v!r}")
+                    row[k] = v == "True"
+                else:
+                    try:
+                        row[k] = float(v) if v not in ("", "nan") else float("nan")
+                    except ValueError:
+                        raise ValueError(f"{path}: row {i}, column {k}: not a number ({v!r})") from None
+            try:
+                d = float(raw["diameter_um"])
+            except ValueError:
+                raise ValueError(f"{path}: row {i}, column diameter_um: not a number ({raw['diameter_um']!r})") from None
+            by_d.setdefault(d, []).append(row)
+    out = []
+    for d, rows in sorted(by_d.items()):
+        out.append(SweepResult(agent=agent, diameter_um=d, tier="from rows", mass_factor=float("nan"), rows=rows,
+                               traces=[], fits=[None] * len(rows),
+                               settings={"agent": agent, "diameter_um": d, "rows_csv": str(path),
+                                         "kb": rows[0]["kb"], "mesh_subdivisions": None}))
+    return out
+
+
+def acoustic_surrogate_from_stores(stores: Sequence, out: str | Path, agent: str | None = None,
+                                   rows_csv: str | Path | None = None, t_start: float | None = None):
+    """Refit every R(t) of ringdown campaign ``stores`` and save the agent's acoustic surrogate.
+
+    ``stores`` may also name row CSVs written by an earlier call (``rows_csv``; no refit, e.g. the shipped
+    ``data/training/*_ringdown_rows.csv``).
+
+    One f_res^2(k_a) quadratic per diameter (f_res in MHz, k_a DPD) with leave-one-out errors; the JSON at
+    ``out`` carries the provenance (stores, tier, mesh level, counts, check-7 ratios, LOO errors).
+    ``rows_csv``: also write every fitted row (diameter_um + :data:`ROW_FIELDS`).  Raises ValueError when a
+    diameter has fewer than 3 valid rows.  Returns (AcousticSurrogate, list of SweepResult).
+    """
+    from bubblecal.surrogates.acoustic import AcousticSurrogate
+
+    sweeps: list[SweepResult] = []
+    for st in stores:
+        if str(st).endswith(".csv"):
+            sweeps.extend(sweeps_from_rows_csv(st, agent=agent))
+        else:
+            sweeps.extend(sweeps_from_store(st, agent=agent, t_start=t_start))
+    agents = {s.agent for s in sweeps}
+    if len(agents) != 1:
+        raise ValueError(f"stores hold several agents {sorted(agents)}: one acoustic surrogate per agent")
+    fits = fit_sweep(sweeps)
+    per_d = {}
+    for s in sweeps:
+        sm = s.summary()
+        f = fits[s.diameter_um]
+        per_d[f"{s.diameter_um:g}"] = {"n": sm["n"], "n_valid": sm["n_valid"], "check7_ratio_median":
+                                       sm["check7_ratio_median"], "loo_median": f.loo_median, "loo_max": f.loo_max,
+                                       "mesh_subdivisions": s.settings.get("mesh_subdivisions")}
+    meta = {"synthetic": False, "source": "DPD ringdown campaign (bubblecal.sim, implicit tier unless noted)",
+            "agent": sweeps[0].agent, "tier": sorted({s.tier for s in sweeps}),
+            "mass_factor": sorted({s.mass_factor for s in sweeps}), "kb": sweeps[0].settings.get("kb"),
+            "stores": [str(s) for s in stores], "per_diameter": per_d,
+            "law": "f_res^2 = a0 + a1 ka + a2 ka^2 [MHz^2], ka DPD 2-D modulus, mu = ka / 3",
+            "loo_median_overall": float(np.median([f.loo_median for f in fits.values()])),
+            "loo_max_overall": float(np.max([f.loo_max for f in fits.values()]))}
+    sur = AcousticSurrogate(fits, name=sweeps[0].agent, meta=jsonable(meta, nonfinite_as_none=True))
+    sur.save(out)
+    if rows_csv is not None:
+        with open(rows_csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.DictWriter(fh, fieldnames=["diameter_um", *ROW_FIELDS])
+            w.writeheader()
+            for s in sweeps:
+                for r in s.rows:
+                    w.writerow({"diameter_um": f"{s.diameter_um:g}",
+                                **{k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in r.items()}})
+    return sur, sweeps

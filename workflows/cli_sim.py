@@ -128,6 +128,8 @@ def campaign(
     device: str = typer.Option(None, "--device", help="Override [campaign].device: cpu, cuda or cuda:N."),
     store: Path = typer.Option(None, "--store", help="Override [campaign].store (campaign store directory)."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar with ETA."),
+    diameter: list[float] = typer.Option(None, "--diameter", help="Run only this diameter [um] of a "
+                                                                  "multi-diameter design (repeatable)."),
 ) -> None:
     """Run a training-data campaign: a seeded design over a prior box, simulated on Dask, appended to a
     resumable store (one record per sample). Re-running continues where it stopped; a killed worker is
@@ -175,7 +177,10 @@ def campaign(
         return
     try:
         summary = run_campaign(c, scheduler_address=scheduler or cf.scheduler_address,
-                               n_workers=workers or cf.n_workers, limit=limit, progress=progress)
+                               n_workers=workers or cf.n_workers, limit=limit, progress=progress,
+                               diameters=diameter or None)
+    except CampaignConfigError as exc:
+        raise fail(f"--diameter: {exc.detail}") from None
     except (CampaignError, StoreError) as exc:
         raise fail(str(exc)) from None
     _status_table(f"campaign {c.name}: this run ({summary.n_written} samples, {summary.n_tasks} tasks)",
@@ -196,15 +201,17 @@ def campaign_status(store: Path = typer.Argument(..., help="Campaign store direc
                                                "retry_statuses define 'pending' (default: the store's own)."),
                     ) -> None:
     """Counts by status (latest record per sample) and what is still pending; exit 1 if STORE is unreadable."""
-    from bubblecal.data.store import StoreError
-    from bubblecal.sim.campaign import store_status
+    from bubblecal.data.store import CampaignStore, StoreError
+    from bubblecal.sim.campaign import pending_indices, store_status
     from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file
 
     if not store.exists():
         raise fail(f"{store}: no such campaign store")
     try:
-        retry = None if config is None else load_campaign_file(config, store=store).config.retry_statuses
-        st = store_status(store, retry_statuses=retry)
+        cfg = None if config is None else load_campaign_file(config, store=store).config
+        st = store_status(store, retry_statuses=None if cfg is None else cfg.retry_statuses)
+        if cfg is not None:  # the config's own rule (e.g. 'unstable' only re-runs with a larger FIRE budget)
+            st = dataclasses.replace(st, pending=len(pending_indices(cfg, CampaignStore(store))))
     except (StoreError, FileNotFoundError, CampaignFileError) as exc:
         raise fail(str(exc)) from None
     _status_table(f"campaign store {store}" + (f" (campaign {st.name})" if st.name else ""), st.counts)

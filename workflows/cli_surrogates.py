@@ -169,3 +169,32 @@ def synthetic_bundle(
 
     write_synthetic_bundle(out, seed=seed, quick=quick, progress=typer.echo)
     typer.echo(f"wrote {out} -- SYNTHETIC closed-form laws, for development/tests, not DPD")
+
+
+@app.command("acoustic")
+def acoustic(
+    stores: list[Path] = typer.Argument(..., help="Ringdown campaign store(s) of one agent (directory, .jsonl, "
+                                                  ".jsonl.gz), e.g. from `bubblecal sim campaign definity_ringdown`."),
+    out: Path = typer.Option(..., "--out", help="Acoustic surrogate JSON to write."),
+    agent: str = typer.Option(None, "--agent", help="definity or sonovue (default: from the campaign name)."),
+    rows: Path = typer.Option(None, "--rows", help="Also write every fitted ringdown row (CSV)."),
+    t_start: float = typer.Option(None, "--t-start", help="Fit R(t) only after this DPD time."),
+) -> None:
+    """Fit the acoustic surrogate (f_res^2(k_a) quadratic per diameter, LOO errors) from ringdown stores."""
+    from bubblecal.data.store import StoreError
+    from bubblecal.workflows.acoustic_sweep import acoustic_surrogate_from_stores
+    from bubblecal.workflows.console import fail
+
+    for s in stores:
+        if not s.exists():
+            raise fail(f"{s}: no such ringdown store")
+    try:
+        sur, sweeps = acoustic_surrogate_from_stores(stores, out, agent=agent, rows_csv=rows, t_start=t_start)
+    except (ValueError, StoreError) as exc:
+        raise fail(str(exc)) from None
+    for s in sweeps:
+        f = sur.fits[s.diameter_um]
+        sm = s.summary()
+        typer.echo(f"{s.diameter_um:6.2f} um: {sm['n_valid']}/{sm['n']} valid, check-7 ratio "
+                   f"{sm['check7_ratio_median']:.4f}, LOO median {100 * f.loo_median:.2f} % max {100 * f.loo_max:.2f} %")
+    typer.echo(f"wrote {out}" + (f" and {rows}" if rows else ""))

@@ -1,6 +1,7 @@
 """Run a shipped campaign in-process on the lent GPU (no CLI / Dask needed there), resumable.
 
-    python3 benchmarks/device/run_campaign.py NAME STORE_DIR [--limit N] [--device cuda]
+    python3 benchmarks/device/run_campaign.py NAME STORE_DIR [--limit N] [--device cuda] [--diameter D ...]
+        [--replicas-per-task N] [--max-replicas R]
 
 Prints one progress line per finished task and the campaign summary as JSON.  Same records as
 ``bubblecal sim campaign NAME --scheduler inline --store STORE_DIR``.
@@ -20,13 +21,22 @@ def main(argv=None) -> int:
     ap.add_argument("store")
     ap.add_argument("--limit", type=int, default=None)
     ap.add_argument("--device", default="cuda")
+    ap.add_argument("--diameter", type=float, action="append", default=None, help="only this diameter [um]")
+    ap.add_argument("--replicas-per-task", type=int, default=None, help="override (not part of the design)")
+    ap.add_argument("--max-replicas", type=int, default=None,
+                    help="quasi-static slot refill: replicas relaxing at once (not part of the design)")
     args = ap.parse_args(argv)
     from bubblecal.sim.campaign import run_campaign
     from bubblecal.workflows.campaign import load_campaign_file
 
     cf = load_campaign_file(args.name, store=args.store)
     config = dataclasses.replace(cf.config, device=args.device)
-    summary = run_campaign(config, scheduler_address="inline", progress=True, limit=args.limit)
+    if args.replicas_per_task is not None:
+        config = dataclasses.replace(config, replicas_per_task=args.replicas_per_task)
+    if args.max_replicas is not None:
+        config = dataclasses.replace(config, tier_settings={**config.tier_settings, "max_replicas": args.max_replicas})
+    summary = run_campaign(config, scheduler_address="inline", progress=True, limit=args.limit,
+                           diameters=args.diameter)
     print(json.dumps(dataclasses.asdict(summary) if dataclasses.is_dataclass(summary) else vars(summary),
                      default=str))
     return 0

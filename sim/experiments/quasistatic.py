@@ -484,6 +484,21 @@ class _DeviceChain:
                            inputs=[self.fire.x, self.x_prev, self.row_rep, self.flag, coef], device=self.device)
         self.fire.restart(flags)
 
+    def load_samples(self, rows: np.ndarray, params: Sequence[ShellParams]) -> None:
+        """Reuse replica slots ``rows`` for new samples: their shells get ``params`` and return to the
+        stress-free reference (the caller then restarts them at load point 0 with :meth:`start_rows`)."""
+        rows = np.asarray(rows, dtype=np.int64)
+        if len(rows) == 0:
+            return
+        self.ff.set_params_rows(rows, list(params))
+        fl = np.zeros(self.R, dtype=bool)
+        fl[rows] = True
+        self.reset_failed(fl)
+
+    def row_positions(self, r: int) -> np.ndarray:
+        """Positions [Nv, 3] (float64, DPD length) of replica slot ``r``."""
+        return self.fire.x[r * self.nv:(r + 1) * self.nv].numpy().astype(np.float64)
+
     def reset_failed(self, failed: np.ndarray) -> None:
         if not np.any(failed):
             return
@@ -566,7 +581,7 @@ def _classify(fire_code: int, finite: bool, eps: float, rupture_strain: float) -
 def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float,
                      assign: Callable[[np.ndarray], None],
                      progress: Callable[[int, int, float], None] | None = None,
-                     batch_fraction: float = 0.05) -> dict:
+                     batch_fraction: float = 0.05, samples: Sequence[ShellParams] | None = None) -> dict:
     """Chain the load points with every replica at its own point (device FIRE only).
 
     A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
@@ -574,20 +589,35 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     (lock-step: the sum over points of the slowest replica's FIRE steps; here: the slowest replica's own
     sum).  Each replica follows exactly the FIRE iterates of the lock-step chain: same curves, same steps.
     Stopped replicas are measured in groups of at least ``batch_fraction`` of those still running (or
-    when none is running) to keep host round trips rare.  ``assign(j)`` sets each replica's load (plate
-    positions or pole force) of point ``j[r]``.  Returns the dict of :func:`_run_chain`.
+    when none is running) to keep host round trips rare.  ``assign(j)`` sets each slot's load (plate
+    positions or pole force) of point ``j[r]``.
+
+    ``samples`` (S >= R parameter sets, the first R already loaded in the backend's R slots): a slot whose
+    sample has finished its curve takes the next pending sample (reference shape, point 0), so the batch
+    runs at full occupancy until the pool is empty; the wall time then follows the pool's total FIRE
+    work instead of its slowest sample.  Each sample's iterates are those it would have had in its own
+    slot.  ``progress(k, S, seconds)`` then counts finished samples (k = samples finished - 1).
+    Returns the dict of :func:`_run_chain`, rows = samples.
     """
     from bubblecal.sim.kernels.fire import ACTIVE
 
     R = backend.R
+    stream = samples is not None
+    S = len(samples) if stream else R
+    if S < R:
+        raise ValueError(f"samples: {S} parameter sets for {R} slots")
     fs = backend.fire_settings
-    status = [STATUS_OK] * R
-    point_status = [[STATUS_OK] * n_points for _ in range(R)]
-    steps = np.zeros((R, n_points), dtype=np.int64)
-    fmax = np.full((R, n_points), np.nan)
-    strain = np.full((R, n_points), np.nan)
-    volume = np.full((R, n_points), np.nan)
+    status = [STATUS_OK] * S
+    point_status = [[STATUS_OK] * n_points for _ in range(S)]
+    steps = np.zeros((S, n_points), dtype=np.int64)
+    fmax = np.full((S, n_points), np.nan)
+    strain = np.full((S, n_points), np.nan)
+    volume = np.full((S, n_points), np.nan)
     obs: dict[str, np.ndarray] = {}
+    x_out = np.zeros((S * backend.nv, 3)) if stream else None
+    sample = np.arange(R)  # sample held by each slot
+    next_sample = R
+    n_finished = 0
     j = np.zeros(R, dtype=np.int64)
     done = np.zeros(R, dtype=bool)
     fire = backend.fire
@@ -607,37 +637,53 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
         finite_rows, eps, vols, m = backend.point_state(-1)
         failed = np.zeros(R, dtype=bool)
         for r in np.nonzero(waiting)[0]:
-            jr = int(j[r])
+            jr, s_ = int(j[r]), int(sample[r])
             ps = _classify(int(code[r]), bool(finite_rows[r]), float(eps[r]), rupture_strain)
-            point_status[r][jr] = ps
-            steps[r, jr] = fsteps[r]
-            fmax[r, jr] = ffmax[r]
+            point_status[s_][jr] = ps
+            steps[s_, jr] = fsteps[r]
+            fmax[s_, jr] = ffmax[r]
             if ps in _FAILED:
-                status[r] = ps
-                point_status[r][jr + 1:] = [ps] * (n_points - jr - 1)
+                status[s_] = ps
+                point_status[s_][jr + 1:] = [ps] * (n_points - jr - 1)
                 failed[r] = done[r] = True
                 continue
-            if ps != STATUS_OK and status[r] == STATUS_OK:
-                status[r] = ps
-            strain[r, jr] = eps[r]
-            volume[r, jr] = vols[r]
+            if ps != STATUS_OK and status[s_] == STATUS_OK:
+                status[s_] = ps
+            strain[s_, jr] = eps[r]
+            volume[s_, jr] = vols[r]
             for key, v in m.items():
-                obs.setdefault(key, np.full((R, n_points), np.nan))[r, jr] = v[r]
+                obs.setdefault(key, np.full((S, n_points), np.nan))[s_, jr] = v[r]
             j[r] = jr + 1
             done[r] = j[r] >= n_points
         # failed replicas return to (and stay frozen at) the reference so their rows stay finite
         backend.reset_failed(failed)
         restart = waiting & ~done
+        if stream:
+            finished = np.nonzero(waiting & done)[0]
+            for r in finished:
+                x_out[sample[r] * backend.nv:(sample[r] + 1) * backend.nv] = backend.row_positions(int(r))
+            n_finished += len(finished)
+            refill = finished[:max(0, S - next_sample)]
+            if len(refill):
+                new = np.arange(next_sample, next_sample + len(refill))
+                next_sample += len(refill)
+                backend.load_samples(refill, [samples[int(k)] for k in new])
+                sample[refill], j[refill], done[refill] = new, 0, False
+                restart[refill] = True
         assign(np.minimum(j, n_points - 1))
         backend.start_rows(j, restart)
-        if progress is not None:
-            finished = int(np.min(np.where(done, n_points, j)))
-            for jj in range(reported, finished):
+        if progress is not None and stream:
+            for k in range(reported, n_finished):
+                progress(k, S, time.perf_counter() - t0)
+            reported = n_finished
+        elif progress is not None:
+            finished_pt = int(np.min(np.where(done, n_points, j)))
+            for jj in range(reported, finished_pt):
                 progress(jj, n_points, time.perf_counter() - t0)
-            reported = max(reported, finished)
+            reported = max(reported, finished_pt)
     return {"status": status, "point_status": point_status, "fire_steps": steps, "fmax": fmax,
-            "max_area_strain": strain, "volume": volume, "obs": obs, "x": backend.x_final(),
-            "fire_evaluations": int(backend.n_evaluations)}
+            "max_area_strain": strain, "volume": volume, "obs": obs,
+            "x": x_out if stream else backend.x_final(), "fire_evaluations": int(backend.n_evaluations)}
 
 
 def _refine_grid(grid: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
@@ -662,6 +708,42 @@ def _select_points(out: dict, keep: np.ndarray) -> dict:
     sel["point_status"] = [[ps[j] for j in keep] for ps in out["point_status"]]
     sel["obs"] = {k: v[:, keep] for k, v in out["obs"].items()}
     return sel
+
+
+def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, n_points: int,
+                      rupture_strain: float, assign_factory: Callable[[_DeviceChain], Callable],
+                      max_replicas: int | None, progress) -> dict:
+    """Async chain over ``params``; with ``max_replicas`` < len(params) at most that many slots run at once
+    and finished slots take the next sample, softest (smallest k_a) first: FIRE work grows as k_a falls,
+    so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order."""
+    S = len(params)
+    if max_replicas is None or max_replicas >= S:
+        dc = dc_factory(params)
+        return _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress)
+    order = np.argsort([p.ka for p in params], kind="stable")
+    pool = [params[int(i)] for i in order]
+    dc = dc_factory(pool[:max_replicas])
+    out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool)
+    inv = np.empty(S, dtype=np.int64)
+    inv[order] = np.arange(S)
+    nv = dc.nv
+    back = dict(out)
+    for k in ("fire_steps", "fmax", "max_area_strain", "volume"):
+        back[k] = out[k][inv]
+    back["status"] = [out["status"][int(i)] for i in inv]
+    back["point_status"] = [out["point_status"][int(i)] for i in inv]
+    back["obs"] = {k: v[inv] for k, v in out["obs"].items()}
+    back["x"] = out["x"].reshape(S, nv, 3)[inv].reshape(-1, 3)
+    return back
+
+
+def _check_max_replicas(max_replicas, schedule: str) -> None:
+    if max_replicas is None:
+        return
+    if isinstance(max_replicas, bool) or not isinstance(max_replicas, (int, np.integer)) or max_replicas < 1:
+        raise ValueError(f"max_replicas must be an integer >= 1 or None, got {max_replicas!r}")
+    if schedule != "async":
+        raise ValueError("max_replicas (slot refill) needs schedule='async' with the device minimiser")
 
 
 SCHEDULES = ("async", "lockstep")
@@ -740,6 +822,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
                             rupture_strain: float = 1.0, fraction_loaded: float = 0.01, minimizer: str = "device",
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
+                            max_replicas: int | None = None,
                             progress: Callable[[int, int, float], None] | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
 
@@ -761,14 +844,20 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             point as soon as it has relaxed, so the batch never waits for its slowest replica at every
             point; same FIRE iterates and curves as lock-step) or ``"lockstep"`` (every replica at the same
             point; the only schedule of the ``"numpy"`` minimiser).
+        max_replicas: (async only) at most this many replicas relax at once; a slot whose curve is finished
+            takes the next parameter set (softest k_a first), so a large batch runs at full occupancy and
+            its wall time follows the total FIRE work, not the slowest curve.  Same curves as one slot per
+            parameter set.  None (default): one slot per parameter set.
         progress: optional ``progress(j, n_points, seconds)`` called after every load point
-            (compression: every sub-step).
+            (compression: every sub-step); with slot refill ``progress(k, n_params, seconds)`` after every
+            finished curve.
 
     Returns: :class:`IndentationResult`; displacement in DPD length.
     """
     t0 = time.perf_counter()
     forces = validate_grid(forces_dpd, "forces_dpd")
     schedule = _check_common(rupture_strain, fire, minimizer, schedule)
+    _check_max_replicas(max_replicas, schedule)
     if not (0 < fraction_loaded < 0.5):
         raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {fraction_loaded!r}")
     params = _check_params(params, mesh, gas)
@@ -787,12 +876,15 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     if minimizer == "device":
         tag = np.zeros(nv, dtype=np.int32)
         tag[top], tag[bottom] = 1, -1
-        dc = _DeviceChain(params, mesh, gas, device, dtype, fire, free_v=free_v, remove_mean=(True, True, True),
-                          unit=unit, tag=tag, sync_every=sync_every, loads=forces if extrapolate else None)
+        def make_chain(ps):
+            return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=free_v, remove_mean=(True, True, True),
+                                unit=unit, tag=tag, sync_every=sync_every, loads=forces if extrapolate else None)
+
         if schedule == "async":
-            out = _run_chain_async(dc, len(forces), rupture_strain, lambda jj: dc.set_load_rows(forces[jj]),
-                                   progress=progress)
+            out = _run_device_async(make_chain, params, len(forces), rupture_strain,
+                                    lambda dc: (lambda jj: dc.set_load_rows(forces[jj])), max_replicas, progress)
         else:
+            dc = make_chain(params)
             out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
                              progress=progress)
     else:
@@ -827,7 +919,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                 "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
                 "dtype": _dtype_name(dtype), "fire_evaluations": out["fire_evaluations"],
                 "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
-                "schedule": schedule}
+                "schedule": schedule, "max_replicas": max_replicas}
     return IndentationResult(forces=forces, displacement=h0 - H, axial_diameter=H,
                              axial_diameter0=np.full(R, h0), d_patch=patch0 - P, volume=out["volume"],
                              max_area_strain=out["max_area_strain"], fmax=out["fmax"],
@@ -863,6 +955,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
                             rupture_strain: float = 1.0, max_plate_step: float = 0.06, minimizer: str = "device",
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
+                            max_replicas: int | None = None,
                             progress: Callable[[int, int, float], None] | None = None) -> CompressionResult:
     """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
 
@@ -872,8 +965,8 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         displacements_dpd: imposed total plate displacement d at each point (DPD length, >= 0,
             strictly increasing); each plate moves d/2.
         gas: enclosed ideal gas or None.  contact: plate-vertex :class:`PlateContact`.
-        device, dtype, fire, rupture_strain, minimizer, sync_every, extrapolate, schedule, progress: as in
-            :func:`quasistatic_indentation`.
+        device, dtype, fire, rupture_strain, minimizer, sync_every, extrapolate, schedule, max_replicas,
+            progress: as in :func:`quasistatic_indentation`.
         max_plate_step: largest plate move between two minimisations (DPD length); longer load steps
             are split into relaxed sub-steps (a 0.12 jump into the stiff WCA wall makes FIRE diverge).
             0.06 = one minimisation per point of the published grid; 0.03 gives the same curves within
@@ -885,6 +978,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     t0 = time.perf_counter()
     requested = validate_grid(displacements_dpd, "displacements_dpd")
     schedule = _check_common(rupture_strain, fire, minimizer, schedule)
+    _check_max_replicas(max_replicas, schedule)
     if not (math.isfinite(max_plate_step) and max_plate_step > 0):
         raise ValueError(f"max_plate_step must be a positive finite DPD length, got {max_plate_step!r}")
     disp, keep = _refine_grid(requested, 2.0 * max_plate_step)
@@ -898,13 +992,17 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         raise ValueError(f"displacements_dpd must stay below 2 (h0 + gap) = {2 * (h0 + contact.gap):.3f}")
     plate = zc + h0 + contact.gap - disp / 2.0  # top plate z; bottom = 2 zc - plate
     if minimizer == "device":
-        dc = _DeviceChain(params, mesh, gas, device, dtype, fire, free_v=np.ones((nv, 3), dtype=bool),
-                          remove_mean=(True, True, False), contact=contact, sync_every=sync_every,
-                          loads=disp if extrapolate else None)
+        def make_chain(ps):
+            return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=np.ones((nv, 3), dtype=bool),
+                                remove_mean=(True, True, False), contact=contact, sync_every=sync_every,
+                                loads=disp if extrapolate else None)
+
         if schedule == "async":
-            out = _run_chain_async(dc, len(disp), rupture_strain,
-                                   lambda jj: dc.set_plate_rows(plate[jj], 2 * zc - plate[jj]), progress=progress)
+            out = _run_device_async(make_chain, params, len(disp), rupture_strain,
+                                    lambda dc: (lambda jj: dc.set_plate_rows(plate[jj], 2 * zc - plate[jj])),
+                                    max_replicas, progress)
         else:
+            dc = make_chain(params)
             out = _run_chain(dc, len(disp), rupture_strain,
                              set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress)
     else:
@@ -943,7 +1041,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                 "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
                 "dtype": _dtype_name(dtype), "fire_evaluations": fire_evaluations,
                 "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
-                "schedule": schedule}
+                "schedule": schedule, "max_replicas": max_replicas}
     return CompressionResult(displacements=requested, force=out["obs"].get("top", nan),
                              force_bottom=out["obs"].get("bottom", nan),
                              n_contacts=out["obs"].get("contacts", nan), plate_z=plate[keep], volume=out["volume"],

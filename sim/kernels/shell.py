@@ -517,18 +517,7 @@ class ShellForceField:
 
         self.area0 = np.array([m.area() for m in self.meshes])
         self.volume0 = np.array([m.volume() for m in self.meshes])
-        table = np.zeros((R, N_PARAMS), dtype=npf)
-        for r, (m, p) in enumerate(zip(self.meshes, self.params, strict=True)):
-            table[r, [P_KA, P_MU, P_A3, P_A4, P_B1, P_B2]] = [p.ka, p.mu, p.a3, p.a4, p.b1, p.b2]
-            table[r, P_KB_KANTOR] = p.kb if p.bending == "kantor" else 0.0
-            table[r, P_KB_JUL] = p.kb if p.bending == "juelicher" else 0.0
-            table[r, P_C0] = p.c0
-            table[r, [P_KATOT, P_KVTOT, P_PB]] = [p.ka_tot, p.kv_tot, p.p_back]
-            table[r, P_A0TOT] = self.area0[r]
-            table[r, P_V0] = self.volume0[r]
-            table[r, P_SA_EPS] = p.self_avoid_epsilon if p.self_avoid else 0.0
-            table[r, P_SA_RC] = p.self_avoid_cutoff * m.min_edge_length()
-            table[r, P_ETA] = p.bond_viscosity
+        table = np.stack([self._param_row(r, p) for r, p in enumerate(self.params)]).astype(npf)
         self.param_table = table
         self.use_kantor = bool(np.any(table[:, P_KB_KANTOR] != 0))
         self.use_juelicher = bool(np.any(table[:, P_KB_JUL] != 0))
@@ -575,6 +564,53 @@ class ShellForceField:
         self._scratch_f = None
 
     # ------------------------------------------------------------------------------------------
+    def _param_row(self, r: int, p: ShellParams) -> np.ndarray:
+        """Row ``r`` of the device parameter table for :class:`ShellParams` ``p`` (on replica r's mesh)."""
+        m = self.meshes[r]
+        row = np.zeros(N_PARAMS)
+        row[[P_KA, P_MU, P_A3, P_A4, P_B1, P_B2]] = [p.ka, p.mu, p.a3, p.a4, p.b1, p.b2]
+        row[P_KB_KANTOR] = p.kb if p.bending == "kantor" else 0.0
+        row[P_KB_JUL] = p.kb if p.bending == "juelicher" else 0.0
+        row[P_C0] = p.c0
+        row[[P_KATOT, P_KVTOT, P_PB]] = [p.ka_tot, p.kv_tot, p.p_back]
+        row[P_A0TOT] = self.area0[r]
+        row[P_V0] = self.volume0[r]
+        row[P_SA_EPS] = p.self_avoid_epsilon if p.self_avoid else 0.0
+        row[P_SA_RC] = p.self_avoid_cutoff * m.min_edge_length()
+        row[P_ETA] = p.bond_viscosity
+        return row
+
+    def set_params_rows(self, rows: Sequence[int] | np.ndarray, params: Sequence[ShellParams]) -> None:
+        """Give replicas ``rows`` new :class:`ShellParams` (DPD units) in place, e.g. to reuse a finished
+        replica's slot for the next sample of a batch; CUDA graphs see the change (same device array).
+
+        The new parameters may not switch on a term the field was built without (Kantor / Juelicher
+        bending, global constraints, self-avoidance, bond viscosity): those kernels are chosen at
+        construction.  Raises ValueError otherwise.
+        """
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if len(rows) != len(params):
+            raise ValueError(f"{len(rows)} rows but {len(params)} parameter sets")
+        if len(rows) == 0:
+            return
+        if rows.min() < 0 or rows.max() >= self.n_replicas or len(np.unique(rows)) != len(rows):
+            raise ValueError(f"rows must be distinct replica indices in [0, {self.n_replicas})")
+        new = np.stack([self._param_row(int(r), p) for r, p in zip(rows, params, strict=True)])
+        for col, on, what in ((P_KB_KANTOR, self.use_kantor, "Kantor bending"),
+                              (P_KB_JUL, self.use_juelicher, "Juelicher bending"),
+                              (P_SA_EPS, self.use_self_avoid, "self-avoidance"),
+                              (P_ETA, self.use_viscosity, "bond viscosity")):
+            if not on and np.any(new[:, col] != 0):
+                raise ValueError(f"set_params_rows: {what} is off in this field (built without it)")
+        if not self.use_global and np.any(new[:, [P_KATOT, P_KVTOT, P_PB]] != 0):
+            raise ValueError("set_params_rows: global area/volume constraints and back pressure are off in this field")
+        if self.use_self_avoid and np.any(new[:, P_SA_RC] * 1.001 > self.sa_query_radius * (1 + 1e-12)):
+            raise ValueError("set_params_rows: a self-avoidance cut-off exceeds the field's search radius")
+        self.param_table[rows] = new
+        for r, p in zip(rows, params, strict=True):
+            self.params[int(r)] = p
+        self._params.assign(self.param_table.astype(np.float64 if self.dtype is wp.float64 else np.float32))
+
     @staticmethod
     def _csr(elements: np.ndarray, n_vertices: int, device):
         n_el, k = elements.shape

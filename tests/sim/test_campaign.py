@@ -288,3 +288,51 @@ def test_real_tiny_quasistatic_campaign_on_local_cluster(tmp_path):
     y = np.array([r["y"] for r in recs])
     assert y.shape == (2, 3) and np.all(np.diff(y, axis=1) > 0)  # force grows with compression
     assert recs[0]["provenance"]["info"]["mesh_subdivisions"] == 1 and recs[0]["x"] == [0.0, 0.12, 0.24]
+
+
+def test_scheduling_settings_leave_the_design_hash(tmp_path):
+    # slot refill / schedule give the same curves, so a store started without them resumes with them
+    base = cfg(tmp_path, tier="quasistatic", tier_settings={"ftol": 0.05})
+    same = cfg(tmp_path, tier="quasistatic", tier_settings={"ftol": 0.05, "max_replicas": 500, "schedule": "async"})
+    other = cfg(tmp_path, tier="quasistatic", tier_settings={"ftol": 0.02})
+    assert same.design_hash() == base.design_hash() != other.design_hash()
+    assert same.design_dict()["tier_settings"] == {"ftol": 0.05}
+    assert same.to_dict()["tier_settings"]["max_replicas"] == 500  # the store header keeps every setting
+
+
+def test_diameter_filter_runs_only_that_diameter(tmp_path):
+    fixed = {**{k: (v[0], v[0]) for k, v in BOX.items()}, "ka": (1000.0, 28000.0), "kb": (389.23, 389.23)}
+    c = cfg(tmp_path, design="grid", diameter_um=(2.1, 3.0), ranges=fixed, n_samples=4, replicas_per_task=3)
+    s1 = run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False, diameters=[3.0])
+    assert s1.n_written == 4
+    ids = sample_ids(c)
+    assert set(lines_per_sample(c.store_path)) == set(ids[4:])  # samples 4-7 are the 3.0 um ones
+    with pytest.raises(CampaignConfigError, match="not in the design"):
+        run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False, diameters=[2.9])
+    s2 = run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False)
+    assert s2.n_written == 4 and lines_per_sample(c.store_path) == Counter({sid: 1 for sid in ids})
+
+
+def _unstable_at(budget):
+    def sim(task):
+        res = synthetic_simulate(task)
+        res.status = ["unstable"] * task.n_replicas
+        res.info = {"settings": {"fire": {"max_steps": budget}}}
+        return res
+    return sim
+
+
+def test_unstable_is_retried_only_with_a_larger_step_budget(tmp_path):
+    pytest.importorskip("warp")
+    from bubblecal.sim.tiers import QuasistaticTier
+
+    budget = QuasistaticTier().max_steps  # the tier default the config runs with
+    c = cfg(tmp_path, n_samples=4, replicas_per_task=2, tier="quasistatic",
+            retry_statuses=("failed", "timeout", "unstable"))
+    run_campaign(c, scheduler_address="inline", simulate=_unstable_at(budget), limit=2, progress=False)
+    assert pending_indices(c) == [2, 3]  # 0-1 ran with today's budget: the same verdict again, not re-run
+    run_campaign(c, scheduler_address="inline", simulate=_unstable_at(budget // 5), progress=False)
+    assert pending_indices(c) == [2, 3]  # they ran with a smaller budget: re-run
+    run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False)
+    assert pending_indices(c) == [] and store_status(c.store_path).counts == {**store_status(c.store_path).counts,
+                                                                              "ok": 2, "unstable": 2}

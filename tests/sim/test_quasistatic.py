@@ -264,6 +264,45 @@ def test_async_schedule_same_iterates_as_lockstep(mesh, protocol):
     np.testing.assert_array_equal(asy.volume, lock.volume)
     np.testing.assert_array_equal(asy.max_area_strain, lock.max_area_strain)
     np.testing.assert_array_equal(asy.x_final, lock.x_final)
+    # slot refill: 4 parameter sets through 2 slots (softest first) give the same iterates, in input order
+    seen = []
+    pool = run(p, mesh, grid, fire=fire, rupture_strain=0.5, max_replicas=2,
+               progress=lambda k, n, t: seen.append((k, n)))
+    assert pool.settings["max_replicas"] == 2
+    assert seen == [(k, len(p)) for k in range(len(p))]
+    assert pool.status == lock.status and pool.point_status == lock.point_status
+    np.testing.assert_array_equal(pool.fire_steps, lock.fire_steps)
+    np.testing.assert_array_equal(getattr(pool, key), getattr(lock, key))
+    np.testing.assert_array_equal(pool.volume, lock.volume)
+    np.testing.assert_array_equal(pool.x_final, lock.x_final)
+
+
+def test_max_replicas_validated(mesh):
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="max_replicas"):
+            quasistatic_indentation([_p()], mesh, [0.0], max_replicas=bad)
+    with pytest.raises(ValueError, match="max_replicas"):
+        quasistatic_indentation([_p()], mesh, [0.0], schedule="lockstep", max_replicas=1)
+
+
+def test_set_params_rows_keeps_the_field_consistent(mesh):
+    import warp as wp
+
+    from bubblecal.sim.kernels.shell import ShellForceField
+
+    a, b = _p(), ShellParams(ka=KA / 3, kb=2 * KB, b1=0.5, self_avoid=False)
+    ff = ShellForceField(mesh, [a, a], device="cpu", dtype=wp.float64)
+    fresh = ShellForceField(mesh, [a, b], device="cpu", dtype=wp.float64)
+    ff.set_params_rows([1], [b])
+    np.testing.assert_array_equal(ff.param_table, fresh.param_table)
+    x = 1.01 * ff.reference_positions()
+    np.testing.assert_array_equal(ff.energy_forces_numpy(x)[1], fresh.energy_forces_numpy(x)[1])
+    with pytest.raises(ValueError, match="self-avoidance is off"):
+        ff.set_params_rows([0], [ShellParams(ka=KA, kb=KB, self_avoid=True)])
+    with pytest.raises(ValueError, match="distinct"):
+        ff.set_params_rows([1, 1], [a, b])
+    with pytest.raises(ValueError, match="rows"):
+        ff.set_params_rows([0], [a, b])
 
 
 def test_schedule_validated(mesh):

@@ -45,3 +45,20 @@ def test_quasistatic_tier_self_avoidance_inert_and_dtype_checked():
         get_tier("quasistatic", dtype="float16")
     with pytest.raises(ValueError, match="schedule must be"):
         get_tier("quasistatic", schedule="eager")
+
+
+def test_quasistatic_tier_slot_refill_same_curves():
+    pytest.importorskip("warp")
+    from bubblecal.sim.tiers import get_tier
+
+    req = CurveRequest("compression", 1.5, (0.0, 0.12, 0.24), PARAMS, (1, 2), subdivisions=2)
+    whole = get_tier("quasistatic").run(req)
+    one_slot = get_tier("quasistatic", max_replicas=1).run(req)
+    assert one_slot.info["settings"]["max_replicas"] == 1
+    assert one_slot.status == whole.status
+    np.testing.assert_array_equal(one_slot.observable, whole.observable)
+    for bad in (0, 2.0, True):
+        with pytest.raises(ValueError, match="max_replicas must be an integer"):
+            get_tier("quasistatic", max_replicas=bad)
+    with pytest.raises(ValueError, match="needs schedule"):
+        get_tier("quasistatic", max_replicas=4, schedule="lockstep")
