@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -280,6 +280,40 @@ class DeviceFire:
         wp.launch(self._k["restart_kernel"], dim=self.R,
                   inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
                           self.down, self.fmax_out, T(c["dt"]), T(c["alpha0"])], device=dev)
+
+    _REPLICA_STATE = ("active", "status", "iters", "steps", "npos", "down", "nonfin", "dt_r", "alpha_r", "fnorm",
+                      "fmax_out", "fmax_acc", "fsq_acc", "pow_acc", "vsq_acc", "mean_acc", "tol")
+
+    def export_rows(self, replicas: Sequence[int] | np.ndarray) -> dict:
+        """Complete FIRE state of ``replicas`` (host copies): their particle rows of x, v, f and every
+        per-replica scalar, so another DeviceFire can continue them with the same iterates
+        (:meth:`import_rows`).  Why: the last few relaxing replicas of a big batch run faster in a small one."""
+        idx = np.asarray(replicas, dtype=np.int64).reshape(-1)
+        rs = self.row_start.numpy().astype(np.int64)
+        rows = np.concatenate([np.arange(rs[r], rs[r + 1]) for r in idx]) if idx.size else np.zeros(0, np.int64)
+        out = {name: getattr(self, name).numpy()[rows] for name in ("x", "v", "f")}
+        out.update({name: getattr(self, name).numpy()[idx] for name in self._REPLICA_STATE})
+        out["max_steps"] = self.max_steps.numpy().copy()
+        out["sizes"] = (rs[idx + 1] - rs[idx]) if idx.size else np.zeros(0, np.int64)
+        return out
+
+    def import_rows(self, state: Mapping[str, np.ndarray]) -> None:
+        """Take over the state exported by :meth:`export_rows` of another DeviceFire (same dtype); this one
+        must have exactly that many replicas with the same row counts, in the same order."""
+        sizes = np.asarray(state["sizes"], dtype=np.int64)
+        rs = self.row_start.numpy().astype(np.int64)
+        if sizes.shape != (self.R,) or np.any(np.diff(rs) != sizes):
+            raise ValueError(f"import_rows: {len(sizes)} replicas of sizes {sizes.tolist()[:4]}... do not match "
+                             f"this minimiser's {self.R} replicas")
+        n = int(rs[-1])
+        for name in ("x", "v", "f"):
+            arr = getattr(self, name)
+            full = arr.numpy()
+            full[:n] = state[name]
+            arr.assign(full)
+        for name in self._REPLICA_STATE:
+            getattr(self, name).assign(np.asarray(state[name]))
+        self.max_steps.assign(np.asarray(state["max_steps"]))
 
     def advance(self) -> np.ndarray:
         """Run ``sync_every`` iterations (one CUDA-graph replay) and return the status codes [R]

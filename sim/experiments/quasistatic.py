@@ -495,6 +495,21 @@ class _DeviceChain:
         fl[rows] = True
         self.reset_failed(fl)
 
+    def take_over(self, old: _DeviceChain, slots: np.ndarray) -> None:
+        """Continue replicas ``slots`` of chain ``old`` here (this chain holds exactly their parameter sets,
+        in that order): FIRE state, predictor history, loads and plates are copied, so their iterates go on
+        unchanged."""
+        slots = np.asarray(slots, dtype=np.int64)
+        if len(slots) != self.R or old.nv != self.nv:
+            raise ValueError(f"take_over: {len(slots)} slots of {old.nv}-vertex shells for {self.R} of {self.nv}")
+        self.fire.import_rows(old.fire.export_rows(slots))
+        rows = (slots[:, None] * old.nv + np.arange(old.nv)[None, :]).reshape(-1)
+        if self.x_prev is not None and old.x_prev is not None:
+            self.x_prev.assign(old.x_prev.numpy()[rows])
+        self.load.assign(old.load.numpy()[slots])
+        self.plates.assign(old.plates.numpy()[slots])
+        self.n_evaluations = old.n_evaluations
+
     def row_positions(self, r: int) -> np.ndarray:
         """Positions [Nv, 3] (float64, DPD length) of replica slot ``r``."""
         return self.fire.x[r * self.nv:(r + 1) * self.nv].numpy().astype(np.float64)
@@ -581,7 +596,9 @@ def _classify(fire_code: int, finite: bool, eps: float, rupture_strain: float) -
 def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float,
                      assign: Callable[[np.ndarray], None],
                      progress: Callable[[int, int, float], None] | None = None,
-                     batch_fraction: float = 0.05, samples: Sequence[ShellParams] | None = None) -> dict:
+                     batch_fraction: float = 0.05, samples: Sequence[ShellParams] | None = None,
+                     compact: Callable[[_DeviceChain, np.ndarray, list], tuple] | None = None,
+                     compact_below: float = 0.125, compact_min: int = 8) -> dict:
     """Chain the load points with every replica at its own point (device FIRE only).
 
     A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
@@ -597,7 +614,10 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     runs at full occupancy until the pool is empty; the wall time then follows the pool's total FIRE
     work instead of its slowest sample.  Each sample's iterates are those it would have had in its own
     slot.  ``progress(k, S, seconds)`` then counts finished samples (k = samples finished - 1).
-    Returns the dict of :func:`_run_chain`, rows = samples.
+    ``compact(backend, slots, params) -> (new backend, new assign)``: once the pool is empty and at most
+    ``compact_below`` of the slots (and more than ``compact_min`` slots in all) still relax, they move to a
+    batch of their own size (an iteration of a big batch costs a fixed floor however few of its replicas
+    relax; same iterates).  Returns the dict of :func:`_run_chain`, rows = samples.
     """
     from bubblecal.sim.kernels.fire import ACTIVE
 
@@ -672,6 +692,14 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
                 restart[refill] = True
         assign(np.minimum(j, n_points - 1))
         backend.start_rows(j, restart)
+        n_left = int((~done).sum())
+        if (compact is not None and stream and next_sample >= S and 0 < n_left <= compact_below * R
+                and R > compact_min):
+            keep = np.nonzero(~done)[0]
+            backend, assign = compact(backend, keep, [samples[int(k)] for k in sample[keep]])
+            fire = backend.fire
+            R = backend.R
+            sample, j, done = sample[keep], j[keep], np.zeros(R, dtype=bool)
         if progress is not None and stream:
             for k in range(reported, n_finished):
                 progress(k, S, time.perf_counter() - t0)
@@ -710,6 +738,13 @@ def _select_points(out: dict, keep: np.ndarray) -> dict:
     return sel
 
 
+# the last relaxing curves of an emptied pool move to a batch of their own size when at most this fraction of the
+# slots (and more than _COMPACT_MIN slots in all) still relax: an iteration of 500 slots costs >= 0.34 ms on an
+# H100 however few relax (benchmarks/qs_iteration_cost.py)
+_COMPACT_BELOW = 0.125
+_COMPACT_MIN = 8
+
+
 def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, n_points: int,
                       rupture_strain: float, assign_factory: Callable[[_DeviceChain], Callable],
                       max_replicas: int | None, progress) -> dict:
@@ -723,7 +758,14 @@ def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, 
     order = np.argsort([p.ka for p in params], kind="stable")
     pool = [params[int(i)] for i in order]
     dc = dc_factory(pool[:max_replicas])
-    out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool)
+
+    def compact(old: _DeviceChain, slots: np.ndarray, ps: list):
+        new = dc_factory(ps)
+        new.take_over(old, slots)
+        return new, assign_factory(new)
+
+    out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool,
+                           compact=compact, compact_below=_COMPACT_BELOW, compact_min=_COMPACT_MIN)
     inv = np.empty(S, dtype=np.int64)
     inv[order] = np.arange(S)
     nv = dc.nv

@@ -277,6 +277,31 @@ def test_async_schedule_same_iterates_as_lockstep(mesh, protocol):
     np.testing.assert_array_equal(pool.x_final, lock.x_final)
 
 
+def test_compacting_the_last_curves_keeps_their_iterates(mesh, monkeypatch):
+    import bubblecal.sim.experiments.quasistatic as qs
+
+    p = [_p(), _p(ka=KA / 4), ShellParams(ka=KA / 8, kb=KB, b1=0.7, b2=0.75, a3=-2.0, a4=8.0, self_avoid=False),
+         _p(ka=KA / 2), _p(ka=200.0, kb=5.0)]
+    grid, fire = [0.0, 10.0, 20.0, 40.0, 2000.0], FireSettings(max_steps=600)
+    lock = quasistatic_indentation(p, mesh, grid, fire=fire, schedule="lockstep", rupture_strain=0.5)
+    moves = []
+    take_over = qs._DeviceChain.take_over
+
+    def spy(self, old, slots):
+        moves.append((old.R, self.R))
+        return take_over(self, old, slots)
+
+    monkeypatch.setattr(qs._DeviceChain, "take_over", spy)
+    monkeypatch.setattr(qs, "_COMPACT_MIN", 1)
+    monkeypatch.setattr(qs, "_COMPACT_BELOW", 0.75)
+    pool = quasistatic_indentation(p, mesh, grid, fire=fire, rupture_strain=0.5, max_replicas=4)
+    assert moves and all(new < old for old, new in moves), moves  # the batch really shrank
+    assert pool.status == lock.status and pool.point_status == lock.point_status
+    np.testing.assert_array_equal(pool.fire_steps, lock.fire_steps)
+    np.testing.assert_array_equal(pool.displacement, lock.displacement)
+    np.testing.assert_array_equal(pool.x_final, lock.x_final)
+
+
 def test_max_replicas_validated(mesh):
     for bad in (0, -1, 1.5, True):
         with pytest.raises(ValueError, match="max_replicas"):
