@@ -198,3 +198,38 @@ def acoustic(
         typer.echo(f"{s.diameter_um:6.2f} um: {sm['n_valid']}/{sm['n']} valid, check-7 ratio "
                    f"{sm['check7_ratio_median']:.4f}, LOO median {100 * f.loo_median:.2f} % max {100 * f.loo_max:.2f} %")
     typer.echo(f"wrote {out}" + (f" and {rows}" if rows else ""))
+
+
+@app.command("bundle")
+def bundle(
+    out: Path = typer.Argument(..., help="Bundle directory to write (created; manifest.json + copies)."),
+    surrogate: list[Path] = typer.Option(None, "--surrogate", help="A mechanical surrogate .npz (repeatable)."),
+    acoustic: list[str] = typer.Option(None, "--acoustic", help="NAME=FILE.json of an acoustic surrogate "
+                                                                "(repeatable; NAME definity or sonovue)."),
+    notes: str = typer.Option("", "--notes", help="Free text stored in the manifest (provenance)."),
+) -> None:
+    """Assemble surrogates into a bundle directory (what `bubblecal calibrate --bundle DIR` reads)."""
+    from bubblecal.surrogates.bundle import SurrogateFormatError, load_bundle, write_bundle
+    from bubblecal.workflows.console import fail
+
+    ac: dict[str, Path] = {}
+    for item in acoustic or []:
+        name, sep, file = item.partition("=")
+        if not sep or name not in ("definity", "sonovue"):
+            raise fail(f"--acoustic {item!r}: expected definity=FILE or sonovue=FILE")
+        ac[name] = Path(file)
+    missing = [str(p) for p in [*(surrogate or []), *ac.values()] if not Path(p).is_file()]
+    if missing:
+        raise fail(f"no such file: {', '.join(missing)}")
+    if not surrogate and not ac:
+        raise fail("give at least one --surrogate or --acoustic")
+    try:
+        write_bundle(out, surrogate or [], ac, notes=notes)
+        b = load_bundle(out)
+    except (SurrogateFormatError, ValueError, OSError) as exc:
+        raise fail(str(exc)) from None
+    for (setup, d), s in sorted(b.surrogates.items()):
+        typer.echo(f"{setup} {d:g} um: {s.architecture}, holdout {s.holdout_score}")
+    for name, a in b.acoustic.items():
+        typer.echo(f"acoustic {name}: {len(a.diameters)} diameters")
+    typer.echo(f"wrote {out / 'manifest.json'}")

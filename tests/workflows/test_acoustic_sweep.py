@@ -175,3 +175,21 @@ def test_shipped_ringdown_rows_are_physical():
             f = s.column("f_res_MHz")
             assert np.all(np.diff(f) > 0)  # stiffer shell, higher resonance
             assert np.all(np.abs(s.column("check7_ratio") - 1) < 0.06)  # physics.md check 7
+
+
+def test_bundle_cli_assembles_and_refuses_bad_input(tmp_path):
+    from bubblecal.surrogates.bundle import load_bundle
+
+    _ringdown_store(tmp_path / "rd.store", diameters=(4.68,))
+    runner = CliRunner()
+    assert runner.invoke(app, ["surrogates", "acoustic", str(tmp_path / "rd.store"), "--out",
+                               str(tmp_path / "a.json")]).exit_code == 0
+    res = runner.invoke(app, ["surrogates", "bundle", str(tmp_path / "B"), "--acoustic", f"definity={tmp_path / 'a.json'}",
+                              "--notes", "test"])
+    assert res.exit_code == 0, res.output
+    b = load_bundle(tmp_path / "B")
+    assert b.acoustic["definity"].diameters == [4.68] and b.manifest["notes"] == "test"
+    res = runner.invoke(app, ["surrogates", "bundle", str(tmp_path / "C"), "--acoustic", "water=x.json"])
+    assert res.exit_code == 1 and "expected definity=FILE" in res.output
+    res = runner.invoke(app, ["surrogates", "bundle", str(tmp_path / "C"), "--surrogate", str(tmp_path / "no.npz")])
+    assert res.exit_code == 1 and "no such file" in res.output
