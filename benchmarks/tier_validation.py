@@ -186,6 +186,22 @@ def overlay(path: Path, diameter: float, protocol: str, x: np.ndarray, y_pub: np
     plt.close(fig)
 
 
+def write_diameter_files(out: Path, d: float, protocol: str, ts, y_pub: np.ndarray, curves: dict, res: dict,
+                         summary: dict) -> None:
+    """curves_<d>um.csv (every finished tier), overlay_<d>um.png and tier_validation.json for diameter ``d``."""
+    tiers = list(curves)
+    header = ["row", "point", "x", "published"] + tiers
+    lines = [",".join(header)]
+    for i in range(ts.n_curves):
+        for j in range(ts.x.shape[1]):
+            lines.append(",".join([str(i + 1), str(j + 1), repr(float(ts.x[i, j])), repr(float(y_pub[i, j]))]
+                                  + [repr(float(curves[t][i, j])) for t in tiers]))
+    (out / f"curves_{d:g}um.csv").write_text("\n".join(lines) + "\n")
+    overlay(out / f"overlay_{d:g}um.png", d, protocol, ts.x, y_pub, curves)
+    summary["diameters"][f"{d:g}"] = res
+    (out / "tier_validation.json").write_text(json.dumps(summary, indent=1))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--diameters", default="2.1,3.2", help="comma list of um (2.1, 2.9, 3.0 compression; 3.2, 5.8 "
@@ -210,6 +226,10 @@ def main(argv=None) -> int:
                     help="comma list of extra mesh levels for the quasi-static tier (e.g. 3): reported as "
                          "quasistatic_s<level> beside the tier at the common mesh")
     ap.add_argument("--qs-dtype", default="float64", choices=("float64", "float32"))
+    ap.add_argument("--qs-thermal", action="store_true",
+                    help="also run the quasi-static tier with the thermal plate contact (compression), reported as "
+                         "quasistatic_thermal (and quasistatic_thermal_s<level> for --qs-subdivisions)")
+    ap.add_argument("--max-replicas", type=int, default=None, help="quasi-static slot refill (execution only)")
     args = ap.parse_args(argv)
 
     import warp as wp
@@ -228,8 +248,12 @@ def main(argv=None) -> int:
             ap.error(f"--tiers: unknown tier {t!r} (choose from {TIERS})")
     tiers.sort(key=TIERS.index)  # explicit first: the others are compared with it
     extra_qs = [int(v) for v in args.qs_subdivisions.split(",") if v.strip()]
+    if args.qs_thermal:
+        tiers += ["quasistatic_thermal"]
     if extra_qs:
         tiers += [f"quasistatic_s{v}" for v in extra_qs]
+        if args.qs_thermal:
+            tiers += [f"quasistatic_thermal_s{v}" for v in extra_qs]
     diameters = [float(d) for d in args.diameters.split(",") if d.strip()]
     ref = find_reference(args.reference)
     summary = {"device": args.device, "scale": args.scale, "rows": args.rows, "tiers": tiers,
@@ -278,10 +302,15 @@ def main(argv=None) -> int:
         for t in tiers:
             settings: dict = {"subdivisions": mesh.subdivisions}
             tier_name = t
-            if t.startswith("quasistatic_s"):
-                tier_name, settings["subdivisions"] = "quasistatic", int(t.rsplit("_s", 1)[1])
+            if t.startswith("quasistatic_"):
+                tier_name = "quasistatic"
+                if "_s" in t:
+                    settings["subdivisions"] = int(t.rsplit("_s", 1)[1])
+                settings["thermal_contact"] = t.startswith("quasistatic_thermal")
             if tier_name == "quasistatic":
                 settings["dtype"] = args.qs_dtype
+                if args.max_replicas:
+                    settings["max_replicas"] = args.max_replicas
             if t in ("explicit", "implicit"):
                 settings.update(scale=args.scale, verbose=True, max_seconds=args.max_seconds)
             if t == "implicit":
@@ -315,17 +344,9 @@ def main(argv=None) -> int:
                 entry["gate_3pct_vs_explicit"] = (entry["rel_l2_vs_explicit"]["median"] is not None
                                                   and entry["rel_l2_vs_explicit"]["median"] <= 0.03)
             res["tiers"][t] = entry
-        # files for this diameter (partial results survive a cut-off)
-        header = ["row", "point", "x", "published"] + tiers
-        lines = [",".join(header)]
-        for i in range(ts.n_curves):
-            for j in range(ts.x.shape[1]):
-                lines.append(",".join([str(i + 1), str(j + 1), repr(float(ts.x[i, j])), repr(float(y_pub[i, j]))]
-                                      + [repr(float(curves[t][i, j])) for t in tiers]))
-        (out / f"curves_{d:g}um.csv").write_text("\n".join(lines) + "\n")
-        overlay(out / f"overlay_{d:g}um.png", d, protocol, ts.x, y_pub, curves)
-        summary["diameters"][f"{d:g}"] = res
-        (out / "tier_validation.json").write_text(json.dumps(summary, indent=1))
+            # rewrite the files after every tier: a run cut off by a wall-clock cap keeps its finished tiers
+            write_diameter_files(out, d, protocol, ts, y_pub, curves, res, summary)
+        write_diameter_files(out, d, protocol, ts, y_pub, curves, res, summary)
         print_table(d, res)
     summary["total_wall_s"] = time.perf_counter() - t_all
     (out / "tier_validation.json").write_text(json.dumps(summary, indent=1))

@@ -222,6 +222,9 @@ class QuasistaticTier:
     the request's next parameter set (softest k_a first), so a request much larger than the GPU's batch runs at
     full occupancy: the task's wall time follows the mean FIRE work per curve instead of the slowest curve's
     (at 3.2 um the slowest needs ~100x the median).  None: one slot per replica of the request.
+    ``thermal_contact`` (compression only; indentation has no plates): the plates act through the mean force of
+    each vertex's thermal normal fluctuation at temperature ``kT`` (DPD energy) against the WCA's hard-wall
+    distance (:mod:`bubblecal.sim.experiments.thermal_contact`): the entropic contact force of the thermal tiers.
     """
 
     subdivisions: int | None = None
@@ -234,6 +237,8 @@ class QuasistaticTier:
     extrapolate: bool = True
     schedule: str = "async"
     max_replicas: int | None = None
+    thermal_contact: bool = False
+    kT: float = 1.0
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
@@ -247,12 +252,17 @@ class QuasistaticTier:
                 raise ValueError(f"quasistatic tier: max_replicas must be an integer >= 1, got {m!r}")
             if self.schedule != "async":
                 raise ValueError("quasistatic tier: max_replicas needs schedule = 'async'")
+        if not isinstance(self.thermal_contact, bool):
+            raise ValueError(f"quasistatic tier: thermal_contact must be true or false, got {self.thermal_contact!r}")
+        if not (isinstance(self.kT, (int, float)) and math.isfinite(self.kT) and self.kT > 0):
+            raise ValueError(f"quasistatic tier: kT must be a positive DPD energy, got {self.kT!r}")
 
     def run(self, request: CurveRequest, device: str = "cpu") -> CurveBatch:
         """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``."""
         from bubblecal.sim.experiments.quasistatic import (
             FireSettings,
             IdealGas,
+            ThermalContact,
             quasistatic_compression,
             quasistatic_indentation,
         )
@@ -270,7 +280,8 @@ class QuasistaticTier:
         grid = request.grid_array()
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid)) for p in request.shell_params()]
         if request.protocol == "compression":
-            res = quasistatic_compression(params, mesh, grid, **common)
+            thermal = ThermalContact(kT=float(self.kT)) if self.thermal_contact else None
+            res = quasistatic_compression(params, mesh, grid, thermal=thermal, **common)
             obs = res.force + res.force_bottom  # both plates (module docstring)
         else:
             res = quasistatic_indentation(params, mesh, grid, **common)
@@ -279,6 +290,7 @@ class QuasistaticTier:
         info = {"tier": self.name, "mesh_subdivisions": mesh.subdivisions, "n_vertices": mesh.n_vertices,
                 "displacement_convention": DISPLACEMENT_CONVENTION if request.protocol == "compression" else None,
                 "fire_steps": res.fire_steps.sum(axis=1).tolist(), "self_avoid": bool(self.self_avoid),
+                "thermal_contact": bool(self.thermal_contact and request.protocol == "compression"),
                 "settings": res.settings}
         return CurveBatch(tier=self.name, request=request, observable=obs, status=status, info=info,
                           seconds=time.perf_counter() - t0)

@@ -28,7 +28,10 @@ the loading coordinate name), ``input_units``, ``output_name``, ``output_units``
 held-out curves of ||y_hat - y||_2/||y||_2), ``holdout_metric``, ``data_hash`` (sha256 of the
 filtered training arrays, :func:`bubblecal.surrogates.dataset.TrainingSet.data_hash`),
 ``architecture`` ({"hidden": [widths], "activation": "tanh"}), ``training`` (settings, seed),
-``code_version``, ``created_utc``, ``source`` (where the data came from).
+``code_version``, ``created_utc``, ``source`` (where the data came from). Optional provenance
+written by :mod:`bubblecal.surrogates.export`: ``n_curves_train``, ``n_points_train``,
+``n_prefix_curves_train`` / ``n_prefix_points_train`` (failure-truncated curves kept by
+``filter_curves(keep_failed_prefix=True)`` and their points), ``training_data``, ``filter``.
 
 Inputs and outputs are DPD units: compression x = imposed displacement [DPD length], y = force
 [DPD force]; indentation x = applied force [DPD force], y = displacement [DPD length].

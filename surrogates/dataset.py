@@ -17,12 +17,23 @@ response - force for compression, axial diameter for indentation - at most ``zer
 curve's largest magnitude); rupture by a *drop*: the response must grow along the loading path, and
 a curve is dropped when it falls below its running maximum by more than ``max_rel_drop`` of the
 curve's largest magnitude.
+
+Failure-truncated prefixes (``filter_curves(..., keep_failed_prefix=True)``): a store record with
+status ``'ruptured'`` or ``'failed'`` holds a finite response up to the load point where the shell
+broke and NaN after it (e.g. at 3.4 um, k_b < ~940 breaks at pole forces of 1,300-5,600 DPD force
+on the 0-6,000 grid). Such a curve keeps its finite prefix *minus its last finite point* (the point
+just before failure is unreliable) when at least ``min_prefix_points`` points (x = 0 included)
+remain; the dropped tail is NaN in ``y`` (``x`` keeps its grid). Everything downstream is pointwise
+and accepts such NaN tails: :meth:`TrainingSet.points` returns finite points only,
+:meth:`TrainingSet.check_trainable` accepts a trailing NaN block in ``y`` and nothing else, and the
+holdout scores of :mod:`bubblecal.surrogates.sweep` use the finite points of each curve.
 """
 
 from __future__ import annotations
 
 import hashlib
 import re
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -34,13 +45,16 @@ from bubblecal.data.units import DEFAULT_UNITS
 __all__ = [
     "PARAM_NAMES", "SETUPS", "DatasetError", "TrainingSet", "FilterReport", "read_published",
     "write_published", "read_store_dataset", "read_dataset", "filter_curves", "diameter_um_from_radius",
-    "X_INFO", "Y_INFO",
+    "X_INFO", "Y_INFO", "PREFIX_STATUSES", "leading_finite",
 ]
 
 PARAM_NAMES: tuple[str, ...] = ("ka", "kb", "b1", "b2", "a3", "a4")
 SETUPS = ("compression", "indentation")
 N_META = 8  # Yt_Pa, ka, kb, b1, b2, a3, a4, radius_dpd
 PUBLISHED_POINTS = 15
+
+#: store statuses whose finite prefix filter_curves(keep_failed_prefix=True) can keep
+PREFIX_STATUSES: tuple[str, ...] = ("ruptured", "failed")
 
 #: (name, units) of the loading coordinate and the response, per setup.
 X_INFO = {"compression": ("displacement", "DPD length"), "indentation": ("force", "DPD force")}
@@ -49,6 +63,22 @@ Y_INFO = {"compression": ("force", "DPD force"), "indentation": ("displacement",
 
 class DatasetError(ValueError):
     """Training data failed validation; the message names the file (or source) and the field."""
+
+
+def leading_finite(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of ``y`` (n, m): (k = number of leading finite values, True where every value after them is NaN).
+
+    A row of the form ``[finite] * k + [nan] * (m - k)`` has ``nan_tail`` True (also for k = m);
+    an interior NaN (a finite value after the first NaN) or any +-inf gives False.
+    """
+    y = np.asarray(y, dtype=float)
+    y = y.reshape(-1, y.shape[-1]) if y.ndim else y.reshape(1, 1)
+    m = y.shape[1]
+    fin = np.isfinite(y)
+    k = np.where(fin.all(axis=1), m, np.argmin(fin, axis=1))
+    after = np.arange(m)[None, :] >= k[:, None]
+    nan_tail = np.all(~after | np.isnan(y), axis=1)
+    return k.astype(int), nan_tail
 
 
 def diameter_um_from_radius(radius_dpd: float) -> float:
@@ -122,35 +152,88 @@ class TrainingSet:
             h.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
         return h.hexdigest()
 
+    def point_mask(self) -> np.ndarray:
+        """(n, m) True where the point is usable: finite x and finite y (NaN tails of truncated curves are not)."""
+        return np.isfinite(self.x) & np.isfinite(self.y)
+
+    @property
+    def n_valid_points(self) -> int:
+        """Number of usable (finite) points over all curves."""
+        return int(self.point_mask().sum())
+
     def points(self):
-        """Pointwise arrays: inputs (n·m, 7) = (params, x), targets (n·m,), curve index (n·m,)."""
+        """Pointwise arrays of the finite points only (row-major order, curve by curve):
+        inputs (p, 7) = (params, x), targets (p,), curve index (p,); p = :attr:`n_valid_points`.
+
+        Units as the set: x and y in DPD units (see the module docstring).
+        """
         n, m = self.x.shape
+        mask = self.point_mask().reshape(-1)
         u = np.concatenate([np.repeat(self.params, m, axis=0), self.x.reshape(-1, 1)], axis=1)
-        return u, self.y.reshape(-1), np.repeat(np.arange(n), m)
+        return u[mask], self.y.reshape(-1)[mask], np.repeat(np.arange(n), m)[mask]
+
+    def truncation_summary(self) -> dict:
+        """Counts of curves with a NaN tail (failure-truncated prefixes) and of points, overall and per status.
+
+        ``{"n_curves", "n_points" (finite points), "n_prefix_curves", "n_prefix_points",
+        "prefix_by_status": {status: {"curves", "points"}}}``; a *prefix curve* is a curve with at
+        least one non-finite response (after :func:`filter_curves` only the kept prefixes have one).
+        """
+        valid = self.point_mask()
+        per_curve = valid.sum(axis=1)
+        trunc = per_curve < self.n_points
+        by_status: dict[str, dict[str, int]] = {}
+        for st in np.unique(self.status[trunc]):
+            sel = trunc & (self.status == st)
+            by_status[str(st)] = {"curves": int(sel.sum()), "points": int(per_curve[sel].sum())}
+        return {"n_curves": self.n_curves, "n_points": int(per_curve.sum()), "n_prefix_curves": int(trunc.sum()),
+                "n_prefix_points": int(per_curve[trunc].sum()), "prefix_by_status": by_status}
 
     def param_ranges(self) -> dict[str, tuple[float, float]]:
         return {k: (float(self.params[:, j].min()), float(self.params[:, j].max()))
                 for j, k in enumerate(PARAM_NAMES)}
 
     def x_range(self) -> tuple[float, float]:
-        return float(self.x.min()), float(self.x.max())
+        """(min, max) of the loading coordinate over the usable points (NaN when there are none)."""
+        x = self.x[self.point_mask()]
+        return (float(x.min()), float(x.max())) if x.size else (float("nan"), float("nan"))
 
     def check_trainable(self, min_curves: int = 1) -> None:
-        """Raise :class:`DatasetError` naming the field for data that cannot be standardised/trained."""
+        """Raise :class:`DatasetError` naming the file and field for data that cannot be standardised/trained.
+
+        ``params`` must be finite; the response ``y`` of each curve must be finite on a leading prefix
+        of at least one point and NaN after it (a failure-truncated prefix, see :func:`filter_curves`):
+        an interior NaN or an infinity is an error; ``x`` must be finite wherever ``y`` is.
+        """
         src = self.source or "<training set>"
         if self.n_curves < min_curves:
             raise DatasetError(f"{src}: {self.n_curves} curve(s) after filtering; at least {min_curves} needed")
-        for name, arr in (("params", self.params), ("x", self.x), ("y", self.y)):
-            if not np.all(np.isfinite(arr)):
-                raise DatasetError(f"{src}: field '{name}' holds non-finite values (run filter_curves first)")
+        if not np.all(np.isfinite(self.params)):
+            raise DatasetError(f"{src}: field 'params' holds non-finite values (run filter_curves first)")
+        k, nan_tail = leading_finite(self.y)
+        bad = np.flatnonzero(~nan_tail)
+        if bad.size:
+            raise DatasetError(f"{src}: field 'y' ({self.y_name}) of curve {self.curve_id[bad[0]]!r} (and "
+                               f"{bad.size - 1} more) holds an interior NaN or an infinity; only a trailing NaN "
+                               "block (failure-truncated prefix) is allowed (run filter_curves first)")
+        empty = np.flatnonzero(k == 0)
+        if empty.size:
+            raise DatasetError(f"{src}: field 'y' ({self.y_name}) of curve {self.curve_id[empty[0]]!r} (and "
+                               f"{empty.size - 1} more) has no finite point (run filter_curves first)")
+        x_bad = np.isfinite(self.y) & ~np.isfinite(self.x)
+        if x_bad.any():
+            i = int(np.flatnonzero(x_bad.any(axis=1))[0])
+            raise DatasetError(f"{src}: field 'x' ({self.x_name}) of curve {self.curve_id[i]!r} holds non-finite "
+                               "values where the response is finite (run filter_curves first)")
         for j, name in enumerate(PARAM_NAMES):
             col = self.params[:, j]
             if np.ptp(col) == 0:
                 raise DatasetError(f"{src}: parameter '{name}' has zero variance (every value {col[0]:g}); "
                                    "it cannot be standardised - drop it from the design or vary it")
-        if np.ptp(self.x) == 0:
+        valid = self.point_mask()
+        if np.ptp(self.x[valid]) == 0:
             raise DatasetError(f"{src}: loading coordinate '{self.x_name}' has zero variance")
-        if np.ptp(self.y) == 0:
+        if np.ptp(self.y[valid]) == 0:
             raise DatasetError(f"{src}: response '{self.y_name}' has zero variance")
         radii = np.unique(np.round(self.radius_dpd, 9))
         if radii.size > 1:
@@ -160,7 +243,13 @@ class TrainingSet:
 
 @dataclass
 class FilterReport:
-    """Counts of curves removed per reason (a curve is counted under the first reason it meets)."""
+    """Counts of curves removed per reason (a curve is counted under the first reason it meets).
+
+    With ``keep_failed_prefix``, ``prefix`` gives per store status (ruptured, failed) the prefix
+    curves kept and the points they contribute (x = 0 included), and those rejected: ``invalid``
+    (no NaN tail, interior NaN, infinity), ``too_short`` (< ``min_prefix_points`` after dropping
+    the last finite point) and ``quality`` (removed by the rupture checks on the kept prefix).
+    """
 
     source: str
     n_in: int
@@ -170,18 +259,40 @@ class FilterReport:
     settings: dict
     #: curves dropped for reason 'status', split by their store status (e.g. ruptured, invalid, failed)
     status_counts: dict[str, int] = field(default_factory=dict)
+    #: per status: {"kept", "points", "invalid", "too_short", "quality"} of failure-truncated prefixes
+    prefix: dict[str, dict[str, int]] = field(default_factory=dict)
+    #: usable points of the kept curves
+    n_points_kept: int = 0
+
+    @property
+    def n_prefix_curves(self) -> int:
+        """Kept curves that are failure-truncated prefixes."""
+        return int(sum(v["kept"] for v in self.prefix.values()))
+
+    @property
+    def n_prefix_points(self) -> int:
+        """Points contributed by the kept prefix curves."""
+        return int(sum(v["points"] for v in self.prefix.values()))
 
     def as_dict(self) -> dict:
-        return {"source": self.source, "n_in": self.n_in, "n_kept": self.n_kept, "counts": dict(self.counts),
-                "status_counts": dict(self.status_counts), "settings": dict(self.settings)}
+        return {"source": self.source, "n_in": self.n_in, "n_kept": self.n_kept, "n_points_kept": self.n_points_kept,
+                "counts": dict(self.counts), "status_counts": dict(self.status_counts),
+                "n_prefix_curves": self.n_prefix_curves, "n_prefix_points": self.n_prefix_points,
+                "prefix": {k: dict(v) for k, v in self.prefix.items()}, "settings": dict(self.settings)}
 
     def __str__(self) -> str:
-        lines = [f"{self.source}: {self.n_in} curves read, {self.n_kept} kept"]
+        lines = [f"{self.source}: {self.n_in} curves read, {self.n_kept} kept ({self.n_points_kept} points)"]
         for reason, count in self.counts.items():
             lines.append(f"  {reason:<24s} {count:6d}")
             if reason == "status":
                 for status, n in self.status_counts.items():
                     lines.append(f"    {status:<22s} {n:6d}")
+        if self.settings.get("keep_failed_prefix"):
+            lines.append(f"  failure-truncated prefixes kept: {self.n_prefix_curves} curves, {self.n_prefix_points} "
+                         f"points (finite prefix minus its last point, >= {self.settings['min_prefix_points']} points)")
+            for status, c in self.prefix.items():
+                lines.append(f"    {status:<10s} kept {c['kept']:5d} curves {c['points']:6d} points; rejected: "
+                             f"too short {c['too_short']}, invalid {c['invalid']}, rupture checks {c['quality']}")
         return "\n".join(lines)
 
 
@@ -305,7 +416,9 @@ def write_published(ts: TrainingSet, path: str | Path, units=DEFAULT_UNITS) -> P
 def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSet:
     """Read every record of a campaign store (:mod:`bubblecal.data.store`) as a TrainingSet.
 
-    All statuses are returned (``status`` column); :func:`filter_curves` keeps ``'ok'`` only.
+    All statuses are returned (``status`` column); :func:`filter_curves` keeps ``'ok'`` only, plus the
+    failure-truncated prefixes of ``'ruptured'``/``'failed'`` records with ``keep_failed_prefix=True``
+    (their responses are NaN after the failure point).
     Records of one setup only (``setup`` selects when the store holds several). Curves must all
     have the same number of points (the published protocol); otherwise DatasetError.
     """
@@ -362,42 +475,94 @@ def _raw_response(ts: TrainingSet) -> np.ndarray:
 
 
 def filter_curves(ts: TrainingSet, zero_frac: float = 0.01, max_rel_drop: float = 0.10,
-                  statuses: Sequence[str] = ("ok",)) -> tuple[TrainingSet, FilterReport]:
-    """Drop unusable curves; returns (kept set, report with counts per reason).
+                  statuses: Sequence[str] = ("ok",), keep_failed_prefix: bool = False, min_prefix_points: int = 5,
+                  prefix_statuses: Sequence[str] = PREFIX_STATUSES) -> tuple[TrainingSet, FilterReport]:
+    """Drop unusable curves (or keep failure-truncated prefixes); returns (kept set, report with counts per reason).
 
-    Reasons, checked in order: ``status`` (store status not in ``statuses``; the report's
-    ``status_counts`` splits it by status: ruptured, invalid = non-finite curve, failed, ...), ``non_finite`` (any
-    non-finite parameter, radius, x or y), ``rupture_trailing_zero`` (last raw response <=
-    ``zero_frac`` x the curve's largest |raw response|), ``rupture_drop`` (the response falls
-    below its running maximum by more than ``max_rel_drop`` x the curve's largest |response|).
+    Reasons, checked in order: ``status`` (store status not in ``statuses``, and not a prefix
+    candidate; the report's ``status_counts`` splits it by status: ruptured, invalid = non-finite
+    curve, failed, unstable, ...), ``non_finite`` (any non-finite parameter, radius, x or - except
+    for prefix candidates - y), [``prefix_invalid``, ``prefix_too_short``: prefix candidates, see
+    below], ``rupture_trailing_zero`` (last kept raw response <= ``zero_frac`` x the curve's
+    largest |raw response|), ``rupture_drop`` (the response falls below its running maximum by
+    more than ``max_rel_drop`` x the curve's largest |response|).
+
+    ``keep_failed_prefix`` (default False, the historical behaviour): records whose status is in
+    ``prefix_statuses`` (``'ruptured'``, ``'failed'``; never ``'unstable'`` or ``'invalid'``) are
+    prefix candidates. A candidate's response must be finite on a leading prefix and NaN to the end
+    (at least one trailing NaN; otherwise ``prefix_invalid``: an interior NaN, an infinity or a fully
+    finite curve whose failure point is unknown). It keeps the finite prefix minus its last finite
+    point (the point just before failure is unreliable) if at least ``min_prefix_points`` points
+    (x = 0 included) remain (otherwise ``prefix_too_short``); the dropped tail becomes NaN in ``y``
+    (the arrays keep their (n_curves, n_points) shape, x keeps its grid). The rupture checks then
+    apply to the kept prefix. x and y are in DPD units (compression: displacement [DPD length] ->
+    force [DPD force]; indentation: force [DPD force] -> displacement [DPD length]). The report's
+    ``prefix`` lists, per status, the prefix curves kept and the points they contribute.
     """
-    n = ts.n_curves
+    if min_prefix_points < 2:
+        raise ValueError(f"min_prefix_points must be >= 2, got {min_prefix_points}")
+    n, m = ts.n_curves, ts.n_points
     reason = np.full(n, "", dtype=object)
-    bad_status = ~np.isin(ts.status, list(statuses))
+    ok_status = np.isin(ts.status, list(statuses))
+    candidate = (np.isin(ts.status, list(prefix_statuses)) & ~ok_status) if keep_failed_prefix else np.zeros(n, bool)
+    bad_status = ~ok_status & ~candidate
     reason[bad_status] = "status"
-    finite = (np.all(np.isfinite(ts.params), axis=1) & np.isfinite(ts.radius_dpd)
-              & np.all(np.isfinite(ts.x), axis=1) & np.all(np.isfinite(ts.y), axis=1))
-    reason[(reason == "") & ~finite] = "non_finite"
-    with np.errstate(invalid="ignore"):
-        raw = np.abs(_raw_response(ts))
-        scale = np.max(raw, axis=1)
-        trailing = raw[:, -1] <= zero_frac * scale
+    finite_meta = (np.all(np.isfinite(ts.params), axis=1) & np.isfinite(ts.radius_dpd)
+                   & np.all(np.isfinite(ts.x), axis=1))
+    finite = finite_meta & np.all(np.isfinite(ts.y), axis=1)
+    reason[(reason == "") & ~candidate & ~finite] = "non_finite"
+    reason[(reason == "") & candidate & ~finite_meta] = "non_finite"
+    k, nan_tail = leading_finite(ts.y) if m else (np.zeros(n, int), np.ones(n, bool))
+    n_prefix = k - 1  # finite prefix minus its last finite point
+    reason[(reason == "") & candidate & ~(nan_tail & (k < m))] = "prefix_invalid"
+    reason[(reason == "") & candidate & (n_prefix < min_prefix_points)] = "prefix_too_short"
+    truncate = (reason == "") & candidate
+    y = ts.y.copy()
+    if truncate.any():
+        y[truncate] = np.where(np.arange(m)[None, :] < n_prefix[truncate, None], y[truncate], np.nan)
+    work = replace(ts, y=y)
+    valid = work.point_mask()
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows (already dropped) in nanmax
+        raw = np.abs(_raw_response(work))
+        scale = np.nanmax(raw, axis=1)
+        last = np.where(valid.any(axis=1), m - 1 - np.argmax(valid[:, ::-1], axis=1), 0)
+        trailing = raw[np.arange(n), last] <= zero_frac * scale
         reason[(reason == "") & trailing] = "rupture_trailing_zero"
         # order along the loading path (x increasing)
-        order = np.argsort(np.where(np.isfinite(ts.x), ts.x, np.inf), axis=1)
-        y_sorted = np.take_along_axis(ts.y, order, axis=1)
+        order = np.argsort(np.where(np.isfinite(work.x), work.x, np.inf), axis=1)
+        y_sorted = np.take_along_axis(work.y, order, axis=1)
         running = np.maximum.accumulate(np.nan_to_num(y_sorted, nan=-np.inf), axis=1)
-        drop = np.max(running - y_sorted, axis=1)
-        yscale = np.max(np.abs(ts.y), axis=1)
+        drop = np.nanmax(running - y_sorted, axis=1)
+        yscale = np.nanmax(np.abs(work.y), axis=1)
         dropped = drop > max_rel_drop * yscale
     reason[(reason == "") & dropped] = "rupture_drop"
     keep = reason == ""
-    reasons = ("status", "non_finite", "rupture_trailing_zero", "rupture_drop")
+    reasons = ["status", "non_finite"]
+    if keep_failed_prefix:
+        reasons += ["prefix_invalid", "prefix_too_short"]
+    reasons += ["rupture_trailing_zero", "rupture_drop"]
     counts = {r: int(np.sum(reason == r)) for r in reasons}
     dropped_ids = {r: ts.curve_id[reason == r].tolist() for r in reasons}
     status_values, status_n = np.unique(ts.status[bad_status], return_counts=True)
+    prefix: dict[str, dict[str, int]] = {}
+    if keep_failed_prefix:
+        for st in prefix_statuses:
+            c = candidate & (ts.status == st)
+            if not c.any():
+                continue
+            kept = c & keep
+            prefix[str(st)] = {
+                "kept": int(kept.sum()), "points": int(n_prefix[kept].sum()),
+                "invalid": int(np.sum(c & (reason == "prefix_invalid"))),
+                "too_short": int(np.sum(c & (reason == "prefix_too_short"))),
+                "quality": int(np.sum(c & np.isin(reason, ["rupture_trailing_zero", "rupture_drop"]))),
+            }
     report = FilterReport(source=ts.source, n_in=n, n_kept=int(keep.sum()), counts=counts, dropped=dropped_ids,
                           settings={"zero_frac": zero_frac, "max_rel_drop": max_rel_drop,
-                                    "statuses": list(statuses)},
-                          status_counts={str(k): int(v) for k, v in zip(status_values, status_n, strict=True)})
-    return ts.subset(keep), report
+                                    "statuses": list(statuses), "keep_failed_prefix": bool(keep_failed_prefix),
+                                    "min_prefix_points": int(min_prefix_points),
+                                    "prefix_statuses": list(prefix_statuses)},
+                          status_counts={str(k): int(v) for k, v in zip(status_values, status_n, strict=True)},
+                          prefix=prefix, n_points_kept=int(valid[keep].sum()))
+    return work.subset(keep), report

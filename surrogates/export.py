@@ -23,16 +23,22 @@ HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
 
 
 def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score: float, data_hash: str,
-                       extra_training: dict | None = None, nominal_diameter_um: float | None = None) -> dict:
+                       extra_training: dict | None = None, nominal_diameter_um: float | None = None,
+                       filter_report=None) -> dict:
     """Metadata of a surrogate file (keys: see :mod:`bubblecal.surrogates.bundle`).
 
     ``diameter_um`` is the data's (2 x 0.25 um x median radius_dpd, e.g. 3.19 for the "3.2 um"
-    SonoVue set); ``nominal_diameter_um`` the name the user gave (defaults to the same).
+    SonoVue set); ``nominal_diameter_um`` the name the user gave (defaults to the same). Provenance
+    of the training points: ``n_points_train`` (finite points), ``n_prefix_curves_train`` /
+    ``n_prefix_points_train`` (failure-truncated prefix curves, NaN tails, and their points) and
+    ``training_data`` (:meth:`TrainingSet.truncation_summary`); ``filter`` is the
+    :class:`~bubblecal.surrogates.dataset.FilterReport` (``as_dict``) when given.
     """
     setup = train_set.setup
     training = model.training_summary()
     training.update(extra_training or {})
-    return {
+    trunc = train_set.truncation_summary()
+    md = {
         "setup": setup,
         "diameter_um": float(train_set.diameter_um),
         "nominal_diameter_um": float(train_set.diameter_um if nominal_diameter_um is None else nominal_diameter_um),
@@ -51,24 +57,41 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
         "training": training,
         "source": train_set.source,
         "n_curves_train": train_set.n_curves,
+        "n_points_train": trunc["n_points"],
+        "n_prefix_curves_train": trunc["n_prefix_curves"],
+        "n_prefix_points_train": trunc["n_prefix_points"],
+        "training_data": trunc,
     }
+    if filter_report is not None:
+        md["filter"] = filter_report.as_dict() if hasattr(filter_report, "as_dict") else dict(filter_report)
+    return md
 
 
 def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, holdout_score: float,
-               data_hash: str, extra_training: dict | None = None, nominal_diameter_um: float | None = None) -> Path:
+               data_hash: str, extra_training: dict | None = None, nominal_diameter_um: float | None = None,
+               filter_report=None) -> Path:
     """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges)."""
-    md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um)
+    md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um,
+                            filter_report)
     return save_surrogate(path, model.weights, model.biases, model.in_mean, model.in_std, model.out_mean,
                           model.out_std, md)
 
 
-def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = None) -> Path:
-    """Write the selected model of a :class:`~bubblecal.surrogates.sweep.SweepResult` as ``.npz``."""
+def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = None, filter_report=None) -> Path:
+    """Write the selected model of a :class:`~bubblecal.surrogates.sweep.SweepResult` as ``.npz``.
+
+    ``filter_report`` (the :class:`~bubblecal.surrogates.dataset.FilterReport` of the data) is
+    recorded in the metadata as provenance (``filter``).
+    """
+    b = result.best
     extra = {"holdout_seed": result.config.seed, "holdout_frac": result.config.holdout_frac,
              "n_curves_holdout": result.holdout_set.n_curves,
+             "n_points_holdout": result.holdout_set.n_valid_points,
+             "holdout": {k: b[k] for k in ("holdout_median", "holdout_p90", "holdout_n_scored", "holdout_n_skipped",
+                                           "holdout_n_prefix", "holdout_median_prefix") if k in b},
              "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median")} for r in result.rows]}
     return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra,
-                      nominal_diameter_um)
+                      nominal_diameter_um, filter_report)
 
 
 def export_onnx(model: TrainedMLP, path: str | Path) -> Path:

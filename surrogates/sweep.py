@@ -5,7 +5,12 @@ enters training or the pointwise validation split. Each architecture (width x de
 layers, tanh) is trained on the remaining curves with :func:`bubblecal.surrogates.train.train_mlp`
 and scored on the held-out curves by
 
-    score = median over held-out curves of ||y_hat - y||_2 / ||y||_2   (per curve, over its points)
+    score = median over held-out curves of ||y_hat - y||_2 / ||y||_2   (per curve, over its finite points)
+
+Curves may be failure-truncated prefixes (NaN tails, :func:`bubblecal.surrogates.dataset.filter_curves`
+with ``keep_failed_prefix``): training uses the finite points only, each held-out curve is scored on
+its finite points, and a held-out curve with fewer than 2 finite points is skipped (counted in the
+rows as ``holdout_n_skipped``). The rows also give the median over the held-out prefix curves alone.
 
 The architecture with the lowest score is selected (ties: fewer parameters). Reports:
 ``sweep_report.md`` (table), ``sweep_report.json`` (everything, incl. per-curve errors of the
@@ -27,9 +32,12 @@ import numpy as np
 from bubblecal.surrogates.dataset import DatasetError, TrainingSet
 from bubblecal.surrogates.train import TrainConfig, TrainedMLP, train_mlp
 
-__all__ = ["SweepConfig", "SweepResult", "grouped_holdout", "run_sweep", "curve_errors", "MIN_SWEEP_CURVES"]
+__all__ = ["SweepConfig", "SweepResult", "grouped_holdout", "run_sweep", "curve_errors", "error_summary",
+           "MIN_SWEEP_CURVES", "MIN_SCORED_POINTS"]
 
 MIN_SWEEP_CURVES = 20
+#: a held-out curve needs this many finite points to be scored
+MIN_SCORED_POINTS = 2
 
 
 @dataclass(frozen=True)
@@ -66,11 +74,53 @@ def grouped_holdout(n_curves: int, frac: float, seed: int) -> tuple[np.ndarray, 
 
 
 def curve_errors(model: TrainedMLP, ts: TrainingSet) -> tuple[np.ndarray, np.ndarray]:
-    """(per-curve relative L2 errors, predictions (n, m)) of ``model`` on the curves of ``ts``."""
-    u, y, _ = ts.points()
-    y_hat = model.predict(u).reshape(ts.y.shape)
-    err = np.linalg.norm(y_hat - ts.y, axis=1) / np.linalg.norm(ts.y, axis=1)
+    """(per-curve relative L2 errors (n,), predictions (n, m)) of ``model`` on the curves of ``ts``.
+
+    Each curve is scored on its finite points (``ts.point_mask()``): ||y_hat - y||_2 / ||y||_2. The
+    error is NaN for a curve with fewer than :data:`MIN_SCORED_POINTS` finite points (skipped; see
+    :func:`error_summary`). Predictions cover every point with a finite x (also a curve's NaN tail).
+    """
+    n, m = ts.x.shape
+    xfin = np.isfinite(ts.x)
+    u = np.concatenate([np.repeat(ts.params, m, axis=0), np.where(xfin, ts.x, 0.0).reshape(-1, 1)], axis=1)
+    y_hat = np.where(xfin, model.predict(u).reshape(n, m), np.nan)
+    valid = ts.point_mask()
+    diff = np.where(valid, y_hat - ts.y, 0.0)
+    ref = np.where(valid, ts.y, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        err = np.linalg.norm(diff, axis=1) / np.linalg.norm(ref, axis=1)
+    err[valid.sum(axis=1) < MIN_SCORED_POINTS] = np.nan
     return err, y_hat
+
+
+def error_summary(err: np.ndarray, prefix_mask: np.ndarray | None = None) -> dict:
+    """Median / mean / p90 / max of the finite per-curve errors, with the numbers scored and skipped.
+
+    ``prefix_mask`` (n,) marks failure-truncated curves: their median and count are added
+    (``holdout_median_prefix`` is None when none was scored).
+    """
+    err = np.asarray(err, dtype=float)
+    ok = np.isfinite(err)
+    if not ok.any():
+        raise DatasetError(f"no held-out curve has >= {MIN_SCORED_POINTS} finite points to score")
+    e = err[ok]
+    out = {"holdout_median": float(np.median(e)), "holdout_mean": float(np.mean(e)),
+           "holdout_p90": float(np.quantile(e, 0.9)), "holdout_max": float(np.max(e)),
+           "holdout_n_scored": int(ok.sum()), "holdout_n_skipped": int((~ok).sum())}
+    if prefix_mask is not None:
+        pm = np.asarray(prefix_mask, bool) & ok
+        out["holdout_n_prefix"] = int(pm.sum())
+        out["holdout_median_prefix"] = float(np.median(err[pm])) if pm.any() else None
+    return out
+
+
+def _truncated(ts: TrainingSet) -> np.ndarray:
+    """(n,) True for curves with a non-finite point (failure-truncated prefixes)."""
+    return ~np.all(ts.point_mask(), axis=1)
+
+
+def _nan_to_none(values) -> list:
+    return [None if not np.isfinite(v) else float(v) for v in np.asarray(values, dtype=float)]
 
 
 def _n_params(sizes: Sequence[int]) -> int:
@@ -112,9 +162,13 @@ class SweepResult:
             "data_hash": self.data_hash, "setup": self.train_set.setup,
             "diameter_um": self.train_set.diameter_um, "source": self.train_set.source,
             "n_curves_train": self.train_set.n_curves, "n_curves_holdout": self.holdout_set.n_curves,
+            "n_points_train": self.train_set.n_valid_points, "n_points_holdout": self.holdout_set.n_valid_points,
+            "truncation_train": self.train_set.truncation_summary(),
+            "truncation_holdout": self.holdout_set.truncation_summary(),
             "holdout_curve_ids": self.holdout_set.curve_id.tolist(),
-            "holdout_errors_selected": self.holdout_errors.tolist(), "wall_s": self.wall_s,
-            "metric": "median over held-out curves of ||y_hat - y||_2 / ||y||_2",
+            "holdout_errors_selected": _nan_to_none(self.holdout_errors), "wall_s": self.wall_s,
+            "metric": "median over held-out curves of ||y_hat - y||_2 / ||y||_2 (finite points; curves with < "
+                      f"{MIN_SCORED_POINTS} finite points skipped)",
         }
 
     def markdown(self) -> str:
@@ -125,7 +179,11 @@ class SweepResult:
             f"- data: `{ts.source}` (sha256 {self.data_hash[:16]}...), {ts.n_curves} training curves, "
             f"{self.holdout_set.n_curves} held-out curves (grouped holdout, seed {self.config.seed}, "
             f"fraction {self.config.holdout_frac})",
-            "- score: median over held-out curves of ||y_hat - y||_2 / ||y||_2 (per curve)",
+            f"- points: {ts.n_valid_points} training, {self.holdout_set.n_valid_points} held out; failure-truncated "
+            f"prefix curves (NaN tails): {int(_truncated(ts).sum())} training, "
+            f"{int(_truncated(self.holdout_set).sum())} held out",
+            "- score: median over held-out curves of ||y_hat - y||_2 / ||y||_2 (per curve, over its finite points; "
+            f"{self.best.get('holdout_n_skipped', 0)} curve(s) with < {MIN_SCORED_POINTS} finite points skipped)",
             f"- sweep wall time: {self.wall_s:.1f} s ({self.config.jobs} job(s), "
             f"{self.config.train.threads} torch thread(s) each)",
             "",
@@ -138,7 +196,11 @@ class SweepResult:
                          f"{r['holdout_p90']:.4%} | {r['best_val_loss']:.3g} | {r['epochs']} | {r['stop_reason']} | "
                          f"{r['wall_s']:.1f} |")
         b = self.best
-        lines += ["", f"Selected: {b['width']}x{b['depth']} with held-out median relative L2 {b['holdout_median']:.4%}.", ""]
+        lines += ["", f"Selected: {b['width']}x{b['depth']} with held-out median relative L2 {b['holdout_median']:.4%}."]
+        if b.get("holdout_n_prefix"):
+            lines.append(f"Held-out failure-truncated prefix curves: {b['holdout_n_prefix']}, median relative L2 "
+                         f"{b['holdout_median_prefix']:.4%}.")
+        lines.append("")
         return "\n".join(lines)
 
     def plot(self, path: str | Path) -> Path:
@@ -151,8 +213,11 @@ class SweepResult:
         from bubblecal.surrogates.dataset import X_INFO, Y_INFO
 
         ts = self.holdout_set
-        i = int(np.argmin(np.abs(self.holdout_errors - np.median(self.holdout_errors))))
-        xs = np.linspace(ts.x[i].min(), ts.x[i].max(), 200)
+        errs = self.holdout_errors
+        scored = np.isfinite(errs)
+        i = int(np.nanargmin(np.where(scored, np.abs(errs - np.median(errs[scored])), np.nan)))
+        xv = ts.x[i][ts.point_mask()[i]]
+        xs = np.linspace(xv.min(), xv.max(), 200)
         u = np.column_stack([np.repeat(ts.params[i:i + 1], xs.size, axis=0), xs])
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
         ax1.plot(ts.x[i], ts.y[i], "o", label="held-out data")
@@ -161,8 +226,8 @@ class SweepResult:
         ax1.set_ylabel(f"{Y_INFO[ts.setup][0]} [{Y_INFO[ts.setup][1]}]")
         ax1.set_title(f"{ts.curve_id[i]}: rel. L2 {self.holdout_errors[i]:.3%}", fontsize=9)
         ax1.legend()
-        ax2.hist(self.holdout_errors * 100, bins=min(30, max(5, ts.n_curves // 3)))
-        ax2.axvline(np.median(self.holdout_errors) * 100, color="k", ls="--", label="median")
+        ax2.hist(errs[scored] * 100, bins=min(30, max(5, int(scored.sum()) // 3)))
+        ax2.axvline(np.median(errs[scored]) * 100, color="k", ls="--", label="median")
         ax2.set_xlabel("per-curve relative L2 error [%]")
         ax2.set_ylabel("held-out curves")
         ax2.legend()
@@ -188,7 +253,8 @@ class SweepResult:
 def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool = True) -> SweepResult:
     """Train every architecture of ``config`` on a grouped split of ``ts`` and pick the best.
 
-    ``ts`` must be filtered (:func:`bubblecal.surrogates.dataset.filter_curves`). Raises
+    ``ts`` must be filtered (:func:`bubblecal.surrogates.dataset.filter_curves`; failure-truncated
+    prefixes with NaN tails are accepted: training and scores use the finite points). Raises
     :class:`DatasetError` for fewer than ``config.min_curves`` curves or untrainable data.
     """
     config = config or SweepConfig()
@@ -214,13 +280,13 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
     rows = []
     preds = []
     errs_all = []
+    prefix_mask = _truncated(holdout_set)
     for h, m in zip(archs, models, strict=True):
         err, pred = curve_errors(m, holdout_set)
         preds.append(pred)
         errs_all.append(err)
         rows.append({"hidden": list(h), "width": h[0], "depth": len(h), "n_params": _n_params(m.layer_sizes),
-                     "holdout_median": float(np.median(err)), "holdout_mean": float(np.mean(err)),
-                     "holdout_p90": float(np.quantile(err, 0.9)), "holdout_max": float(np.max(err)),
+                     **error_summary(err, prefix_mask),
                      "best_val_loss": m.best_val_loss, "epochs": m.epochs, "stop_reason": m.stop_reason,
                      "wall_s": m.wall_s})
     best = min(range(len(rows)), key=lambda i: (rows[i]["holdout_median"], rows[i]["n_params"]))

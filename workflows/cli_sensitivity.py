@@ -26,7 +26,7 @@ def sensitivity(
     from bubblecal.data.curves import REFERENCE_CURVES, resolve_reference_name
     from bubblecal.priors import PriorError, load_priors
     from bubblecal.surrogates import load
-    from bubblecal.workflows.sensitivity import surrogate_sensitivity, write_sensitivity
+    from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity, write_sensitivity
 
     try:
         name = resolve_reference_name(curve)
@@ -45,8 +45,10 @@ def sensitivity(
     try:
         with warnings.catch_warnings(record=True) as caught:  # shown once, on the console, below the table
             warnings.simplefilter("always")
-            run = surrogate_sensitivity(model, spec, (float(data.x.min()), float(data.x.max())), N=n,
-                                        num_points=points, seed=seed)
+            x_range, cut = averaging_range(data.x, model)
+            if cut:
+                warnings.warn(f"{name}: {cut}", stacklevel=1)
+            run = surrogate_sensitivity(model, spec, x_range, N=n, num_points=points, seed=seed)
     except ValueError as exc:
         raise fail(str(exc)) from None
     r = run.result

@@ -54,11 +54,23 @@ def train(
     jobs: int = typer.Option(1, help="Architectures trained in parallel processes (1 torch thread each)."),
     zero_frac: float = typer.Option(0.01, help="Rupture: last raw response <= this fraction of the curve max."),
     max_drop: float = typer.Option(0.10, help="Rupture: drop below the running max > this fraction of the max."),
+    failed_prefix: bool = typer.Option(True, "--failed-prefix/--no-failed-prefix",
+                                       help="Campaign stores: keep the finite prefix (minus its last point) of "
+                                            "'ruptured'/'failed' curves, NaN after the failure (no effect on "
+                                            "published tables, which have no status)."),
+    min_prefix_points: int = typer.Option(5, "--min-prefix-points", min=2,
+                                          help="Points (x = 0 included) a kept failure prefix needs."),
     n_points: str = typer.Option("15", help="Loading points per row of a published table ('auto': infer)."),
     onnx: bool = typer.Option(True, "--onnx/--no-onnx", help="Also export ONNX and check onnxruntime parity."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
 ) -> None:
-    """Train (optionally sweep) a surrogate on DATASET and export it with a report."""
+    """Train (optionally sweep) a surrogate on DATASET and export it with a report.
+
+    Campaign stores: by default the intact prefix of 'ruptured'/'failed' curves is kept (the last
+    finite point before failure dropped; see `filter_curves(keep_failed_prefix=True)`), so that the
+    low-k_b corner, which ruptures on the loading grid, has training points; --no-failed-prefix keeps
+    'ok' curves only.
+    """
     import numpy as np
 
     from bubblecal.surrogates.bundle import load
@@ -74,7 +86,8 @@ def train(
         raw = read_dataset(dataset, setup=setup, n_points="auto" if n_points == "auto" else int(n_points))
         if raw.setup != setup:
             _fail(f"{dataset}: holds {raw.setup} data, --setup is {setup}")
-        ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop)
+        ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop, keep_failed_prefix=failed_prefix,
+                                   min_prefix_points=min_prefix_points)
         typer.echo(str(report))
         if ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
             _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, --diameter is {diameter:g}")
@@ -93,7 +106,8 @@ def train(
     out.mkdir(parents=True, exist_ok=True)
     (out / "filter_report.json").write_text(json.dumps(report.as_dict(), indent=2))
     paths = result.write_report(out)
-    npz = export_sweep(result, out / f"{ts.setup}_{diameter:g}um.npz", nominal_diameter_um=diameter)
+    npz = export_sweep(result, out / f"{ts.setup}_{diameter:g}um.npz", nominal_diameter_um=diameter,
+                       filter_report=report)
     sur = load(npz)
     # parity: the exported JAX function against torch on the held-out points
     import torch

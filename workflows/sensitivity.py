@@ -35,6 +35,21 @@ class SensitivityRun:
     outside_training_fraction: float
 
 
+def averaging_range(x_data: np.ndarray, surrogate) -> tuple[tuple[float, float], str | None]:
+    """Loading range (DPD units of the surrogate's loading coordinate) over which to average the indices: the data's
+    explored range [min x, max x] cut to the surrogate's training range, and a message saying what was cut (None
+    when nothing was): the surrogate is not asked about loads it never saw, and the cut is reported, not silent."""
+    lo, hi = float(np.min(x_data)), float(np.max(x_data))
+    x_lo, x_hi = (float(v) for v in surrogate.x_range)
+    a, b = max(lo, x_lo), min(hi, x_hi)
+    if not a < b:
+        raise ValueError(f"the data's loading range [{lo:g}, {hi:g}] does not overlap the surrogate's [{x_lo:g}, {x_hi:g}]")
+    if (a, b) == (lo, hi):
+        return (lo, hi), None
+    return (a, b), (f"the data explore [{lo:g}, {hi:g}] but the surrogate was trained on [{x_lo:g}, {x_hi:g}]: "
+                    f"indices averaged over [{a:g}, {b:g}]")
+
+
 def surrogate_sensitivity(surrogate, spec: PriorSpec, x_range: tuple[float, float], *, N: int = 2048,
                           num_points: int = 40, seed: int = 0) -> SensitivityRun:
     """Sobol indices of ``surrogate`` over the prior box of ``spec``'s free shell inputs.

@@ -56,12 +56,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bubblecal.sim.experiments.loading import validate_grid
+from bubblecal.sim.experiments.thermal_contact import (
+    G_MIN,
+    ThermalContact,
+    _psi_exact,
+    hard_wall_distance,
+    shell_fluctuation_sigma,
+    thermal_plate_force,
+)
 from bubblecal.sim.kernels.shell_params import ShellParams
 from bubblecal.sim.mesh import ShellMesh
 
 __all__ = [
     "IdealGas",
     "PlateContact",
+    "ThermalContact",
     "FireSettings",
     "IndentationResult",
     "CompressionResult",
@@ -310,6 +319,7 @@ class _DeviceChain:
     def __init__(self, params, mesh: ShellMesh, gas: IdealGas | None, device: str, dtype, fire: FireSettings, *,
                  free_v: np.ndarray, remove_mean: tuple[bool, bool, bool], unit: np.ndarray | None = None,
                  tag: np.ndarray | None = None, contact: PlateContact | None = None,
+                 thermal: ThermalContact | None = None, radius_dpd: float | None = None,
                  sync_every: int | None = None, use_graph: bool | None = None,
                  loads: np.ndarray | None = None):
         import warp as wp
@@ -371,6 +381,14 @@ class _DeviceChain:
         c = contact if contact is not None else PlateContact()
         h_cap = _cap_distance(c.epsilon, c.sigma, c.force_cap)
         self.pc = [T(c.epsilon), T(c.sigma), T(c.cutoff), T(h_cap), T(c.force_cap)]
+        # thermal contact: per-replica rms normal fluctuation, hard wall at the WCA's Barker-Henderson distance
+        self.thermal = thermal if self.plate_on else None
+        self._radius = float(mesh.radius_dpd) if radius_dpd is None else float(radius_dpd)
+        self.tsig = wp.array(self._sigmas(params).astype(npf), dtype=T, device=dev)
+        hw = hard_wall_distance(c, thermal.kT) if self.thermal is not None else 0.0
+        p0, dp0 = (float(v[0]) for v in _psi_exact(np.array([G_MIN])))
+        self.tc = [self.tsig, int(self.thermal is not None), T(hw),
+                   T(thermal.kT if self.thermal is not None else 1.0), T(p0), T(dp0)]
         self.obs = wp.zeros((R, 4), dtype=T, device=dev)
         self.nonfin = wp.zeros(R, dtype=wp.int32, device=dev)
         self.flag = wp.zeros(R, dtype=wp.int32, device=dev)
@@ -391,7 +409,15 @@ class _DeviceChain:
             wp.launch(k["load_force_kernel"], dim=self.R * self.nthr,
                       inputs=[x, f, self.row_start, self.fire.status, self.nthr, self.tri, self.vt_start,
                               self.vt_tri, self.vol, self.gas, int(self.gas_on), self.load, self.unit,
-                              int(self.load_on), self.plates, int(self.plate_on), *self.pc], device=dev)
+                              int(self.load_on), self.plates, int(self.plate_on), *self.pc, *self.tc], device=dev)
+
+    def _sigmas(self, params) -> np.ndarray:
+        """rms normal fluctuation of each shell for the thermal contact (ones when athermal: unused)."""
+        if self.thermal is None:
+            return np.ones(len(params))
+        if self.thermal.sigma is not None:
+            return np.full(len(params), float(self.thermal.sigma))
+        return shell_fluctuation_sigma(params, self._radius, self.thermal.kT)
 
     def set_load(self, value: float) -> None:
         """Pole load (total force per pole, DPD force) for every replica."""
@@ -447,8 +473,8 @@ class _DeviceChain:
         n = self.R * self.nv
         if self.plate_on:
             self.obs.zero_()
-            wp.launch(k["plate_obs_kernel"], dim=n, inputs=[x, self.row_rep, self.plates, *self.pc, self.obs],
-                      device=dev)
+            wp.launch(k["plate_obs_kernel"], dim=n,
+                      inputs=[x, self.row_rep, self.plates, *self.pc, *self.tc, self.obs], device=dev)
             o = self.obs.numpy().astype(np.float64)
             return {"top": o[:, 0].copy(), "bottom": o[:, 1].copy(), "contacts": o[:, 2].copy()}
         init = np.zeros((self.R, 4))
@@ -491,6 +517,10 @@ class _DeviceChain:
         if len(rows) == 0:
             return
         self.ff.set_params_rows(rows, list(params))
+        if self.thermal is not None:
+            sig = self.tsig.numpy()
+            sig[rows] = self._sigmas(list(params))
+            self.tsig.assign(sig)
         fl = np.zeros(self.R, dtype=bool)
         fl[rows] = True
         self.reset_failed(fl)
@@ -508,6 +538,7 @@ class _DeviceChain:
             self.x_prev.assign(old.x_prev.numpy()[rows])
         self.load.assign(old.load.numpy()[slots])
         self.plates.assign(old.plates.numpy()[slots])
+        self.tsig.assign(old.tsig.numpy()[slots])
         self.n_evaluations = old.n_evaluations
 
     def row_positions(self, r: int) -> np.ndarray:
@@ -994,6 +1025,7 @@ class CompressionResult(_ChainResult):
 def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
                             displacements_dpd: Sequence[float] | np.ndarray, *,
                             gas: IdealGas | None = IdealGas(), contact: PlateContact = PlateContact(),
+                            thermal: ThermalContact | None = None,
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
                             rupture_strain: float = 1.0, max_plate_step: float = 0.06, minimizer: str = "device",
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
@@ -1007,6 +1039,9 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         displacements_dpd: imposed total plate displacement d at each point (DPD length, >= 0,
             strictly increasing); each plate moves d/2.
         gas: enclosed ideal gas or None.  contact: plate-vertex :class:`PlateContact`.
+        thermal: None (athermal WCA plates) or a :class:`ThermalContact`: the plates act on each vertex
+            through the mean force of its thermal normal fluctuation against the WCA's hard-wall distance
+            (:mod:`bubblecal.sim.experiments.thermal_contact`), the entropic contact force the explicit tier has.
         device, dtype, fire, rupture_strain, minimizer, sync_every, extrapolate, schedule, max_replicas,
             progress: as in :func:`quasistatic_indentation`.
         max_plate_step: largest plate move between two minimisations (DPD length); longer load steps
@@ -1026,7 +1061,10 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     disp, keep = _refine_grid(requested, 2.0 * max_plate_step)
     if not isinstance(contact, PlateContact):
         raise ValueError(f"contact must be a PlateContact, got {type(contact).__name__}")
+    if thermal is not None and not isinstance(thermal, ThermalContact):
+        raise ValueError(f"thermal must be None or a ThermalContact, got {type(thermal).__name__}")
     params = _check_params(params, mesh, gas)
+    radius = float(np.linalg.norm(mesh.vertices - mesh.vertices.mean(axis=0), axis=1).mean())
     R, nv = len(params), mesh.n_vertices
     zc = float(mesh.vertices[:, 2].mean())
     h0 = float(np.max(np.abs(mesh.vertices[:, 2] - zc)))
@@ -1036,8 +1074,8 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     if minimizer == "device":
         def make_chain(ps):
             return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=np.ones((nv, 3), dtype=bool),
-                                remove_mean=(True, True, False), contact=contact, sync_every=sync_every,
-                                loads=disp if extrapolate else None)
+                                remove_mean=(True, True, False), contact=contact, thermal=thermal,
+                                radius_dpd=radius, sync_every=sync_every, loads=disp if extrapolate else None)
 
         if schedule == "async":
             out = _run_device_async(make_chain, params, len(disp), rupture_strain,
@@ -1049,9 +1087,18 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                              set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress)
     else:
         b = _Batch(params, mesh, gas, device, dtype)
+        if thermal is not None:
+            sig = (np.full(R, thermal.sigma) if thermal.sigma is not None
+                   else shell_fluctuation_sigma(params, radius, thermal.kT))
+            sig_rows = np.repeat(sig, nv)
+            h_wall = hard_wall_distance(contact, thermal.kT)
 
         def plate_forces(x, j):
             z = x[:, 2]
+            if thermal is not None:
+                ft = thermal_plate_force(plate[j] - z, sig_rows, h_wall, thermal.kT, contact.force_cap)
+                fb = thermal_plate_force(z - (2 * zc - plate[j]), sig_rows, h_wall, thermal.kT, contact.force_cap)
+                return ft, fb
             ft, et = plate_force_energy(plate[j] - z, contact)
             fb, eb = plate_force_energy(z - (2 * zc - plate[j]), contact)
             return ft, fb
@@ -1068,8 +1115,9 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         def measure(x, j):
             ft, fb = plate_forces(x, j)
             z = x[:, 2]
+            reach = contact.cutoff if thermal is None else np.maximum(contact.cutoff, h_wall + 3.0 * sig_rows)
             return {"top": ft.reshape(R, nv).sum(axis=1), "bottom": fb.reshape(R, nv).sum(axis=1),
-                    "contacts": (plate[j] - z < contact.cutoff).reshape(R, nv).sum(axis=1).astype(float)}
+                    "contacts": (plate[j] - z < reach).reshape(R, nv).sum(axis=1).astype(float)}
 
         hc = _HostChain(b, make, np.ones((R * nv, 3), dtype=bool), fire, measure)
         out = _run_chain(hc, len(disp), rupture_strain, progress=progress)
@@ -1078,6 +1126,10 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     nan = np.full((R, len(keep)), np.nan)
     settings = {"gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
                 "contact": {**contact.__dict__, "cutoff": contact.cutoff},
+                "thermal_contact": None if thermal is None else {
+                    "kT": thermal.kT, "sigma": thermal.sigma if thermal.sigma is not None
+                    else "kT R / (8 sqrt(kappa Y)), kappa = (sqrt 3 / 2) kb, Y = 4 ka mu / (ka + mu)",
+                    "hard_wall": hard_wall_distance(contact, thermal.kT), "radius_dpd": radius},
                 "plates": "z = z_c +- (h0 + gap - d/2)", "h0": h0, "com": "mean x, y force removed",
                 "observable": "force on the top plate (one plate), positive compressive",
                 "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,

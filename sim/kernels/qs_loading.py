@@ -9,7 +9,8 @@ replica r sits at row ``row_start[r] + v``.  DPD units throughout.
 * ``load_force_kernel``: adds, per row, the ideal-gas force (p0 V0 / V - p_ambient) dV/dx (dV/dx_v =
   sum over the incident triangles of n_t / 6, n_t = (x1 - x0) x (x2 - x0), gathered through a CSR),
   a per-replica scalar load times a per-row vector (pole loads), and the capped WCA force of two
-  analytic plates z = top_r (pushing down) and z = bottom_r (pushing up).
+  analytic plates z = top_r (pushing down) and z = bottom_r (pushing up), or their thermal mean force
+  (:mod:`bubblecal.sim.experiments.thermal_contact`).
 * Observables: plate reactions and contacts, axial extent and loaded-patch heights, non-finite rows,
   and the reset of failed replicas to their reference rows.
 * ``extrapolate_kernel`` / ``extrapolate_rows_kernel``: linear predictor of the next load point's state from
@@ -51,6 +52,52 @@ def qs_kernels(dtype):
             out = T(24.0) * eps * (T(2.0) * s6 * s6 - s6) / h
         return out
 
+    @wp.func
+    def mills(z: T):
+        """Inverse Mills ratio phi(z) / Phi(z) (asymptotic series below z = -8, where erfc underflows in float32)."""
+        m = T(0.0)
+        if z < T(-8.0):
+            iz2 = T(1.0) / (z * z)
+            m = -z / (T(1.0) - iz2 + T(3.0) * iz2 * iz2 - T(15.0) * iz2 * iz2 * iz2)
+        elif z < T(12.0):
+            m = T(0.7978845608028654) * wp.exp(T(-0.5) * z * z) / wp.erfc(-z * T(0.7071067811865476))
+        return m
+
+    @wp.func
+    def psi_exact(g: T):
+        """Psi(g) = M(z) with z + M(z) = g: Newton from the convex side (thermal_contact._psi_exact)."""
+        z = g
+        if g < T(1.0):
+            z = T(-1.0) / g
+        for _ in range(8):
+            m = mills(z)
+            d = wp.max(T(1.0) - m * (z + m), T(1.0e-30))
+            z = z - (z + m - g) / d
+        return mills(z)
+
+    @wp.func
+    def thermal_force(h: T, s: T, hw: T, kT: T, cap: T, p0: T, dp0: T):
+        """Mean wall force (kT / s) Psi((h - hw) / s) of a vertex at mean plate distance h fluctuating with
+        rms s (sim/experiments/thermal_contact.py); linear below g = 0.05 (``p0``, ``dp0``), capped."""
+        g = (h - hw) / s
+        p = T(0.0)
+        if g < T(0.05):
+            p = p0 + dp0 * (g - T(0.05))
+        elif g < T(12.0):
+            p = psi_exact(g)
+        return wp.min(kT / s * p, cap)
+
+    @wp.func
+    def plate_push(h: T, thermal: wp.int32, s: T, hw: T, kT: T, p0: T, dp0: T, eps: T, sig: T, rc: T, hcap: T,
+                   cap: T):
+        """Plate force magnitude on a vertex at distance h: athermal WCA or the thermal mean force."""
+        out = T(0.0)
+        if thermal != 0:
+            out = thermal_force(h, s, hw, kT, cap, p0, dp0)
+        else:
+            out = plate_force(h, eps, sig, rc, hcap, cap)
+        return out
+
     @kern
     def volume_kernel(x: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i), row_start: wp.array(dtype=wp.int32),
                       status: wp.array(dtype=wp.int32), all_rep: wp.int32, nthr: wp.int32, vol: wp.array(dtype=T)):
@@ -74,11 +121,13 @@ def qs_kernels(dtype):
                           vt_start: wp.array(dtype=wp.int32), vt_tri: wp.array(dtype=wp.int32),
                           vol: wp.array(dtype=T), gas: wp.array2d(dtype=T), gas_on: wp.int32,
                           load: wp.array(dtype=T), unit: wp.array(dtype=V), load_on: wp.int32,
-                          plates: wp.array2d(dtype=T), plate_on: wp.int32, eps: T, sig: T, rc: T, hcap: T, cap: T):
+                          plates: wp.array2d(dtype=T), plate_on: wp.int32, eps: T, sig: T, rc: T, hcap: T, cap: T,
+                          tsig: wp.array(dtype=T), thermal: wp.int32, hw: T, kT: T, p0: T, dp0: T):
         """f += gas + pole load + plate forces for the rows of active replicas.
 
         Shared mesh: ``tri`` local vertex indices, ``vt_start`` / ``vt_tri`` the local vertex ->
-        triangle CSR; ``gas[r] = (p0 V0, p_ambient)``; ``plates[r] = (z_top, z_bottom)``.
+        triangle CSR; ``gas[r] = (p0 V0, p_ambient)``; ``plates[r] = (z_top, z_bottom)``; ``thermal`` != 0:
+        the plates act through the thermal mean force (rms fluctuation ``tsig[r]``, hard wall at ``hw``).
         """
         tid = wp.tid()
         r = tid // nthr
@@ -93,6 +142,7 @@ def qs_kernels(dtype):
             ld = load[r]
         ztop = plates[r, 0]
         zbot = plates[r, 1]
+        s_r = tsig[r]
         sixth = T(1.0) / T(6.0)
         o = row_start[r]
         for i in range(o + t, row_start[r + 1], nthr):
@@ -109,21 +159,29 @@ def qs_kernels(dtype):
                 fi = fi + ld * unit[i]
             if plate_on != 0:
                 z = x[i][2]
-                fz = plate_force(z - zbot, eps, sig, rc, hcap, cap) - plate_force(ztop - z, eps, sig, rc, hcap, cap)
+                fz = (plate_push(z - zbot, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap)
+                      - plate_push(ztop - z, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap))
                 fi = fi + V(T(0.0), T(0.0), fz)
             f[i] = fi
 
     @kern
     def plate_obs_kernel(x: wp.array(dtype=V), row_rep: wp.array(dtype=wp.int32), plates: wp.array2d(dtype=T),
-                         eps: T, sig: T, rc: T, hcap: T, cap: T, out: wp.array2d(dtype=T)):
-        """Per replica: force on the top plate, on the bottom plate, vertices within rc of the top plate."""
+                         eps: T, sig: T, rc: T, hcap: T, cap: T, tsig: wp.array(dtype=T), thermal: wp.int32,
+                         hw: T, kT: T, p0: T, dp0: T, out: wp.array2d(dtype=T)):
+        """Per replica: force on the top plate, on the bottom plate, vertices within range of the top plate
+        (rc; thermal: also within hw + 3 rms fluctuations)."""
         i = wp.tid()
         r = row_rep[i]
         z = x[i][2]
         ht = plates[r, 0] - z
-        wp.atomic_add(out, r, PLATE_TOP, plate_force(ht, eps, sig, rc, hcap, cap))
-        wp.atomic_add(out, r, PLATE_BOTTOM, plate_force(z - plates[r, 1], eps, sig, rc, hcap, cap))
-        if ht < rc:
+        s_r = tsig[r]
+        wp.atomic_add(out, r, PLATE_TOP, plate_push(ht, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap))
+        hb = z - plates[r, 1]
+        wp.atomic_add(out, r, PLATE_BOTTOM, plate_push(hb, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap))
+        reach = rc
+        if thermal != 0:
+            reach = wp.max(rc, hw + T(3.0) * s_r)
+        if ht < reach:
             wp.atomic_add(out, r, PLATE_CONTACTS, T(1.0))
 
     @kern

@@ -33,6 +33,11 @@ def test_shipped_set_matches_its_campaign_config(path):
     assert len({r["sample_id"] for r in records}) == len(records) <= cfg.n_samples
     ts, report = filter_curves(read_dataset(path))
     assert ts.n_curves >= 0.8 * len(records)  # measured 93 % ok at 3.2 um; a broken export reads far fewer
-    assert np.all(np.isfinite(ts.y)) and np.all(np.diff(ts.y, axis=1) >= -1e-9)  # monotone responses
+    assert np.all(np.isfinite(ts.y))
+    # monotone responses, except a few shells crushed to ~70 % of their diameter at 5.8 um whose last point falls
+    # back by 6 % (kept: below filter_curves' 10 % drop threshold; 2 of 5,743 curves)
+    falls = np.diff(ts.y, axis=1) < -1e-9
+    assert falls.any(axis=1).sum() <= 0.001 * ts.n_curves
+    assert not falls[:, :-1].any(), "a response falls before its last point"
     assert ts.setup == cfg.protocol
     assert ts.diameter_um == pytest.approx(cfg.diameter_um, abs=0.025)

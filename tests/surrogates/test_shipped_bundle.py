@@ -1,0 +1,64 @@
+"""The shipped default bundle (package data bubblecal/surrogates/bundle/): trained on our own DPD simulations.
+
+Complete (the six reference curves' diameters + both acoustic agents), not synthetic, with provenance that
+points at the shipped training sets and their campaign configs, and sensible predictions over the data range.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bubblecal.data import acoustic_observations, reference_curves
+from bubblecal.surrogates import load_bundle
+from bubblecal.surrogates.bundle import default_bundle_path
+from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
+
+PATH = default_bundle_path()
+pytestmark = pytest.mark.skipif(not (PATH / "manifest.json").is_file(), reason="no shipped bundle in this checkout")
+
+
+@pytest.fixture(scope="module")
+def bundle():
+    return load_bundle(PATH)
+
+
+def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
+    from bubblecal.workflows.campaign import load_campaign_file
+
+    assert not is_synthetic_bundle(bundle)
+    for curve in reference_curves():
+        sur = bundle.get(curve.kind, curve.diameter_um)
+        md = sur.metadata
+        assert not md.get("synthetic", False)
+        # trained on the shipped set of the campaign of this diameter
+        name = f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um"
+        assert md["source"].endswith(f"data/training/{name}.jsonl.gz"), (name, md["source"])
+        assert md["n_curves_train"] >= 4500  # 90 % of >= 5,000 valid curves (10 % held out)
+        cfg = load_campaign_file(name).config
+        # the training box spans the campaign box (LHS of 6,000: the extreme strata hold one point each); the
+        # softest SonoVue shells rupture on the grid: the softest trained k_a is 619 (3.2 um) and 806 (5.8 um) in
+        # a box from 558 (calibrate warns when a posterior leaves a surrogate's training box)
+        lo, hi = sur.param_ranges["ka"]
+        assert lo <= cfg.ranges["ka"][0] * (1.02 if curve.kind == "compression" else 1.5)
+        assert hi >= cfg.ranges["ka"][1] * 0.98
+        assert 0.0 < sur.holdout_score < 0.03  # held-out median relative L2 (measured 0.3-1.4 %)
+        # the data's loading range lies inside the training range of the loading coordinate, up to a short
+        # extrapolation: the published grids (which the sets use) end at 1.68 / 6,000, the 3.0 um compression data
+        # at 1.77 (less the contact offset d0 ~ 0.1) and the 3.2 um indentation data at 6,304 (5 % beyond)
+        slack = 0.1 if curve.kind == "compression" else 0.06 * sur.x_range[1]
+        assert sur.x_range[0] <= 0.0 and sur.x_range[1] + slack >= curve.x.max()
+        # positive and increasing response at the centre of the box over the data range
+        mid = np.array([np.sqrt(np.prod(cfg.ranges[k])) if k in ("ka", "kb") else np.mean(cfg.ranges[k])
+                        for k in ("ka", "kb", "b1", "b2", "a3", "a4")])
+        y = np.asarray(sur(mid, np.linspace(0.1, 1.0, 12) * curve.x.max()))
+        assert np.all(y > 0) and np.all(np.diff(y) > 0), (curve.name, y)
+
+
+def test_acoustic_surrogates_cover_every_observation(bundle):
+    for agent in ("definity", "sonovue"):
+        ac = bundle.acoustic[agent]
+        for obs in acoustic_observations(agent):
+            lo, hi = ac.ka_ranges(obs.diameter_um)
+            f = np.asarray(ac.f_res(np.geomspace(lo, hi, 9), obs.diameter_um))
+            assert np.all(np.isfinite(f)) and np.all(np.diff(f) > 0) and np.all(f > 0)
