@@ -140,8 +140,16 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle dir
     try:
         if path.is_dir():
             b = load_bundle(path)
+            if b.manifest.get("notes"):
+                typer.echo(f"notes: {b.manifest['notes']}")
             for key in b.keys():
-                typer.echo(repr(b.surrogates[key]))
+                sur = b.surrogates[key]
+                md = sur.metadata
+                typer.echo(repr(sur))
+                # provenance: the training set and how much of it the network saw
+                typer.echo(f"  trained on {md.get('source', '?')}: {md.get('n_curves_train', '?')} curves "
+                           f"({md.get('n_prefix_curves_train', 0)} failure-truncated prefixes), "
+                           f"held-out median relative L2 {sur.holdout_score:.3g}")
             for name, ac in b.acoustic.items():
                 typer.echo(f"acoustic {name}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
         else:

@@ -62,3 +62,16 @@ def test_acoustic_surrogates_cover_every_observation(bundle):
             lo, hi = ac.ka_ranges(obs.diameter_um)
             f = np.asarray(ac.f_res(np.geomspace(lo, hi, 9), obs.diameter_um))
             assert np.all(np.isfinite(f)) and np.all(np.diff(f) > 0) and np.all(f > 0)
+
+
+def test_info_prints_the_provenance():
+    from typer.testing import CliRunner
+
+    from bubblecal.workflows.cli_surrogates import app
+
+    r = CliRunner().invoke(app, ["info", str(PATH)])
+    assert r.exit_code == 0, r.output
+    for name in ("definity_compression_2.1um", "definity_compression_2.9um", "definity_compression_3.0um",
+                 "sonovue_indentation_3.2um", "sonovue_indentation_3.4um", "sonovue_indentation_5.8um"):
+        assert f"trained on data/training/{name}.jsonl.gz" in r.output
+    assert "acoustic definity" in r.output and "acoustic sonovue" in r.output
