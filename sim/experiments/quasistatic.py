@@ -57,10 +57,9 @@ import numpy as np
 
 from bubblecal.sim.experiments.loading import validate_grid
 from bubblecal.sim.experiments.thermal_contact import (
-    G_MIN,
     ThermalContact,
-    _psi_exact,
     hard_wall_distance,
+    psi_continuation,
     shell_fluctuation_sigma,
     thermal_plate_force,
 )
@@ -386,7 +385,7 @@ class _DeviceChain:
         self._radius = float(mesh.radius_dpd) if radius_dpd is None else float(radius_dpd)
         self.tsig = wp.array(self._sigmas(params).astype(npf), dtype=T, device=dev)
         hw = hard_wall_distance(c, thermal.kT) if self.thermal is not None else 0.0
-        p0, dp0 = (float(v[0]) for v in _psi_exact(np.array([G_MIN])))
+        p0, dp0 = psi_continuation()
         self.tc = [self.tsig, int(self.thermal is not None), T(hw),
                    T(thermal.kT if self.thermal is not None else 1.0), T(p0), T(dp0)]
         self.obs = wp.zeros((R, 4), dtype=T, device=dev)
@@ -556,6 +555,14 @@ class _DeviceChain:
         return self.fire.positions()
 
 
+def _result_tables(n: int, n_points: int):
+    """Empty per-curve results of a chain of ``n`` curves: statuses, per-point statuses, FIRE steps, fmax, area
+    strain, volume (NaN until measured) and the observables dict (filled per key as they come)."""
+    return ([STATUS_OK] * n, [[STATUS_OK] * n_points for _ in range(n)], np.zeros((n, n_points), dtype=np.int64),
+            np.full((n, n_points), np.nan), np.full((n, n_points), np.nan), np.full((n, n_points), np.nan),
+            {})
+
+
 def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callable[[int], None] | None = None,
                progress: Callable[[int, int, float], None] | None = None) -> dict:
     """Chain the load points on ``backend`` (:class:`_HostChain` / :class:`_DeviceChain`); returns
@@ -563,13 +570,7 @@ def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callabl
     from bubblecal.sim.minimize import STATUS_CONVERGED, STATUS_NONFINITE
 
     R = backend.R
-    status = [STATUS_OK] * R
-    point_status = [[STATUS_OK] * n_points for _ in range(R)]
-    steps = np.zeros((R, n_points), dtype=np.int64)
-    fmax = np.full((R, n_points), np.nan)
-    strain = np.full((R, n_points), np.nan)
-    volume = np.full((R, n_points), np.nan)
-    obs: dict[str, np.ndarray] = {}
+    status, point_status, steps, fmax, strain, volume, obs = _result_tables(R, n_points)
     t0 = time.perf_counter()
     for j in range(n_points):
         alive = np.array([s not in _FAILED for s in status])
@@ -658,13 +659,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     if S < R:
         raise ValueError(f"samples: {S} parameter sets for {R} slots")
     fs = backend.fire_settings
-    status = [STATUS_OK] * S
-    point_status = [[STATUS_OK] * n_points for _ in range(S)]
-    steps = np.zeros((S, n_points), dtype=np.int64)
-    fmax = np.full((S, n_points), np.nan)
-    strain = np.full((S, n_points), np.nan)
-    volume = np.full((S, n_points), np.nan)
-    obs: dict[str, np.ndarray] = {}
+    status, point_status, steps, fmax, strain, volume, obs = _result_tables(S, n_points)
     x_out = np.zeros((S * backend.nv, 3)) if stream else None
     sample = np.arange(R)  # sample held by each slot
     next_sample = R

@@ -28,6 +28,7 @@ Model (statistical mechanics of one vertex against a hard wall; nothing fitted):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["ThermalContact", "hard_wall_distance", "shell_fluctuation_sigma", "thermal_plate_force",
-           "wall_force_psi", "inverse_mills_ratio", "G_MIN"]
+           "wall_force_psi", "psi_continuation", "inverse_mills_ratio", "G_MIN"]
 
 _SQRT_2_OVER_PI = math.sqrt(2.0 / math.pi)
 #: below this z the inverse Mills ratio uses its asymptotic series (erfc would underflow in float32)
@@ -77,6 +78,7 @@ def shell_fluctuation_sigma(params: Sequence, radius_dpd: float, kT: float = 1.0
     return out
 
 
+@functools.cache  # a quadrature of ~0.7 s; PlateContact is frozen, so (contact, kT) is a key
 def hard_wall_distance(contact, kT: float = 1.0) -> float:
     """Barker-Henderson hard-wall distance [DPD length] of the capped WCA plate ``contact``
     (:class:`bubblecal.sim.experiments.quasistatic.PlateContact`) at temperature ``kT``."""
@@ -126,6 +128,14 @@ def _psi_exact(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return m, dm / (1.0 + dm)
 
 
+@functools.cache
+def psi_continuation() -> tuple[float, float]:
+    """Psi(G_MIN) and dPsi/dg at G_MIN (dimensionless): the linear continuation of Psi below :data:`G_MIN`
+    (shared by :func:`wall_force_psi` and the Warp kernel)."""
+    p0, dp0 = _psi_exact(np.array([G_MIN]))
+    return float(p0[0]), float(dp0[0])
+
+
 def wall_force_psi(g: np.ndarray) -> np.ndarray:
     """Reduced mean wall force Psi(g) (dimensionless; F = (kT/sigma) Psi) at reduced mean distance
     g = (h - h_w) / sigma from the hard wall (module docstring); linear below :data:`G_MIN`."""
@@ -133,8 +143,8 @@ def wall_force_psi(g: np.ndarray) -> np.ndarray:
     out = np.empty_like(g)
     hi = g >= G_MIN
     out[hi] = _psi_exact(g[hi])[0]
-    p0, dp0 = _psi_exact(np.array([G_MIN]))
-    out[~hi] = p0[0] + dp0[0] * (g[~hi] - G_MIN)
+    p0, dp0 = psi_continuation()
+    out[~hi] = p0 + dp0 * (g[~hi] - G_MIN)
     return out
 
 
