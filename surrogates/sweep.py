@@ -33,7 +33,8 @@ from bubblecal.surrogates.dataset import DatasetError, TrainingSet
 from bubblecal.surrogates.train import TrainConfig, TrainedMLP, train_mlp
 
 __all__ = ["SweepConfig", "SweepResult", "grouped_holdout", "run_sweep", "curve_errors", "error_summary",
-           "MIN_SWEEP_CURVES", "MIN_SCORED_POINTS"]
+           "checkpoint_key", "checkpoint_path", "save_checkpoint", "load_checkpoint", "MIN_SWEEP_CURVES",
+           "MIN_SCORED_POINTS"]
 
 MIN_SWEEP_CURVES = 20
 #: a held-out curve needs this many finite points to be scored
@@ -127,9 +128,64 @@ def _n_params(sizes: Sequence[int]) -> int:
     return int(sum(a * b + b for a, b in zip(sizes[:-1], sizes[1:], strict=True)))
 
 
+#: TrainConfig fields that change where and how fast a model trains, not the recipe (not part of a checkpoint key)
+_EXECUTION_FIELDS = ("threads", "device", "cuda_graphs")
+
+
+def checkpoint_key(data_hash: str, hidden: Sequence[int], config: SweepConfig) -> dict:
+    """What a saved architecture must match to be reused: data, split, architecture, seed and recipe."""
+    recipe = {k: v for k, v in config.train.as_dict().items() if k not in _EXECUTION_FIELDS}
+    return {"data_hash": data_hash, "hidden": [int(h) for h in hidden], "seed": int(config.seed),
+            "holdout_frac": float(config.holdout_frac), "recipe": recipe}
+
+
+def checkpoint_path(folder: str | Path, hidden: Sequence[int]) -> Path:
+    """File of one trained architecture in a sweep checkpoint folder."""
+    return Path(folder) / f"arch_{hidden[0]}x{len(hidden)}.npz"
+
+
+def save_checkpoint(path: str | Path, model: TrainedMLP, key: dict) -> Path:
+    """Write a trained model and its key atomically (a killed sweep leaves no half-written file)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    meta = {"key": key, "hidden": list(model.hidden), "seed": model.seed, "epochs": model.epochs,
+            "stop_reason": model.stop_reason, "best_val_loss": model.best_val_loss, "wall_s": model.wall_s,
+            "config": model.config.as_dict(), "history": model.history}
+    arrays = {f"W_{i}": w for i, w in enumerate(model.weights)}
+    arrays.update({f"b_{i}": b for i, b in enumerate(model.biases)})
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "wb") as fh:
+        np.savez(fh, in_mean=model.in_mean, in_std=model.in_std, out_mean=model.out_mean, out_std=model.out_std,
+                 meta=np.array(json.dumps(meta)), **arrays)
+    tmp.replace(path)
+    return path
+
+
+def load_checkpoint(path: str | Path, key: dict) -> TrainedMLP | None:
+    """The saved model at ``path`` if it exists and was trained under ``key``, else None."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    with np.load(path) as z:
+        meta = json.loads(str(z["meta"]))
+        if meta.get("key") != json.loads(json.dumps(key)):
+            return None
+        n = len(meta["hidden"]) + 1
+        weights = [z[f"W_{i}"] for i in range(n)]
+        biases = [z[f"b_{i}"] for i in range(n)]
+        stats = {k: z[k] for k in ("in_mean", "in_std", "out_mean", "out_std")}
+    return TrainedMLP(hidden=tuple(meta["hidden"]), weights=weights, biases=biases, config=TrainConfig(**meta["config"]),
+                      seed=int(meta["seed"]), epochs=int(meta["epochs"]), stop_reason=meta["stop_reason"],
+                      best_val_loss=float(meta["best_val_loss"]), wall_s=float(meta["wall_s"]),
+                      history=meta["history"], **stats)
+
+
 def _train_job(args):
-    u, y, hidden, cfg, seed, progress, desc = args
-    return train_mlp(u, y, hidden, cfg, seed=seed, progress=progress, desc=desc)
+    u, y, hidden, cfg, seed, progress, desc, ckpt, key = args
+    model = train_mlp(u, y, hidden, cfg, seed=seed, progress=progress, desc=desc)
+    if ckpt is not None:
+        save_checkpoint(ckpt, model, key)
+    return model
 
 
 @dataclass
@@ -185,7 +241,8 @@ class SweepResult:
             "- score: median over held-out curves of ||y_hat - y||_2 / ||y||_2 (per curve, over its finite points; "
             f"{self.best.get('holdout_n_skipped', 0)} curve(s) with < {MIN_SCORED_POINTS} finite points skipped)",
             f"- sweep wall time: {self.wall_s:.1f} s ({self.config.jobs} job(s), "
-            f"{self.config.train.threads} torch thread(s) each)",
+            f"{self.config.train.threads} torch thread(s) each); training time summed over architectures "
+            f"{sum(r['wall_s'] for r in self.rows):.0f} s on {', '.join(sorted({r.get('device', 'cpu') for r in self.rows}))}",
             "",
             "| hidden | params | holdout median | holdout p90 | best val MSE (std.) | epochs | stop | wall s |",
             "|---|---|---|---|---|---|---|---|",
@@ -250,8 +307,13 @@ class SweepResult:
         return paths
 
 
-def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool = True) -> SweepResult:
+def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool = True,
+              checkpoints: str | Path | None = None) -> SweepResult:
     """Train every architecture of ``config`` on a grouped split of ``ts`` and pick the best.
+
+    ``checkpoints``: a folder where each architecture is saved as soon as it is trained; a rerun
+    reuses every saved architecture whose data, split, seed and recipe match (the device and
+    thread count may differ), so an interrupted sweep resumes where it stopped.
 
     ``ts`` must be filtered (:func:`bubblecal.surrogates.dataset.filter_curves`; failure-truncated
     prefixes with NaN tails are accepted: training and scores use the finite points). Raises
@@ -268,15 +330,33 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
         raise DatasetError(f"{exc} (in the training part of the grouped split)") from exc
     u, y, _ = train_set.points()
     archs = config.architectures()
-    jobs = [(u, y, h, config.train, config.seed, progress and config.jobs == 1, f"{len(h)}x{h[0]}") for h in archs]
+    data_hash = ts.data_hash()
+    models: list[TrainedMLP | None] = [None] * len(archs)
+    jobs = []
+    for i, h in enumerate(archs):
+        key = checkpoint_key(data_hash, h, config)
+        ckpt = checkpoint_path(checkpoints, h) if checkpoints is not None else None
+        if ckpt is not None:
+            models[i] = load_checkpoint(ckpt, key)
+        if models[i] is None:
+            jobs.append((i, (u, y, h, config.train, config.seed, progress and config.jobs == 1, f"{len(h)}x{h[0]}",
+                             ckpt, key)))
+    if progress and checkpoints is not None and len(jobs) < len(archs):
+        print(f"sweep: {len(archs) - len(jobs)} of {len(archs)} architectures reused from {checkpoints}")
     if config.jobs > 1 and len(jobs) > 1:
         from tqdm.auto import tqdm
 
+        # the largest networks first, so that no long job starts last
+        jobs.sort(key=lambda j: -_n_params([u.shape[1], *j[1][2], 1]))
         ctx = mp.get_context("spawn")
         with ProcessPoolExecutor(max_workers=config.jobs, mp_context=ctx) as pool:
-            models = list(tqdm(pool.map(_train_job, jobs), total=len(jobs), desc="sweep", disable=not progress))
+            done = tqdm(pool.map(_train_job, [j[1] for j in jobs]), total=len(jobs), desc="sweep",
+                        disable=not progress)
+            for (i, _), m in zip(jobs, done, strict=True):
+                models[i] = m
     else:
-        models = [_train_job(j) for j in jobs]
+        for i, job in jobs:
+            models[i] = _train_job(job)
     rows = []
     preds = []
     errs_all = []
@@ -288,8 +368,8 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
         rows.append({"hidden": list(h), "width": h[0], "depth": len(h), "n_params": _n_params(m.layer_sizes),
                      **error_summary(err, prefix_mask),
                      "best_val_loss": m.best_val_loss, "epochs": m.epochs, "stop_reason": m.stop_reason,
-                     "wall_s": m.wall_s})
+                     "wall_s": m.wall_s, "device": m.config.device})
     best = min(range(len(rows)), key=lambda i: (rows[i]["holdout_median"], rows[i]["n_params"]))
     return SweepResult(rows=rows, best_index=best, best_model=models[best], train_set=train_set,
                        holdout_set=holdout_set, holdout_errors=errs_all[best], holdout_pred=preds[best],
-                       config=config, data_hash=ts.data_hash(), wall_s=time.perf_counter() - t0, models=models)
+                       config=config, data_hash=data_hash, wall_s=time.perf_counter() - t0, models=models)

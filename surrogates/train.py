@@ -1,4 +1,4 @@
-"""PyTorch (CPU) training of one standardised tanh MLP surrogate. Imports torch.
+"""PyTorch training of one standardised tanh MLP surrogate (CPU, or CUDA for sweeps). Imports torch.
 
 Recipe (issue 4): tanh hidden layers, Xavier-uniform weights and zero biases; inputs
 ``(ka, kb, b1, b2, a3, a4, x)`` and the target standardised with the training points' mean and
@@ -8,6 +8,13 @@ by 10 when the validation loss has not improved by a relative ``min_rel_improvem
 ``patience`` epochs; training stops when it stalls again after ``max_reductions`` reductions,
 or at ``max_epochs``. The weights with the best validation loss are returned. Same seed, same
 data and same thread count give bit-identical weights.
+
+``device = "cuda"`` trains the same recipe on a GPU: the initial weights and the batch order are
+drawn from the same CPU generator (identical to the CPU run); only floating-point rounding
+differs. Small MLPs are bound by kernel-launch latency there, so by default each Adam step
+(gather, forward, MSE, backward, update) is captured once in a CUDA graph per batch size and
+replayed (``cuda_graphs``); the learning rate lives in a device tensor so that the plateau
+schedule needs no re-capture.
 """
 
 from __future__ import annotations
@@ -39,6 +46,13 @@ class TrainConfig:
     min_rel_improvement: float = 1e-4
     val_frac: float = 0.1
     threads: int | None = 1  # torch intra-op threads; 1 is fastest for these small MLPs (None: torch's)
+    device: str = "cpu"  # cpu | cuda | cuda:N
+    cuda_graphs: bool = True  # on cuda: replay one captured graph per Adam step (launch latency dominates)
+
+    def __post_init__(self):
+        dev = str(self.device)
+        if dev != "cpu" and dev != "cuda" and not (dev.startswith("cuda:") and dev[5:].isdigit()):
+            raise ValueError(f"TrainConfig.device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -113,6 +127,98 @@ class TrainedMLP:
                 "config": self.config.as_dict()}
 
 
+class _EagerSteps:
+    """Plain Adam steps over one epoch's batches (CPU, or CUDA without graphs)."""
+
+    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float):
+        self.model, self.z, self.t, self.bs = model, z, t, bs
+        self.opt = torch.optim.Adam(model.parameters(), lr=lr)
+        self.loss_fn = nn.MSELoss()
+
+    def set_lr(self, lr: float) -> None:
+        for g in self.opt.param_groups:
+            g["lr"] = lr
+
+    def epoch(self, order: torch.Tensor) -> float:
+        """One pass over the batches in ``order``; returns the mean training MSE (standardised)."""
+        order = order.to(self.z.device)
+        n = self.z.shape[0]
+        total = 0.0
+        for start in range(0, n, self.bs):
+            idx = order[start:start + self.bs]
+            self.opt.zero_grad(set_to_none=True)
+            loss = self.loss_fn(self.model(self.z[idx]), self.t[idx])
+            loss.backward()
+            self.opt.step()
+            total += loss.item() * idx.shape[0]
+        return total / n
+
+
+class _GraphSteps:
+    """Adam steps replayed from CUDA graphs: one graph per batch size (full batches, remainder)."""
+
+    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float):
+        self.model, self.z, self.t, self.bs = model, z, t, bs
+        self.n = int(z.shape[0])
+        dev = z.device
+        self.params = list(model.parameters())
+        self.lr = torch.tensor(float(lr), device=dev)  # a tensor: the plateau schedule needs no re-capture
+        self.opt = torch.optim.Adam(self.params, lr=self.lr, capturable=True)
+        self.loss_fn = nn.MSELoss()
+        self.total = torch.zeros((), device=dev)
+        sizes = sorted({bs, self.n % bs} - {0})
+        self.idx = {m: torch.zeros(m, dtype=torch.long, device=dev) for m in sizes}
+        self._warm_up(sizes, dev)
+        self.graphs, self._keep = {}, []
+        for m in sizes:
+            g = torch.cuda.CUDAGraph()
+            self.opt.zero_grad(set_to_none=True)  # each graph owns its gradient buffers
+            with torch.cuda.graph(g):
+                self._step(m)
+            self._keep.append([p.grad for p in self.params])  # keep the captured buffers alive
+            self.graphs[m] = g
+
+    def _step(self, m: int) -> None:
+        idx = self.idx[m]
+        loss = self.loss_fn(self.model(self.z[idx]), self.t[idx])
+        loss.backward()
+        self.opt.step()
+        self.total.add_(loss.detach() * m)
+
+    def _warm_up(self, sizes, dev) -> None:
+        # capture needs warmed-up kernels and existing optimizer state; undo the warm-up steps afterwards
+        saved = [p.detach().clone() for p in self.params]
+        side = torch.cuda.Stream(device=dev)
+        side.wait_stream(torch.cuda.current_stream(dev))
+        with torch.cuda.stream(side):
+            for m in sizes:
+                for _ in range(3):
+                    self.opt.zero_grad(set_to_none=True)
+                    self._step(m)
+        torch.cuda.current_stream(dev).wait_stream(side)
+        with torch.no_grad():
+            for p, v in zip(self.params, saved, strict=True):
+                p.copy_(v)
+            for st in self.opt.state.values():
+                for v in st.values():
+                    if torch.is_tensor(v):
+                        v.zero_()  # step = 0, exp_avg = exp_avg_sq = 0: a fresh Adam
+            self.total.zero_()
+
+    def set_lr(self, lr: float) -> None:
+        self.lr.fill_(float(lr))
+
+    def epoch(self, order: torch.Tensor) -> float:
+        """One pass over the batches in ``order``; returns the mean training MSE (standardised)."""
+        order = order.to(self.z.device)
+        self.total.zero_()
+        for start in range(0, self.n, self.bs):
+            m = min(self.bs, self.n - start)
+            self.idx[m].copy_(order[start:start + m])
+            self.graphs[m].replay()
+        return float(self.total) / self.n
+
+
 def _build(layer_sizes: Sequence[int], gen: torch.Generator) -> nn.Sequential:
     mods: list[nn.Module] = []
     for i, (a, b) in enumerate(zip(layer_sizes[:-1], layer_sizes[1:], strict=True)):
@@ -163,34 +269,34 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
         gen = torch.Generator().manual_seed(int(seed))
         sizes = [u.shape[1], *[int(h) for h in hidden], 1]
         model = _build(sizes, gen)
-        opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+        dev = torch.device(config.device)
+        if dev.type == "cuda":
+            model = model.to(dev)
+            z_tr, t_tr, z_va, t_va = (x.to(dev) for x in (z_tr, t_tr, z_va, t_va))
         loss_fn = nn.MSELoss()
         lr = config.lr
+        n_tr = z_tr.shape[0]
+        bs = min(config.batch_size, n_tr)
+        if dev.type == "cuda" and config.cuda_graphs:
+            stepper = _GraphSteps(model, z_tr, t_tr, bs, lr)
+        else:
+            stepper = _EagerSteps(model, z_tr, t_tr, bs, lr)
         best = math.inf
         best_state = {k: v.clone() for k, v in model.state_dict().items()}
         wait = 0
         reductions = 0
         stop_reason = "max_epochs"
         hist_train, hist_val, hist_lr = [], [], []
-        n_tr = z_tr.shape[0]
-        bs = min(config.batch_size, n_tr)
         bar = tqdm(range(config.max_epochs), desc=desc, disable=not progress, leave=False, mininterval=0.5)
         epoch = 0
         for epoch in bar:
             model.train()
+            # the batch order comes from the CPU generator on every device (same order as a CPU run)
             order = torch.randperm(n_tr, generator=gen)
-            total = 0.0
-            for start in range(0, n_tr, bs):
-                idx = order[start:start + bs]
-                opt.zero_grad(set_to_none=True)
-                loss = loss_fn(model(z_tr[idx]), t_tr[idx])
-                loss.backward()
-                opt.step()
-                total += loss.item() * idx.shape[0]
+            hist_train.append(stepper.epoch(order))
             model.eval()
             with torch.no_grad():
                 val = float(loss_fn(model(z_va), t_va))
-            hist_train.append(total / n_tr)
             hist_val.append(val)
             hist_lr.append(lr)
             if not math.isfinite(val):
@@ -208,16 +314,15 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
                         break
                     reductions += 1
                     lr *= config.lr_factor
-                    for g in opt.param_groups:
-                        g["lr"] = lr
+                    stepper.set_lr(lr)
                     wait = 0
             if progress and epoch % 10 == 0:
                 bar.set_postfix(train=f"{hist_train[-1]:.3g}", val=f"{val:.3g}", lr=f"{lr:.0e}")
         bar.close()
         model.load_state_dict(best_state)
         linears = [m for m in model if isinstance(m, nn.Linear)]
-        weights = [m.weight.detach().numpy().T.copy() for m in linears]
-        biases = [m.bias.detach().numpy().copy() for m in linears]
+        weights = [m.weight.detach().cpu().numpy().T.copy() for m in linears]
+        biases = [m.bias.detach().cpu().numpy().copy() for m in linears]
     finally:
         if config.threads:
             torch.set_num_threads(old_threads)

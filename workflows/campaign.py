@@ -18,7 +18,8 @@ Format (every key is checked; an error names the file, the field and the allowed
     #           ka_values = [...] (grid design), retry_statuses = ["failed", "timeout"]
 
     [ranges]                             # DPD units: ka 2-D modulus, kb energy, b1..a4 dimensionless
-    priors = "definity_full"             # shipped workflow name or a priors TOML path: its shell box
+    priors = "definity_full"             # shipped workflow name or a priors TOML path: its shell box; a list
+                                         # of them (["definity_full", "definity_reduced_acoustic"]): the union box
     kb = 389.23                          # a number fixes a parameter, [lo, hi] samples it (overrides priors)
 
     [tier]                               # keyword settings of the tier (e.g. ftol, max_steps for quasistatic)
@@ -115,6 +116,27 @@ def _key_for(fld: str) -> str:
     return f"[campaign].{fld}"
 
 
+def _prior_box(path: Path, priors: str) -> dict[str, tuple[float, float]]:
+    """The shell-parameter box {param: (lo, hi)} of one workflow prior (fixed values as lo = hi)."""
+    from bubblecal.priors.spec import PriorError, available_priors, load_priors
+
+    target = priors
+    if (priors.endswith(".toml") or "/" in priors) and not Path(priors).is_absolute():
+        target = str(path.parent / priors)
+    try:
+        spec = load_priors(target)
+    except PriorError as exc:
+        raise CampaignFileError(path, "[ranges].priors", f"{priors!r}: {exc} (shipped workflows: "
+                                                         f"{', '.join(available_priors())})") from None
+    box = {}
+    for k in SHELL_PARAM_NAMES:
+        if k in spec.parameters:
+            box[k] = spec.parameters[k].prior.as_tuple()
+        elif k in spec.fixed:
+            box[k] = (spec.fixed[k], spec.fixed[k])
+    return box
+
+
 def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
     """The [ranges] table -> {param: (lo, hi)} (priors box, then explicit overrides)."""
     if not isinstance(raw, dict):
@@ -126,24 +148,18 @@ def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
     ranges: dict[str, tuple[float, float]] = {}
     priors = raw.get("priors")
     if priors is not None:
-        from bubblecal.priors.spec import PriorError, available_priors, load_priors
+        names = priors if isinstance(priors, list) else [priors]
+        if not names or not all(isinstance(n, str) and n for n in names):
+            from bubblecal.priors.spec import available_priors
 
-        if not isinstance(priors, str) or not priors:
             raise CampaignFileError(path, "[ranges].priors", f"must be a shipped workflow name "
-                                                             f"({', '.join(available_priors())}) or a TOML path")
-        target = priors
-        if (priors.endswith(".toml") or "/" in priors) and not Path(priors).is_absolute():
-            target = str(path.parent / priors)
-        try:
-            spec = load_priors(target)
-        except PriorError as exc:
-            raise CampaignFileError(path, "[ranges].priors", f"{priors!r}: {exc} (shipped workflows: "
-                                                             f"{', '.join(available_priors())})") from None
-        for k in SHELL_PARAM_NAMES:
-            if k in spec.parameters:
-                ranges[k] = spec.parameters[k].prior.as_tuple()
-            elif k in spec.fixed:
-                ranges[k] = (spec.fixed[k], spec.fixed[k])
+                                                             f"({', '.join(available_priors())}), a TOML path, or a "
+                                                             f"list of them (union box); got {priors!r}")
+        # a list: the union box, so that every listed workflow's prior lies inside the training domain
+        for name in names:
+            for k, (lo, hi) in _prior_box(path, name).items():
+                ranges[k] = (min(lo, ranges[k][0]), max(hi, ranges[k][1])) if k in ranges else (lo, hi)
+        priors = ", ".join(names)
     for k in SHELL_PARAM_NAMES:
         if k not in raw:
             continue

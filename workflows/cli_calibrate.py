@@ -170,19 +170,25 @@ def confirm(
     tier: str = typer.Option("explicit", "--tier", help="explicit | implicit | quasistatic"),
     device: str = typer.Option("cuda", "--device", help="Warp device: cuda | cpu"),
     subdivisions: int = typer.Option(None, "--subdivisions", help="Icosphere level (default: the tier's)."),
+    scale: float = typer.Option(None, "--scale", min=0.01, max=1.0,
+                                help="explicit / implicit tiers: multiply every MD step count of the protocol "
+                                     "(ramp, hold, averaging; 1 = the published protocol, 0.25 = the gate runs')."),
 ) -> None:
     """Re-simulate each curve's phase-3 MAP with a DPD tier and overlay simulation, surrogate and data
     (PNG + CSV + relative L2 table under RUN/confirm/)."""
     from bubblecal.workflows.confirm import confirm_run, find_runs
     from bubblecal.workflows.console import make_table
 
+    if scale is not None and tier not in ("explicit", "implicit"):
+        raise fail(f"--scale {scale:g}: only the explicit and implicit tiers run MD protocols (tier is {tier!r})")
     runs = find_runs(results)
     if not runs:
         raise fail(f"{results}: no calibration run folder (manifest.json) found")
     for run in runs:
         try:
+            settings = {"scale": scale} if scale is not None and tier in ("explicit", "implicit") else None
             pts, summ, fig = confirm_run(run, tier=tier, device=device, subdivisions=subdivisions,
-                                         progress=lambda m: console.print(f"  {m}", highlight=False))
+                                         tier_settings=settings, progress=lambda m: console.print(f"  {m}", highlight=False))
         except ValueError as exc:
             raise fail(f"{run}: {exc}") from None
         table = make_table(f"{run}: {tier} tier at the MAP, relative L2", ("curve", "status", "sim vs surrogate",

@@ -52,6 +52,11 @@ def train(
     batch_size: int = typer.Option(256),
     lr: float = typer.Option(1e-3),
     jobs: int = typer.Option(1, help="Architectures trained in parallel processes (1 torch thread each)."),
+    device: str = typer.Option("cpu", help="Training device: cpu | cuda | cuda:N (same recipe; CUDA replays each "
+                               "Adam step from a captured graph; several --jobs share one GPU)."),
+    checkpoints: Path = typer.Option(None, "--checkpoints", help="Save each trained architecture here and reuse "
+                                     "matching ones on a rerun (resume an interrupted sweep; default: "
+                                     "OUT/checkpoints)."),
     zero_frac: float = typer.Option(0.01, help="Rupture: last raw response <= this fraction of the curve max."),
     max_drop: float = typer.Option(0.10, help="Rupture: drop below the running max > this fraction of the max."),
     failed_prefix: bool = typer.Option(True, "--failed-prefix/--no-failed-prefix",
@@ -91,8 +96,11 @@ def train(
         typer.echo(str(report))
         if ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
             _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, --diameter is {diameter:g}")
-        train_cfg = TrainConfig(lr=lr, batch_size=batch_size, max_epochs=max_epochs, patience=patience,
-                                max_reductions=max_reductions, threads=1)
+        try:
+            train_cfg = TrainConfig(lr=lr, batch_size=batch_size, max_epochs=max_epochs, patience=patience,
+                                    max_reductions=max_reductions, threads=1, device=device)
+        except ValueError as exc:
+            raise typer.BadParameter(str(exc).replace("TrainConfig.device", "--device")) from None
         if sweep:
             cfg = SweepConfig(widths=_ints(widths, "--widths"), depths=_ints(depths, "--depths"),
                               holdout_frac=holdout_frac, seed=seed, jobs=jobs, train=train_cfg,
@@ -100,7 +108,7 @@ def train(
         else:
             cfg = SweepConfig(widths=(width,), depths=(depth,), holdout_frac=holdout_frac, seed=seed, jobs=1,
                               train=train_cfg, min_curves=2)
-        result = run_sweep(ts, cfg, progress=not quiet)
+        result = run_sweep(ts, cfg, progress=not quiet, checkpoints=checkpoints or out / "checkpoints")
     except (DatasetError, FileNotFoundError) as exc:
         _fail(str(exc))
     out.mkdir(parents=True, exist_ok=True)

@@ -101,3 +101,55 @@ def test_surrogates_group_registered():
     from bubblecal.workflows import cli
 
     assert ("surrogates", "bubblecal.workflows.cli_surrogates") in cli.COMMAND_GROUPS
+
+
+def test_sweep_checkpoints_resume_and_reject_other_recipes(tmp_path):
+    from bubblecal.surrogates.sweep import checkpoint_path
+
+    ts = make_synthetic(24, "compression", noise=0.01, seed=2)
+    cfg = SweepConfig(widths=(4, 8), depths=(1,), train=TINY, min_curves=2)
+    first = run_sweep(ts, cfg, progress=False, checkpoints=tmp_path)
+    files = sorted(p.name for p in tmp_path.glob("arch_*.npz"))
+    assert files == ["arch_4x1.npz", "arch_8x1.npz"] and not list(tmp_path.glob("*.part"))
+    # an interrupted sweep: one architecture lost; the rerun trains only that one
+    checkpoint_path(tmp_path, (8,)).unlink()
+    again = run_sweep(ts, cfg, progress=False, checkpoints=tmp_path)
+    for a, b in zip(first.models, again.models, strict=True):
+        assert all(np.array_equal(x, y) for x, y in zip(a.weights, b.weights, strict=True))
+    assert again.models[0].wall_s == first.models[0].wall_s  # reused, not retrained
+    assert again.score == first.score
+    # another recipe (more epochs) must not reuse them; another device or thread count may
+    other = SweepConfig(widths=(4, 8), depths=(1,), train=TrainConfig(max_epochs=7, patience=2, max_reductions=1,
+                                                                      batch_size=128), min_curves=2)
+    third = run_sweep(ts, other, progress=False, checkpoints=tmp_path)
+    assert third.models[0].wall_s != first.models[0].wall_s
+    from bubblecal.surrogates.sweep import checkpoint_key
+    k_cpu = checkpoint_key("h", (4,), cfg)
+    k_gpu = checkpoint_key("h", (4,), SweepConfig(widths=(4, 8), depths=(1,), min_curves=2,
+                                                  train=TrainConfig(max_epochs=6, patience=2, max_reductions=1,
+                                                                    batch_size=128, device="cuda", threads=2)))
+    assert k_cpu == k_gpu
+
+
+@pytest.mark.gpu
+def test_cuda_graph_training_matches_eager_cuda_and_cpu():
+    # same initial weights and batch order on every path; graphs replay the eager step exactly
+    import torch
+
+    from bubblecal.surrogates.train import train_mlp
+
+    if not torch.cuda.is_available():
+        pytest.skip("no CUDA device")
+    rng = np.random.default_rng(0)
+    u = rng.uniform(size=(3000, 7))
+    y = np.tanh(u @ rng.normal(size=7)) + 0.1 * u[:, 0] ** 2
+    base = dict(max_epochs=40, patience=3, max_reductions=1, batch_size=256)  # 2,700 train points: a remainder batch
+    cpu = train_mlp(u, y, (32, 32), TrainConfig(**base), progress=False)
+    eager = train_mlp(u, y, (32, 32), TrainConfig(**base, device="cuda", cuda_graphs=False), progress=False)
+    graph = train_mlp(u, y, (32, 32), TrainConfig(**base, device="cuda"), progress=False)
+    assert graph.epochs == eager.epochs
+    np.testing.assert_allclose(graph.history["val_loss"], eager.history["val_loss"], rtol=1e-4)
+    np.testing.assert_allclose(graph.history["lr"], eager.history["lr"])
+    # CPU and GPU differ by rounding only: the same loss curve to a few per cent
+    n = min(len(cpu.history["val_loss"]), len(graph.history["val_loss"]), 20)
+    np.testing.assert_allclose(graph.history["val_loss"][:n], cpu.history["val_loss"][:n], rtol=0.05)

@@ -93,6 +93,17 @@ def test_relative_store_and_priors_box(tmp_path):
     assert c.tier_settings == {"max_steps": 4000}
 
 
+def test_priors_list_gives_the_union_box(tmp_path):
+    # the reduced-acoustic box is wider in ka and kb than the full one; b1..a4 come from the full box only
+    text = GOOD.replace('priors = "definity_full"\nkb = 500.0',
+                        'priors = ["definity_full", "definity_reduced_acoustic"]')
+    f = load_campaign_file(write(tmp_path, text))
+    r = f.config.ranges
+    assert r["ka"] == (3500.0, 34000.0) and r["kb"] == (100.0, 1100.0)
+    assert r["b1"] == (0.0, 3.0) and r["a3"] == (-2.5, 3.0)
+    assert f.priors == "definity_full, definity_reduced_acoustic"
+
+
 @pytest.mark.parametrize("old, new, key, allowed", [
     ('protocol = "compression"', 'protocol = "shear"', "[campaign].protocol", "compression, indentation, ringdown"),
     ("n_samples = 2", "n_samples = 0", "[campaign].n_samples", ">= 1"),
@@ -108,6 +119,8 @@ def test_relative_store_and_priors_box(tmp_path):
     ("kb = 500.0", "mu = 3.0", "[ranges].mu", "allowed: priors, ka, kb"),
     ('priors = "definity_full"', 'priors = "nosuch_full"', "[ranges].priors", "shipped workflows: definity_full"),
     ('priors = "definity_full"', "", "[ranges].ka", "missing"),
+    ('priors = "definity_full"', "priors = []", "[ranges].priors", "list of them (union box)"),
+    ('priors = "definity_full"', 'priors = ["definity_full", "nosuch"]', "[ranges].priors", "'nosuch'"),
     ("max_steps = 4000", "max_step = 4000", "[tier].max_step", "allowed for tier 'quasistatic'"),
     ('scheduler_address = "inline"', "n_workers = 0", "[dask].n_workers", ">= 1"),
     ('scheduler_address = "inline"', "threads = 2", "[dask].threads", "allowed: scheduler_address, n_workers"),
