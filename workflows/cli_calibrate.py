@@ -166,7 +166,7 @@ def evidence(
 
 
 def confirm(
-    results: Path = typer.Argument(..., help="A calibration output folder (OUT or OUT/<agent>/<workflow>)."),
+    results: Path = typer.Argument(..., help="A calibration output folder (OUT, OUT/<agent> or OUT/<agent>/<workflow>)."),
     tier: str = typer.Option("explicit", "--tier", help="explicit | implicit | quasistatic"),
     device: str = typer.Option("cuda", "--device", help="Warp device: cuda | cpu"),
     subdivisions: int = typer.Option(None, "--subdivisions", help="Icosphere level (default: the tier's)."),

@@ -29,11 +29,13 @@ __all__ = ["find_runs", "map_parameters", "confirm_run"]
 
 
 def find_runs(results: Path) -> list[Path]:
-    """Run folders (holding ``manifest.json``) at or below ``results``."""
+    """Run folders (holding ``manifest.json``): ``results`` itself, OUT/<agent>/<workflow> under an agent
+    folder, or every run under an output root."""
     results = Path(results)
     if (results / "manifest.json").is_file():
         return [results]
-    return sorted(p.parent for p in results.glob("*/*/manifest.json"))
+    return sorted(p.parent for p in results.glob("*/*/manifest.json")) or sorted(
+        p.parent for p in results.glob("*/manifest.json"))
 
 
 def map_parameters(run_dir: Path, curve_name: str) -> dict[str, float] | None:

@@ -34,6 +34,7 @@ def run_dir(tmp_path, synthetic_bundle):
 
 def test_map_and_find(run_dir, tmp_path):
     assert find_runs(tmp_path / "cal") == [run_dir] and find_runs(run_dir) == [run_dir]
+    assert find_runs(run_dir.parent) == [run_dir]  # OUT/<agent>
     theta = map_parameters(run_dir, "definity_compression_2.1um")
     assert theta["ka"] == 15000.0 and theta["d0"] == 0.1
     assert map_parameters(run_dir, "definity_compression_2.9um") is None
