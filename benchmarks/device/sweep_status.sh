@@ -1,9 +1,15 @@
-# Lent GPU: progress of the background sweeps (architectures checkpointed per set); everything under /tmp/sw comes
-# back as one file, $OUT/sw.tgz (the device returns at most 8 files).
+# Lent GPU: progress of the background sweeps (architectures checkpointed per set) and campaigns; the checkpoints,
+# logs and exported campaign sets come back as $OUT/sw.tgz and $OUT/NAME.jsonl.gz (the device returns <= 8 files).
 for D in /tmp/sw/*/; do
   NAME=$(basename $D); N=$(ls $D/checkpoints/arch_*.npz 2>/dev/null | wc -l)
-  ST=running; [ -f $D/done ] && ST=done; [ -f $D/pid ] && ! kill -0 "$(cat $D/pid)" 2>/dev/null && [ ! -f $D/done ] && ST=stopped
-  echo "$NAME: $N/12 architectures, $ST"; tail -c 400 $D/train.log | tr '\r' '\n' | grep -v "^\s*$" | tail -2 | cut -c1-200
+  echo "$NAME: $N/12 architectures checkpointed: $(cd $D/checkpoints 2>/dev/null && ls arch_*.npz 2>/dev/null | sed 's/arch_//;s/.npz//' | tr '\n' ' ')"
 done
-tar -czf $OUT/sw.tgz -C /tmp sw 2>/dev/null; ls -la $OUT/sw.tgz
+for F in cpu_done campaigns_done gpu_done; do [ -f /tmp/sw/$F ] && echo "$F"; done
+[ -f /tmp/sw/campaigns.log ] && grep -E "rc=|valid|ok" /tmp/sw/campaigns.log | tail -6 | cut -c1-300
+for L in /tmp/st/*.log; do [ -f $L ] && echo "$(basename $L): $(tr '\r' '\n' < $L | grep -v '^\s*$' | tail -1 | cut -c1-200)"; done
+tail -4 /tmp/sw/finished.txt 2>/dev/null
+grep -l "rc=[1-9]" /dev/null $(ls /tmp/sw/finished.txt 2>/dev/null) >/dev/null && grep "rc=[1-9]" /tmp/sw/finished.txt | head
+tar -czf $OUT/sw.tgz -C /tmp --exclude='sw/*/run_*/*.npz' sw 2>/dev/null; ls -la $OUT/sw.tgz
+for F in /tmp/train/*.jsonl.gz; do [ -f $F ] && [ "${COPY_SETS:-1}" = 1 ] && cp $F $OUT/; done
 nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader
+uptime
