@@ -18,7 +18,11 @@ if [ -f /tmp/sw/pipeline.pid ] && kill -0 "$(cat /tmp/sw/pipeline.pid)" 2>/dev/n
 for SPEC in "$@"; do
   IFS=: read -r NAME SETUP DIA DATA <<< "$SPEC"
   mkdir -p /tmp/sw/$NAME/checkpoints
+  # checkpoints carried back from an earlier machine (.device-stores/sw/NAME/checkpoints) are reused
+  [ -d .device-stores/sw/$NAME/checkpoints ] && cp -n .device-stores/sw/$NAME/checkpoints/arch_*.npz /tmp/sw/$NAME/checkpoints/ 2>/dev/null
   for W in $(echo ${CPU_WIDTHS:-32,64,128} | tr , ' ' | xargs -n1 | sort -rn); do for DEP in 4 3 2; do
+    # .device-stores/sw/NAME/have.txt lists architectures already trained elsewhere (WxD per line): skipped
+    grep -qsx "${W}x${DEP}" .device-stores/sw/$NAME/have.txt && continue
     echo "$W $DEP $NAME $SETUP $DIA $DATA" >> /tmp/sw/cpu_jobs.txt; done; done
 done
 
@@ -48,6 +52,7 @@ chmod +x /tmp/sw/train_one.sh
     : > /tmp/sw/gpu_jobs.txt
     for SPEC in $*; do IFS=: read -r NAME SETUP DIA DATA <<< \"\$SPEC\"
       for W in \$(echo ${GPU_WIDTHS:-256} | tr , ' '); do for DEP in 4 3 2; do
+        grep -qsx \"\${W}x\${DEP}\" .device-stores/sw/\$NAME/have.txt && continue
         echo \"\$W \$DEP \$NAME \$SETUP \$DIA \$DATA cuda\" >> /tmp/sw/gpu_jobs.txt; done; done; done
     xargs -P ${GPU_JOBS:-2} -L 1 /tmp/sw/train_one.sh < /tmp/sw/gpu_jobs.txt
     touch /tmp/sw/gpu_done

@@ -55,6 +55,25 @@ def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
         assert np.all(y > 0) and np.all(np.diff(y) > 0), (curve.name, y)
 
 
+def test_each_surrogate_won_a_full_sweep_and_covers_every_workflow_box(bundle):
+    from bubblecal.priors import load_priors
+
+    for (setup, _), sur in bundle.surrogates.items():
+        sweep = sur.metadata["training"]["sweep"]
+        # the 12-architecture grid (widths 32-256 x depths 2-4), the selected one has the lowest score
+        assert {(r["width"], r["depth"]) for r in sweep} == {(w, d) for w in (32, 64, 128, 256) for d in (2, 3, 4)}
+        best = min(sweep, key=lambda r: r["holdout_median"])
+        assert list(sur.architecture["hidden"]) == [best["width"]] * best["depth"]
+        assert sur.holdout_score == pytest.approx(best["holdout_median"])
+        if setup == "compression":  # every Definity workflow prior box lies inside the training box (1 % slack)
+            for wf in ("definity_full", "definity_reduced", "definity_reduced_acoustic"):
+                pri = load_priors(wf)
+                for name in ("ka", "kb"):
+                    lo, hi = pri.parameters[name].prior.lo, pri.parameters[name].prior.hi
+                    tlo, thi = sur.param_ranges[name]
+                    assert tlo <= lo + 0.01 * (hi - lo) and thi >= hi - 0.01 * (hi - lo), (wf, name)
+
+
 def test_acoustic_surrogates_cover_every_observation(bundle):
     for agent in ("definity", "sonovue"):
         ac = bundle.acoustic[agent]
