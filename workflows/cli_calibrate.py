@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from bubblecal.workflows.console import console, fail
 
@@ -90,8 +91,8 @@ def calibrate(
                       "the posteriors are not physical results", highlight=False)
     for ap in plan.agents:
         for msg in ap.domain_warnings[:5]:
-            console.print(f"[yellow]warning:[/] {ap.agent}: prior box exceeds a surrogate's training box: {msg}",
-                          highlight=False, markup=False)
+            console.print(f"[yellow]warning:[/] {ap.agent}: prior box exceeds a surrogate's training box: "
+                          f"{escape(msg)}", highlight=False)
     console.print(f"calibrate: agents {', '.join(agents)}, workflow {workflow}, sampler {sampler}, "
                   f"N = {config.num_particles} per phase, device {device}, bundle {plan.bundle_path}, out {out}",
                   highlight=False)
