@@ -10,14 +10,24 @@ The split is by site type, from a trace of the model with the latent values subs
 
 Site ``scale`` (plates with subsampling, ``numpyro.handlers.scale``) and masks are honoured as in
 ``numpyro.infer.util.log_density``.
+
+Data as arguments: the numeric array leaves of the model's arguments (``FlatModel.data``; the model's
+``functools.partial`` arguments included) are passed to the densities as traced values rather than
+closed over as constants, and ``FlatModel.signature`` identifies everything else (model function,
+fixed arguments, array shapes, latent structure, bijections).  Two models with equal signatures
+can therefore share one compiled program (e.g. curves of one network architecture and length).  A
+model that needs the concrete values of its arrays (``np.asarray(x)``, ``float(y.max())``) is detected
+by an abstract trace and keeps them as constants (``data == ()``, its signature then matches no other).
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.flatten_util import ravel_pytree
 from numpyro import handlers
 from numpyro.distributions import constraints
@@ -49,6 +59,64 @@ def _elementwise(support):
     return support
 
 
+#: placeholder of a traced argument among the fixed leaves of the model's arguments
+_DATA = object()
+
+
+class _Identity:
+    """Hashable stand-in of an unhashable fixed argument: equal only to the same object (kept alive)."""
+
+    __slots__ = ("obj",)
+
+    def __init__(self, obj):
+        self.obj = obj
+
+    def __eq__(self, other):
+        return isinstance(other, _Identity) and other.obj is self.obj
+
+    def __hash__(self):
+        return id(self.obj)
+
+
+def _static_key(value):
+    """Cache key of a fixed argument: the value itself when hashable, else its identity."""
+    try:
+        hash(value)
+    except TypeError:
+        return _Identity(value)
+    return (type(value), value)  # the type keeps 1 / 1.0 / True apart
+
+
+def _is_data(leaf) -> bool:
+    """Numeric arrays are data (traced arguments); scalars, strings and objects stay fixed."""
+    return isinstance(leaf, (np.ndarray, jax.Array)) and np.dtype(leaf.dtype).kind in "biuf"
+
+
+def _fingerprint(tree):
+    """Hashable value of a pytree of concrete arrays (e.g. a bijection with its bounds)."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    return treedef, tuple((np.shape(v), str(np.asarray(v).dtype), np.asarray(v).tobytes()) for v in leaves)
+
+
+def _aval_key(value):
+    """(shape, dtype as jit sees it, weak type) of a data leaf."""
+    dtype = jax.dtypes.canonicalize_dtype(np.dtype(value.dtype))
+    return tuple(np.shape(value)), str(dtype), bool(getattr(value, "weak_type", False))
+
+
+def _has_tracer(tree) -> bool:
+    return any(isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(tree))
+
+
+def _unpartial(model, args: tuple, kwargs: dict):
+    """``partial(f, *a, **k)`` with ``args``/``kwargs`` -> ``(f, a + args, {**k, **kwargs})`` (nested too)."""
+    while isinstance(model, functools.partial):
+        args = tuple(model.args) + tuple(args)
+        kwargs = {**model.keywords, **kwargs}
+        model = model.func
+    return model, args, kwargs
+
+
 def _model_label(model) -> str:
     return getattr(model, "__qualname__", None) or getattr(model, "__name__", None) or repr(model)
 
@@ -66,19 +134,53 @@ class FlatModel:
     ):
         if space not in ("unconstrained", "constrained"):
             raise ValueError(f"space must be 'unconstrained' or 'constrained', got {space!r}")
+        # a partial's bound arguments are arguments like any other (its arrays become data)
+        model, model_args, model_kwargs = _unpartial(model, tuple(model_args), dict(model_kwargs or {}))
         self.model = model
         self.label = _model_label(model)
         self.args = tuple(model_args)
-        self.kwargs = dict(model_kwargs or {})
+        self.kwargs = dict(model_kwargs)
         self.space = space
         rng_key = jax.random.PRNGKey(0) if rng_key is None else rng_key
-        proto = handlers.trace(handlers.seed(model, rng_key)).get_trace(*self.args, **self.kwargs)
+        # The prototype draw that gives the sites, supports and shapes is traced abstractly: run
+        # eagerly, every new array shape of the model (each curve length, network) would compile
+        # its operations one by one.  Supports computed from arrays inside the model are tracers
+        # there; such models (and any that fail abstractly) take the eager draw as before.
+        proto = self._abstract_prototype(rng_key)
+        if proto is None:
+            trace = handlers.trace(handlers.seed(model, rng_key)).get_trace(*self.args, **self.kwargs)
+            self._read_sites(trace)
+            proto_values = {k: trace[k]["value"] for k in self.latent}
+            flat0, self._unravel = ravel_pytree(self._to_flat_space(proto_values))
+        else:
+            proto_values, flat0 = proto
+        self.dim = int(flat0.shape[0])
+        self.dtype = flat0.dtype
+        self._split_arguments(traced=True)
+        if self.data and not self._traceable(flat0):
+            self._split_arguments(traced=False)
+        self.signature = (
+            self.model,
+            space,
+            self._treedef,
+            tuple(_static_key(v) for v in self._fixed),
+            tuple(_aval_key(v) for v in self.data),
+            tuple((k, tuple(jnp.shape(proto_values[k])), str(proto_values[k].dtype)) for k in self.latent),
+            tuple(_fingerprint(self.transforms[k]) for k in self.latent),
+            tuple(_fingerprint(self.scales[k]) for k in self.latent),
+            tuple(self.event_dims[k] for k in self.latent),
+            tuple(self.deterministic),
+        )
+
+    def _read_sites(self, trace) -> None:
+        """Latent sites, their bijections, scales and event dims, and the deterministic sites of a trace."""
         self.latent: list[str] = []
         self.transforms = {}
         self.scales = {}
         self.event_dims = {}
         self.deterministic: list[str] = []
-        for name, site in proto.items():
+        space = self.space
+        for name, site in trace.items():
             if site["type"] == "deterministic":
                 self.deterministic.append(name)
             if site["type"] != "sample" or site["is_observed"]:
@@ -101,10 +203,59 @@ class FlatModel:
             self.event_dims[name] = len(fn.event_shape)
         if not self.latent:
             raise ValueError(f"model {self.label!r} has no continuous latent sample sites")
-        proto_values = {k: proto[k]["value"] for k in self.latent}
-        flat0, self._unravel = ravel_pytree(self._to_flat_space(proto_values))
-        self.dim = int(flat0.shape[0])
-        self.dtype = flat0.dtype
+
+    def _abstract_prototype(self, rng_key):
+        """(latent value shapes, flat vector shape) from an abstract trace, or None where it cannot serve."""
+        box = {}
+
+        def probe(key):
+            box["trace"] = trace = handlers.trace(handlers.seed(self.model, key)).get_trace(*self.args, **self.kwargs)
+            return {k: v["value"] for k, v in trace.items() if v["type"] == "sample" and not v["is_observed"]}
+
+        try:
+            values = jax.eval_shape(probe, rng_key)
+        except Exception:  # noqa: BLE001 - whatever fails abstractly runs eagerly (and reports there)
+            return None
+        try:
+            self._read_sites(box["trace"])
+        except Exception:  # noqa: BLE001 - a support built from traced arrays (or a bad model): eager draw
+            return None
+        if _has_tracer((self.transforms, self.scales)):  # a support or scale computed in the model
+            return None
+        values = {k: values[k] for k in self.latent}
+
+        def flatten(v):
+            flat, box["unravel"] = ravel_pytree(self._to_flat_space(v))
+            return flat
+
+        flat0 = jax.eval_shape(flatten, values)
+        self._unravel = box["unravel"]  # holds shapes and dtypes only, nothing of the trace
+        return values, flat0
+
+    # -- arguments: traced data and fixed rest --------------------------------------------------
+
+    def _split_arguments(self, traced: bool) -> None:
+        leaves, self._treedef = jax.tree_util.tree_flatten((self.args, self.kwargs))
+        use = [traced and _is_data(v) for v in leaves]
+        #: the traced arguments (numeric array leaves of args/kwargs), in tree order
+        self.data = tuple(v for v, u in zip(leaves, use, strict=True) if u)
+        self._fixed = [_DATA if u else v for v, u in zip(leaves, use, strict=True)]
+
+    def _traceable(self, flat0) -> bool:
+        """Whether the densities run with abstract data (no concrete value of an array needed)."""
+        try:
+            jax.eval_shape(lambda x, data: self.log_terms(x, data), flat0, self.data)
+        except Exception:  # noqa: BLE001 - any failure: keep the arrays as constants, as before
+            return False
+        return True
+
+    def arguments(self, data=None) -> tuple[tuple, dict]:
+        """(args, kwargs) of the model with ``data`` (default: the bound arrays) in place of the arrays."""
+        if data is None:
+            return self.args, self.kwargs
+        values = iter(data)
+        leaves = [next(values) if v is _DATA else v for v in self._fixed]
+        return jax.tree_util.tree_unflatten(self._treedef, leaves)
 
     # -- spaces -------------------------------------------------------------------------------
 
@@ -128,12 +279,13 @@ class FlatModel:
 
     # -- densities ----------------------------------------------------------------------------
 
-    def _trace(self, values: dict):
+    def _trace(self, values: dict, data=None):
         model = handlers.substitute(handlers.seed(self.model, jax.random.PRNGKey(0)), data=values)
-        return handlers.trace(model).get_trace(*self.args, **self.kwargs)
+        args, kwargs = self.arguments(data)
+        return handlers.trace(model).get_trace(*args, **kwargs)
 
-    def log_terms(self, x: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """(log prior in the flat space, log likelihood) of one flat vector."""
+    def log_terms(self, x: jax.Array, data=None) -> tuple[jax.Array, jax.Array]:
+        """(log prior in the flat space, log likelihood) of one flat vector (``data``: see :meth:`arguments`)."""
         params = self._unravel(x)
         if self.space == "constrained":
             values = params
@@ -151,7 +303,7 @@ class FlatModel:
                 if scale is not None and not is_identically_one(scale):
                     ld = scale * ld
                 log_jac = log_jac + jnp.sum(ld)
-        tr = self._trace(values)
+        tr = self._trace(values, data)
         log_prior = log_jac
         log_lik = jnp.zeros((), self.dtype)
         for name, site in tr.items():
@@ -167,26 +319,27 @@ class FlatModel:
                 log_prior = log_prior + lp
         return log_prior, log_lik
 
-    def log_prior(self, x):
-        return self.log_terms(x)[0]
+    def log_prior(self, x, data=None):
+        return self.log_terms(x, data)[0]
 
-    def log_likelihood(self, x):
-        return self.log_terms(x)[1]
+    def log_likelihood(self, x, data=None):
+        return self.log_terms(x, data)[1]
 
-    def sites(self, x: jax.Array) -> dict:
+    def sites(self, x: jax.Array, data=None) -> dict:
         """Constrained latent values and deterministic sites of one flat vector."""
         values = self.constrain(x)
         out = dict(values)
         if self.deterministic:
-            tr = self._trace(values)
+            tr = self._trace(values, data)
             for name in self.deterministic:
                 out[name] = tr[name]["value"]
         return out
 
     # -- prior draws --------------------------------------------------------------------------
 
-    def prior_draws(self, rng_key, num: int) -> jax.Array:
+    def prior_draws(self, rng_key, num: int, data=None) -> jax.Array:
         """Exact prior draws (NumPyro ``Predictive``), mapped to the flat space: shape (num, dim)."""
         pred = Predictive(self.model, num_samples=num, return_sites=self.latent, parallel=True)
-        draws = pred(rng_key, *self.args, **self.kwargs)
+        args, kwargs = self.arguments(data)
+        draws = pred(rng_key, *args, **kwargs)
         return jax.vmap(self.flatten)(draws)

@@ -30,18 +30,20 @@ prior) :class:`ValueError` names the model; the stage cap and the minimum Δ end
 
 from __future__ import annotations
 
+import collections
+import functools
 import math
 import time
 import warnings
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from bubblecal.inference import tmcmc_core as core
-from bubblecal.inference._numpyro_utils import FlatModel
+from bubblecal.inference._numpyro_utils import FlatModel, _static_key
 from bubblecal.inference.tmcmc_core import (  # noqa: F401  (re-exported: the pure core is part of this module's API)
     STATUS_NAMES,
     RandomWalk,
@@ -90,6 +92,157 @@ def _check_positive(name, value):
     if not (math.isfinite(v) and v > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
     return v
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled programs, cached per process
+#
+# A phase of a staged hierarchy is a new TMCMC run of a new model; if every run built its own jitted
+# closures, every run would trace and compile everything again.  Programs are therefore built once
+# per key and kept here: the model-free stage pieces per (move, resampling), the model's own
+# programs per FlatModel.signature (its arrays are traced arguments, so datasets of one structure
+# share them), and jit keeps one executable per argument shape (N, d, data shapes) under each.
+# ---------------------------------------------------------------------------------------------
+
+_PROGRAM_CACHE_SIZE = 64
+_program_cache: collections.OrderedDict = collections.OrderedDict()
+
+
+def _cached_programs(key, build: Callable):
+    """``build()`` once per ``key`` (least recently used entries beyond the cache size are dropped)."""
+    if key in _program_cache:
+        _program_cache.move_to_end(key)
+        return _program_cache[key]
+    value = _program_cache[key] = build()
+    while len(_program_cache) > _PROGRAM_CACHE_SIZE:
+        _program_cache.popitem(last=False)
+    return value
+
+
+def clear_program_cache() -> None:
+    """Forget every cached compiled TMCMC program (the next runs trace and compile again)."""
+    _program_cache.clear()
+
+
+class _StagePrograms(NamedTuple):
+    """Jitted model-free pieces of a random-walk stage (see :func:`_split_stage`)."""
+
+    initial_state: Callable  # (position, log_prior, log_likelihood) -> TMCMCState
+    begin: Callable  # (key, state, target CoV) -> (StagePlan, chol, log s, move carry)
+    propose: Callable  # (key, x, chol, log s) -> (key, acceptance key, proposal)
+    accept: Callable  # (acceptance key, carry, proposal, lp, ll, beta) -> carry
+    end: Callable  # (state, plan, carry, log s at the start, min Δ) -> (state, StageInfo)
+
+
+class _ModelPrograms(NamedTuple):
+    """Jitted programs of one model structure; the model's arrays (``FlatModel.data``) are arguments."""
+
+    draws: Callable  # (key, data, num) -> (num, d) exact prior draws in the flat space
+    evaluate: Callable  # (position, data) -> (log prior, log L) of (N, d) particles
+    sites: Callable  # (position, data) -> {site: (N, ...) constrained values and deterministic sites}
+
+
+class _FusedPrograms(NamedTuple):
+    """Jitted init / stage / whole run with the move fused in (moves that need the model inside)."""
+
+    init: Callable  # (key, data, num) -> TMCMCState
+    step: Callable  # (key, state, data) -> (state, StageInfo)
+    run: Callable  # (key, state, data) -> (state, infos, status)
+
+
+def _splittable(move) -> bool:
+    """True for moves whose stage can run as model-free pieces around the evaluator (the random walk)."""
+    return isinstance(move, RandomWalk)
+
+
+def _stage_programs(move: RandomWalk, config: TMCMCConfig) -> _StagePrograms:
+    """The stage pieces of ``move`` with ``config``'s resampling, shared by every model, dataset and CoV
+    target: the numeric settings (target CoV, minimum Δ) are traced arguments of each call."""
+
+    def build():
+        def settings(target_cov, min_delta):
+            return TMCMCConfig(target_cov=target_cov, resampling=config.resampling, min_delta=min_delta)
+
+        def begin(key, state, target_cov):
+            plan = core.prepare_stage(key, state, settings(target_cov, 0.0))
+            chol, log_s = move.start(plan.weighted_cov, state.move_params)
+            carry = (plan.position, plan.log_prior, plan.log_likelihood, log_s, jnp.zeros((), plan.position.dtype))
+            return plan, chol, log_s, carry
+
+        def end(state, plan, carry, log_s0, min_delta):
+            return core.finish_stage(state, plan, move.result(carry, log_s0), settings(1.0, min_delta))
+
+        return _StagePrograms(
+            initial_state=jax.jit(lambda position, lp, ll: core.initial_state(position, lp, ll, move)),
+            begin=jax.jit(begin),
+            propose=jax.jit(move.propose),
+            accept=jax.jit(move.accept),
+            end=jax.jit(end),
+        )
+
+    # the type is part of the key: NamedTuples of equal fields compare equal across classes
+    return _cached_programs(("stage", type(move), move, config.resampling), build)
+
+
+def _densities(flat: FlatModel, data) -> tuple[Callable, Callable]:
+    """(log prior, log likelihood) of one flat vector of ``flat``'s structure with ``data`` as its arrays."""
+    return functools.partial(flat.log_prior, data=data), functools.partial(flat.log_likelihood, data=data)
+
+
+def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
+    """Prior draws, evaluator and sites of ``flat``'s structure; ``flat`` (the first model seen with
+    this signature) serves as the template, every later model of equal signature passes its own data."""
+
+    def build():
+        def evaluate(position, data):
+            return core.make_evaluator(*_densities(flat, data), chunk_size)(position)
+
+        def sites(position, data):
+            return core.chunked_vmap(functools.partial(flat.sites, data=data), chunk_size)(position)
+
+        return _ModelPrograms(
+            draws=jax.jit(lambda key, data, num: flat.prior_draws(key, num, data), static_argnums=2),
+            evaluate=jax.jit(evaluate),
+            sites=jax.jit(sites),
+        )
+
+    return _cached_programs(("model", flat.signature, chunk_size), build)
+
+
+def _fused_programs(flat: FlatModel, move: Any, config: TMCMCConfig, max_stages: int) -> _FusedPrograms:
+    """Init, stage and whole run with ``move`` fused in, for ``flat``'s structure (data as arguments)."""
+
+    def build():
+        return _FusedPrograms(
+            init=jax.jit(
+                lambda key, data, num: core.init(
+                    flat.prior_draws(key, num, data), *_densities(flat, data), move, config.chunk_size
+                ),
+                static_argnums=2,
+            ),
+            step=jax.jit(lambda key, state, data: core.step(key, state, *_densities(flat, data), move, config)),
+            run=jax.jit(
+                lambda key, state, data: core.run(key, state, *_densities(flat, data), move, config, max_stages)
+            ),
+        )
+
+    key = ("fused", flat.signature, type(move), _static_key(move), config, max_stages)
+    return _cached_programs(key, build)
+
+
+def _split_stage(stages: _StagePrograms, evaluate: Callable, move: RandomWalk, config: TMCMCConfig, key, state):
+    """One stage as host-driven pieces: the arithmetic and random numbers of :func:`core.step` with a
+    :class:`RandomWalk`, but only ``evaluate`` (jitted, ``(N, d) -> (log prior, log L)``) is specific to
+    the model.  Returns ``(state, info)``.  (Not bitwise equal to the fused step: XLA fuses the
+    proposal into the fused step's likelihood, which moves log L by float round-off, ~1e-6 relative.)"""
+    # Python floats reach jit as traced weakly typed scalars (the dtype of the particles), not constants
+    plan, chol, log_s0, carry = stages.begin(key, state, float(config.target_cov))
+    key = plan.key_move
+    for _ in range(move.num_steps):
+        key, k_acc, prop = stages.propose(key, carry[0], chol, carry[3])
+        lp_p, ll_p = evaluate(prop)
+        carry = stages.accept(k_acc, carry, prop, lp_p, ll_p, plan.beta)
+    return stages.end(state, plan, carry, log_s0, float(config.min_delta))
 
 
 class TMCMC:
@@ -184,6 +337,7 @@ class TMCMC:
             chunk_size=self.chunk_size,
         )
         self._flat: FlatModel | None = None
+        self._data: tuple = ()  # the model's arrays on the device (FlatModel.data)
         self._results: list[dict] = []
         self._samples_cache: dict | None = None
 
@@ -195,13 +349,35 @@ class TMCMC:
         self._flat = flat
         self._samples_cache = None
         n, move, cfg = self.num_particles, self.move, self.config
-        lp_fn, ll_fn = flat.log_prior, flat.log_likelihood
+        # the model's arrays go to the device once, then every program call takes them as arguments
+        data = self._data = tuple(jnp.asarray(v) for v in flat.data)
+        model = _model_programs(flat, cfg.chunk_size)
 
-        init_fn = jax.jit(lambda key: core.init(flat.prior_draws(key, n), lp_fn, ll_fn, move, cfg.chunk_size))
-        if self.compiled:
-            run_fn = jax.jit(lambda key, st: core.run(key, st, lp_fn, ll_fn, move, cfg, self.max_stages))
+        if not self.compiled and _splittable(move):
+            # host-driven stages: the model-free pieces are compiled once per process and shared by
+            # every model; only the prior draws and the evaluator belong to this model's structure
+            stages = _stage_programs(move, cfg)
+
+            def evaluate(position):
+                return model.evaluate(position, data)
+
+            def init_fn(key):
+                position = model.draws(key, data, n)
+                return stages.initial_state(position, *evaluate(position))
+
+            def step_fn(key, st):
+                return _split_stage(stages, evaluate, move, cfg, key, st)
         else:
-            step_fn = jax.jit(lambda key, st: core.step(key, st, lp_fn, ll_fn, move, cfg))
+            fused = _fused_programs(flat, move, cfg, self.max_stages)
+
+            def init_fn(key):
+                return fused.init(key, data, n)
+
+            def run_fn(key, st):
+                return fused.run(key, st, data)
+
+            def step_fn(key, st):
+                return fused.step(key, st, data)
 
         self._results = []
         for r, key in enumerate(jax.random.split(rng_key, self.num_replicas)):
@@ -365,9 +541,8 @@ class TMCMC:
         self._need_run()
         if replica == 0 and self._samples_cache is not None:
             return self._samples_cache
-        flat = self._flat
         pos = self._results[replica]["state"].position
-        out = jax.jit(core.chunked_vmap(flat.sites, self.chunk_size))(pos)
+        out = _model_programs(self._flat, self.chunk_size).sites(pos, self._data)
         out = {k: np.asarray(v) for k, v in out.items()}
         if replica == 0:
             self._samples_cache = out

@@ -245,39 +245,59 @@ class RandomWalk(NamedTuple):
     def init_params(self, dim: int) -> Array:
         return jnp.array([0.5 * math.log(self.init_scale2)])
 
-    def __call__(self, rng_key, position, log_prior, log_likelihood, beta, cov, params, evaluate):
-        n, d = position.shape
-        chol = safe_cholesky(cov)
-        log_s = params[0]
+    # The stage's move is split into start / propose / accept / result so that a host-driven stage
+    # (bubblecal.inference.tmcmc) can compile these model-free pieces once and call the model's
+    # evaluator between them; __call__ runs the same pieces fused in one fori_loop.
 
-        def body(i, carry):
-            key, x, lp, ll, log_s, acc_sum = carry
-            key, k_prop, k_acc = jax.random.split(key, 3)
-            z = jax.random.normal(k_prop, (n, d), dtype=x.dtype)
-            prop = x + jnp.exp(log_s) * (z @ chol.T)
-            lp_p, ll_p = evaluate(prop)
-            log_alpha = tempered(lp_p, ll_p, beta) - tempered(lp, ll, beta)
-            log_alpha = jnp.where(jnp.isnan(log_alpha), -jnp.inf, log_alpha)
-            accept = jnp.log(jax.random.uniform(k_acc, (n,), dtype=x.dtype)) < log_alpha
-            x = jnp.where(accept[:, None], prop, x)
-            lp = jnp.where(accept, lp_p, lp)
-            ll = jnp.where(accept, ll_p, ll)
-            rate = accept.mean()
-            if self.adapt:
-                log_s = log_s + self.adapt_rate * (rate - self.target_accept)
-            return key, x, lp, ll, log_s, acc_sum + rate
+    def start(self, cov: Array, params: Array) -> tuple[Array, Array]:
+        """(Cholesky factor of the weighted covariance Σ_w, log s) at the start of a stage."""
+        return safe_cholesky(cov), params[0]
 
-        init = (rng_key, position, log_prior, log_likelihood, log_s, jnp.zeros((), position.dtype))
-        _, x, lp, ll, log_s_new, acc_sum = lax.fori_loop(0, self.num_steps, body, init)
+    def propose(self, key: Array, x: Array, chol: Array, log_s: Array) -> tuple[Array, Array, Array]:
+        """(next key, acceptance key, proposal x + s z Lᵀ with z ~ N(0, I)) for one MH step."""
+        key, k_prop, k_acc = jax.random.split(key, 3)
+        z = jax.random.normal(k_prop, x.shape, dtype=x.dtype)
+        return key, k_acc, x + jnp.exp(log_s) * (z @ chol.T)
+
+    def accept(self, k_acc: Array, carry: tuple, prop: Array, lp_p: Array, ll_p: Array, beta: Array) -> tuple:
+        """Metropolis accept/reject of ``prop`` at exponent β; ``carry`` = (x, lp, ll, log s, Σ acceptance)."""
+        x, lp, ll, log_s, acc_sum = carry
+        log_alpha = tempered(lp_p, ll_p, beta) - tempered(lp, ll, beta)
+        log_alpha = jnp.where(jnp.isnan(log_alpha), -jnp.inf, log_alpha)
+        accept = jnp.log(jax.random.uniform(k_acc, (x.shape[0],), dtype=x.dtype)) < log_alpha
+        x = jnp.where(accept[:, None], prop, x)
+        lp = jnp.where(accept, lp_p, lp)
+        ll = jnp.where(accept, ll_p, ll)
+        rate = accept.mean()
+        if self.adapt:
+            log_s = log_s + self.adapt_rate * (rate - self.target_accept)
+        return x, lp, ll, log_s, acc_sum + rate
+
+    def result(self, carry: tuple, log_s0: Array) -> MoveResult:
+        """The :class:`MoveResult` after ``num_steps`` steps (``log_s0``: the scale the stage started with)."""
+        x, lp, ll, log_s_new, acc_sum = carry
         return MoveResult(
             position=x,
             log_prior=lp,
             log_likelihood=ll,
             acceptance=acc_sum / self.num_steps,
-            num_evaluations=jnp.asarray(n * self.num_steps, jnp.int32),
+            num_evaluations=jnp.asarray(x.shape[0] * self.num_steps, jnp.int32),
             params=jnp.reshape(log_s_new, (1,)),
-            scale=jnp.exp(log_s),
+            scale=jnp.exp(log_s0),
         )
+
+    def __call__(self, rng_key, position, log_prior, log_likelihood, beta, cov, params, evaluate):
+        chol, log_s = self.start(cov, params)
+
+        def body(i, carry):
+            key, rest = carry
+            key, k_acc, prop = self.propose(key, rest[0], chol, rest[3])
+            lp_p, ll_p = evaluate(prop)
+            return key, self.accept(k_acc, rest, prop, lp_p, ll_p, beta)
+
+        init = (rng_key, (position, log_prior, log_likelihood, log_s, jnp.zeros((), position.dtype)))
+        _, carry = lax.fori_loop(0, self.num_steps, body, init)
+        return self.result(carry, log_s)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -294,6 +314,21 @@ class TMCMCConfig(NamedTuple):
     chunk_size: int | None = None
 
 
+def initial_state(position: Array, log_prior: Array, log_likelihood: Array, move: Any) -> TMCMCState:
+    """State at β = 0 (log Z = 0) from the prior draws ``position`` (N, d) and their densities."""
+    n, d = position.shape
+    return TMCMCState(
+        position=position,
+        log_prior=log_prior,
+        log_likelihood=log_likelihood,
+        beta=jnp.zeros((), position.dtype),
+        log_evidence=jnp.zeros((), position.dtype),
+        move_params=jnp.asarray(move.init_params(d), position.dtype),
+        stage=jnp.zeros((), jnp.int32),
+        num_evaluations=jnp.asarray(n, jnp.int32),
+    )
+
+
 def init(
     position: Array,
     log_prior_fn: Callable,
@@ -303,30 +338,29 @@ def init(
 ) -> TMCMCState:
     """Initial state from exact prior draws ``position`` (N, d): β = 0, log Z = 0."""
     position = jnp.asarray(position)
-    n, d = position.shape
     lp, ll = make_evaluator(log_prior_fn, log_likelihood_fn, chunk_size)(position)
-    return TMCMCState(
-        position=position,
-        log_prior=lp,
-        log_likelihood=ll,
-        beta=jnp.zeros((), position.dtype),
-        log_evidence=jnp.zeros((), position.dtype),
-        move_params=jnp.asarray(move.init_params(d), position.dtype),
-        stage=jnp.zeros((), jnp.int32),
-        num_evaluations=jnp.asarray(n, jnp.int32),
-    )
+    return initial_state(position, lp, ll, move)
 
 
-def step(
-    rng_key: Array,
-    state: TMCMCState,
-    log_prior_fn: Callable,
-    log_likelihood_fn: Callable,
-    move: Any,
-    config: TMCMCConfig = TMCMCConfig(),
-) -> tuple[TMCMCState, StageInfo]:
-    """One TMCMC stage: exponent, evidence increment, resampling, covariance, move at the new β."""
-    evaluate = make_evaluator(log_prior_fn, log_likelihood_fn, config.chunk_size)
+class StagePlan(NamedTuple):
+    """What a stage fixes before its move (:func:`prepare_stage`): exponent, weights, resampled particles."""
+
+    key_move: Array  # key of the move
+    position: Array  # (N, d) resampled particles
+    log_prior: Array  # (N,)
+    log_likelihood: Array  # (N,)
+    beta: Array  # new exponent
+    delta: Array  # its increment
+    cov: Array  # achieved CoV of the incremental weights
+    ess: Array
+    log_z_increment: Array
+    unique_fraction: Array
+    weighted_cov: Array  # (d, d) weighted particle covariance Σ_w
+    num_nonfinite: Array
+
+
+def prepare_stage(rng_key: Array, state: TMCMCState, config: TMCMCConfig = TMCMCConfig()) -> StagePlan:
+    """First half of a stage (no likelihood evaluation): next exponent, log Z increment, resampling, Σ_w."""
     n = state.position.shape[0]
     ll = state.log_likelihood
     num_nonfinite = jnp.sum(~jnp.isfinite(ll)).astype(jnp.int32)
@@ -343,19 +377,28 @@ def step(
     idx = resample(k_res, log_w, config.resampling)
     unique_fraction = jnp.zeros(n, jnp.int32).at[idx].set(1).sum() / n
     _, wcov = weighted_moments(state.position, log_w)
-
-    res = move(
-        k_move,
-        state.position[idx],
-        state.log_prior[idx],
-        ll[idx],
-        beta,
-        wcov,
-        state.move_params,
-        evaluate,
+    return StagePlan(
+        key_move=k_move,
+        position=state.position[idx],
+        log_prior=state.log_prior[idx],
+        log_likelihood=ll[idx],
+        beta=beta,
+        delta=delta,
+        cov=cov,
+        ess=ess,
+        log_z_increment=log_z_inc,
+        unique_fraction=unique_fraction,
+        weighted_cov=wcov,
+        num_nonfinite=num_nonfinite,
     )
 
-    log_evidence = state.log_evidence + log_z_inc
+
+def finish_stage(
+    state: TMCMCState, plan: StagePlan, res: MoveResult, config: TMCMCConfig = TMCMCConfig()
+) -> tuple[TMCMCState, StageInfo]:
+    """Second half of a stage: the new state after the move ``res`` and the stage's :class:`StageInfo`."""
+    beta, delta = plan.beta, plan.delta
+    log_evidence = state.log_evidence + plan.log_z_increment
     stalled = (delta < config.min_delta) & (beta < 1.0)
     status = jnp.where(
         beta >= 1.0, STATUS_CONVERGED, jnp.where(stalled, STATUS_STALLED, STATUS_RUNNING)
@@ -374,19 +417,43 @@ def step(
     info = StageInfo(
         beta=beta,
         delta=delta,
-        cov=cov,
-        ess=ess,
-        log_z_increment=log_z_inc,
+        cov=plan.cov,
+        ess=plan.ess,
+        log_z_increment=plan.log_z_increment,
         log_evidence=log_evidence,
         acceptance=res.acceptance,
-        unique_fraction=unique_fraction.astype(state.position.dtype),
+        unique_fraction=plan.unique_fraction.astype(state.position.dtype),
         scale=res.scale,
         max_log_likelihood=jnp.max(finite_ll),
-        num_nonfinite=num_nonfinite,
+        num_nonfinite=plan.num_nonfinite,
         num_evaluations=res.num_evaluations,
         status=status,
     )
     return new_state, info
+
+
+def step(
+    rng_key: Array,
+    state: TMCMCState,
+    log_prior_fn: Callable,
+    log_likelihood_fn: Callable,
+    move: Any,
+    config: TMCMCConfig = TMCMCConfig(),
+) -> tuple[TMCMCState, StageInfo]:
+    """One TMCMC stage: exponent, evidence increment, resampling, covariance, move at the new β."""
+    evaluate = make_evaluator(log_prior_fn, log_likelihood_fn, config.chunk_size)
+    plan = prepare_stage(rng_key, state, config)
+    res = move(
+        plan.key_move,
+        plan.position,
+        plan.log_prior,
+        plan.log_likelihood,
+        plan.beta,
+        plan.weighted_cov,
+        state.move_params,
+        evaluate,
+    )
+    return finish_stage(state, plan, res, config)
 
 
 def _empty_infos(max_stages: int, dtype) -> StageInfo:

@@ -33,7 +33,9 @@ started there cannot find its way out. Start NUTS with d0 below the first displa
 
 ``surrogate`` is any callable ``(params[..., 6], x[...]) -> y[...]`` (ka, kb, b1, b2, a3, a4 in the last
 axis; leading shape broadcasts with ``x``) written in JAX; if it has a ``setup`` attribute it must
-match the curve's.
+match the curve's. :class:`TracedSurrogate` wraps a loaded MLP surrogate so that its weights are
+arguments of a compiled sampler rather than constants (curves with networks of one shape then share
+one compiled likelihood); ``mask`` lets curves padded to one length share it too (:func:`pad_curve`).
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import numpyro
@@ -56,6 +59,7 @@ from bubblecal.models.likelihood import (
     sd_floor_for,
 )
 from bubblecal.priors.spec import NONLINEAR_PARAMETERS, SHELL_PARAMETERS, PriorSpec
+from bubblecal.surrogates.mlp import mlp_forward
 
 __all__ = [
     "nuts_init_values",
@@ -66,7 +70,73 @@ __all__ = [
     "resolve_setup",
     "shell_params",
     "derived_sites",
+    "TracedSurrogate",
+    "pad_curve",
 ]
+
+
+@jax.tree_util.register_pytree_node_class
+class TracedSurrogate:
+    """A loaded MLP surrogate (:class:`bubblecal.surrogates.bundle.Surrogate`) as a pytree of its arrays.
+
+    Same call ``(params[..., 6], x[...]) -> y[...]`` and the same arithmetic as the surrogate, but the
+    weights and normalisations are pytree leaves: given to a model as an argument they are traced data
+    of a compiled TMCMC program (not constants compiled into it), so curves whose networks have the same
+    layer sizes and setup share one compiled likelihood. ``setup`` as the surrogate's (checked by
+    :func:`resolve_setup`); ``param_names`` the surrogate's parameter inputs (``x`` is the last input).
+    """
+
+    def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, setup: str, param_names: tuple):
+        self.weights, self.biases = tuple(weights), tuple(biases)
+        self.in_mean, self.in_std, self.out_mean, self.out_std = in_mean, in_std, out_mean, out_std
+        self.setup = setup
+        self.param_names = tuple(param_names)
+
+    @classmethod
+    def wrap(cls, surrogate):
+        """The surrogate as a :class:`TracedSurrogate`; anything that is not an MLP surrogate unchanged."""
+        fields = ("weights", "biases", "in_mean", "in_std", "out_mean", "out_std", "setup", "param_names")
+        if isinstance(surrogate, cls) or not all(hasattr(surrogate, f) for f in fields):
+            return surrogate
+        return cls(*(getattr(surrogate, f) for f in fields))
+
+    def __call__(self, params, x):
+        # the input assembly of Surrogate.__call__: parameters broadcast against x, x appended last
+        params = jnp.asarray(params)
+        x = jnp.asarray(x)
+        if params.ndim == 0 or params.shape[-1] != len(self.param_names):
+            raise ValueError(f"params must have a last axis of length {len(self.param_names)} "
+                             f"({', '.join(self.param_names)}), got shape {params.shape}")
+        shape = jnp.broadcast_shapes(params.shape[:-1], x.shape)
+        p = jnp.broadcast_to(params, shape + (params.shape[-1],))
+        xx = jnp.broadcast_to(x, shape)[..., None].astype(p.dtype)
+        u = jnp.concatenate([p, xx], axis=-1)
+        y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std, u)
+        return y[..., 0]
+
+    def tree_flatten(self):
+        return (self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std), (
+            self.setup, self.param_names)
+
+    @classmethod
+    def tree_unflatten(cls, aux, children):
+        return cls(*children, *aux)
+
+
+def pad_curve(x, y, length: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, y, mask) of a curve padded to ``length`` points for :func:`mechanical_model`'s ``mask``.
+
+    Padding repeats the last x (a point the surrogate evaluates normally) with y = 0, and the mask
+    (True on the real points) removes those points from the likelihood and from max |y|.
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = len(x)
+    if length < n:
+        raise ValueError(f"cannot pad a curve of {n} points to {length}")
+    pad = length - n
+    return (np.concatenate([x, np.full(pad, x[-1])]), np.concatenate([y, np.zeros(pad)]),
+            np.arange(length) < n)
 
 
 def resolve_setup(spec: PriorSpec, surrogate=None, setup: str | None = None, kind: str | None = None) -> str:
@@ -159,7 +229,7 @@ def _uniform(bounds):
 
 def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str | None = None, obs_name: str = "y",
                      y_scale: float | None = None, sd_floor_rel: float = SD_FLOOR_REL,
-                     units: UnitSystem = DEFAULT_UNITS, population=None):
+                     units: UnitSystem = DEFAULT_UNITS, population=None, mask=None):
     """NumPyro model of one loading curve under uniform priors (module docstring for the equations).
 
     ``x``, ``y``: the curve in DPD units (``y=None`` samples the observations: prior/posterior
@@ -167,10 +237,12 @@ def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str |
     pass it explicitly together with ``y=None`` to reproduce the fit's density). Sites: the free
     shell parameters of ``spec`` by name, the mechanical noise (``spec.mechanical_noise_name``), the
     observed ``obs_name`` and the deterministic ``E_MPa`` / ``kappa_kBT``. ``population``: phase-3
-    population prior (module docstring), adds the factor site ``population_prior``.
+    population prior (module docstring), adds the factor site ``population_prior``. ``mask``: (n,)
+    booleans, False on padding points (:func:`pad_curve`), which then add nothing to the likelihood.
+    ``x``, ``y`` and ``mask`` may be traced arrays (jit arguments).
     """
     setup = resolve_setup(spec, surrogate, setup)
-    x = jnp.asarray(np.asarray(x, dtype=float))
+    x = jnp.asarray(x, dtype=float)
     values = {k: numpyro.sample(k, _uniform(p.prior)) for k, p in spec.parameters.items()}
     noise_name = spec.mechanical_noise_name
     if noise_name not in spec.noise:
@@ -181,10 +253,14 @@ def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str |
         population_factor(values, spec, population)
     params, d0 = shell_params(values, spec)
     yhat = predict_mechanical(surrogate, setup, params, d0, x)
+    y = None if y is None else jnp.asarray(y, dtype=float)
     if y_scale is None:
-        y_scale = float(np.max(np.abs(y))) if y is not None else jnp.max(jnp.abs(yhat))
+        # max |y| over the real points (the float32 of the float64 maximum, as np.max gave)
+        y_scale = jnp.max(jnp.abs(y if mask is None else jnp.where(mask, y, 0.0))) if y is not None \
+            else jnp.max(jnp.abs(yhat))
     sd = noise_sd(yhat, sigma, sd_floor_for(y_scale, sd_floor_rel))
-    numpyro.sample(obs_name, dist.Normal(yhat, sd), obs=None if y is None else jnp.asarray(np.asarray(y, float)))
+    likelihood = dist.Normal(yhat, sd)
+    numpyro.sample(obs_name, likelihood if mask is None else likelihood.mask(jnp.asarray(mask, dtype=bool)), obs=y)
 
 
 def mechanical_prediction(samples: Mapping, surrogate: Callable, spec: PriorSpec, x, *, y_scale: float,

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -559,17 +560,65 @@ class AgentResult:
     evidence: object | None = None
 
 
-def _dataset_objects(ap: AgentPlan):
+def _curve_arguments(ap: AgentPlan, pad: bool) -> list[tuple[tuple, dict]]:
+    """(args, kwargs) of :func:`bubblecal.models.mechanical_model` for every curve of the agent.
+
+    The surrogate goes in as a :class:`~bubblecal.models.mechanical.TracedSurrogate`, so its weights are
+    arguments of the compiled TMCMC programs and curves whose networks have one shape share them. With
+    ``pad`` those curves are also padded (masked) to one length, so they share the programs in fact; it
+    costs the padded points' evaluations, hence only where compiling dominates (the GPU).
+    """
+    from bubblecal.models.mechanical import TracedSurrogate, pad_curve
+
+    surrogates = [TracedSurrogate.wrap(s) for s in ap.surrogates]
+
+    def shape_key(s):
+        # curves can share programs when setup and layer sizes agree (other surrogates: never)
+        if not isinstance(s, TracedSurrogate):
+            return id(s)
+        return s.setup, tuple(np.shape(a) for a in (*s.weights, *s.biases))
+
+    length: dict = {}
+    for curve, sur in zip(ap.curves, surrogates, strict=True):
+        key = shape_key(sur)
+        length[key] = max(length.get(key, 0), len(curve.x))
+    out = []
+    for curve, sur in zip(ap.curves, surrogates, strict=True):
+        x, y = np.asarray(curve.x), np.asarray(curve.y)
+        if pad:  # every curve of a group gets a mask (all True on the longest): one argument structure
+            x, y, mask = pad_curve(x, y, length[shape_key(sur)])
+            out.append(((x, y, sur, ap.spec), {"mask": mask}))
+        else:
+            out.append(((x, y, sur, ap.spec), {}))
+    return out
+
+
+def _pad_curves(config: CalibrationConfig) -> bool:
+    """Pad curves of one network shape to one length (shared compiled programs): on the GPU only, where
+    compiling a phase's programs costs more than the padded points; on CPU cores the particles dominate."""
+    return config.device == "gpu"
+
+
+def _dataset_objects(ap: AgentPlan, pad: bool = False):
     from bubblecal.inference.hierarchical import Dataset
     from bubblecal.models import acoustic_model, mechanical_model
 
     out = []
-    for curve, sur in zip(ap.curves, ap.surrogates, strict=True):
-        out.append(Dataset(curve.name, mechanical_model, (np.asarray(curve.x), np.asarray(curve.y), sur, ap.spec)))
-    for ds in ap.acoustic:
-        out.append(Dataset(ds.name, acoustic_model, (np.asarray(ds.diameter_um), np.asarray(ds.frequency_MHz),
-                                                      ap.f_res, ap.spec)))
+    for curve, (args, kwargs) in zip(ap.curves, _curve_arguments(ap, pad), strict=True):
+        out.append(Dataset(curve.name, mechanical_model, args, kwargs))
+    for ds, args in zip(ap.acoustic, _acoustic_arguments(ap), strict=True):
+        out.append(Dataset(ds.name, acoustic_model, args))
     return out
+
+
+def _acoustic_arguments(ap: AgentPlan) -> list[tuple]:
+    """Positional arguments of :func:`bubblecal.models.acoustic_model` for every acoustic dataset: the
+    surrogate's quadratics at the dataset's diameters as a :class:`~bubblecal.models.acoustic.FrequencyTable`
+    (arrays, so datasets with as many bubbles share the compiled programs)."""
+    from bubblecal.models.acoustic import FrequencyTable
+
+    return [(np.asarray(ds.diameter_um, dtype=float), np.asarray(ds.frequency_MHz, dtype=float),
+             FrequencyTable.at(ap.f_res, ds.diameter_um), ap.spec) for ds in ap.acoustic]
 
 
 def _phase_hashes(ap: AgentPlan, config: CalibrationConfig, bundle_hashes: Mapping[str, str]) -> dict[str, str]:
@@ -632,11 +681,16 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     key = jax.random.PRNGKey(config.seed + (0 if ap.agent == "definity" else 1000))
 
     if config.sampler == "tmcmc":
-        datasets = _dataset_objects(ap)
+        pad = _pad_curves(config)
+        datasets = _dataset_objects(ap, pad)
+        curve_arguments = [(d.args, d.kwargs) for d in datasets[:len(ap.curves)]]
+        acoustic_arguments = [d.args for d in datasets[len(ap.curves):]]
         n_curves = len(ap.curves)
 
+        # partials, not lambdas: their arrays reach TMCMC as arguments, so the phase programs are
+        # compiled once per model structure and shared by datasets (and agents) of that structure
         def phase2_factory(samples, names):
-            return lambda: phase2_model(samples, ap.spec, names)
+            return functools.partial(phase2_model, samples, ap.spec, names)
 
         def phase3_factory(i, m_samples, tau_samples):
             # the phase-3 prior log mean_s p(θ | ψ_s) costs S densities per particle: thin ψ to the
@@ -647,12 +701,9 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
             pop = ({k: np.asarray(v)[idx] for k, v in m_samples.items()},
                    {k: np.asarray(v)[idx] for k, v in tau_samples.items()})
             if i < n_curves:
-                c, s = ap.curves[i], ap.surrogates[i]
-                x, y = np.asarray(c.x), np.asarray(c.y)
-                return lambda: mechanical_model(x, y, s, ap.spec, population=pop)
-            ds = ap.acoustic[i - n_curves]
-            d, f = np.asarray(ds.diameter_um), np.asarray(ds.frequency_MHz)
-            return lambda: acoustic_model(d, f, ap.f_res, ap.spec, population=pop)
+                args, kwargs = curve_arguments[i]
+                return functools.partial(mechanical_model, *args, **kwargs, population=pop)
+            return functools.partial(acoustic_model, *acoustic_arguments[i - n_curves], population=pop)
 
         def load(name):
             result = store.load(name)

@@ -17,7 +17,6 @@ from rich.markup import escape
 
 from bubblecal.workflows.console import console, fail, make_table
 
-
 #: slack of the prior-box check, as a fraction of each training range: a Latin hypercube of n points samples the
 #: edge strata only to within width/n of the box edge, and the reduced shell's b1 = b2 = a4 = 0 sits on it
 PRIOR_BOX_RTOL = 0.01

@@ -33,9 +33,9 @@ def test_tmcmc_agrees_with_nuts_5d():
     )
     assert nuts.max_r_hat < 1.02
     assert nuts.min_n_eff > 400
-    tm = TMCMC(model_5d, num_particles=4000, compiled=True).run(jax.random.PRNGKey(2), X, y=Y)
+    tm = TMCMC(model_5d, num_particles=8000, compiled=True).run(jax.random.PRNGKey(2), X, y=Y)
     assert tm.status == "converged"
-    assert tm.get_samples()["mu0"].shape == (4000, 20)
+    assert tm.get_samples()["mu0"].shape == (8000, 20)
     result = compare_posteriors(tm, nuts, names=["a", "b", "c", "d", "s"])
     print(result)
     assert result.passed, str(result)
