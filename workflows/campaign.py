@@ -200,7 +200,8 @@ def _check_tier_settings(path: Path, tier: str, protocol: str, settings: dict) -
         allowed = f" (allowed for tier {tier!r}: {', '.join(names)})" if names else ""
         raise CampaignFileError(path, key, f"{exc}{allowed}") from None
     except ValueError as exc:
-        raise CampaignFileError(path, "[tier]", str(exc)) from None
+        named = [k for k in settings if k in str(exc)]  # the tiers' messages name the offending setting
+        raise CampaignFileError(path, f"[tier].{named[0]}" if named else "[tier]", str(exc)) from None
 
 
 def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = None) -> CampaignFile:

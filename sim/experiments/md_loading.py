@@ -51,7 +51,14 @@ import warp as wp
 
 from bubblecal.sim.experiments.quasistatic import PlateContact, _cap_distance
 from bubblecal.sim.kernels.common import kernel_decorator
-from bubblecal.sim.tiers import DISPLACEMENT_CONVENTION, CurveBatch, CurveRequest, register_tier
+from bubblecal.sim.tiers import (
+    DEFAULT_INDENTATION_CONVENTION,
+    DISPLACEMENT_CONVENTION,
+    CurveBatch,
+    CurveRequest,
+    indentation_convention,
+    register_tier,
+)
 
 __all__ = ["ProtocolSteps", "ImplicitTier", "ExplicitTier", "STATUS_MAP", "run_md_protocol", "steps_per_curve"]
 
@@ -468,6 +475,13 @@ class _MDTierBase:
     rupture_strain: float = 1.0
     max_seconds: float | None = None
     verbose: bool = False
+    indentation_convention: str = DEFAULT_INDENTATION_CONVENTION
+
+    def __post_init__(self) -> None:
+        indentation_convention(self.indentation_convention)  # a bad name fails before any set-up
+
+    def _convention(self):
+        return indentation_convention(self.indentation_convention)
 
     def protocol_steps(self) -> ProtocolSteps:
         """The step counts this tier runs (published counts x ``scale``)."""
@@ -495,6 +509,8 @@ class _MDTierBase:
         info.update({"tier": self.name, "mesh_subdivisions": mesh.subdivisions, "n_vertices": mesh.n_vertices,
                      "displacement_convention": DISPLACEMENT_CONVENTION if request.protocol == "compression" else None,
                      "protocol_steps": dataclasses.asdict(steps), "dt": self.dt, "md_steps": out["steps"],
+                     "indentation_convention": self.indentation_convention if request.protocol == "indentation"
+                     else None,
                      "point_status": out["point_status"], "contact": {**dataclasses.asdict(self.contact),
                                                                       "cutoff": self.contact.cutoff}})
         for key in ("force_top", "force_bottom", "force_sem", "axial_diameter", "axial_sem",
@@ -526,13 +542,14 @@ class ImplicitTier(_MDTierBase):
         t0 = time.perf_counter()
         mesh = self._mesh(request)
         gamma = default_vertex_friction(mesh, request.protocol) if self.gamma is None else self.gamma
-        system = ImplicitShellSystem(mesh, request.shell_params(), p0=self.p0, p_back=self.p_back,
+        system = ImplicitShellSystem(mesh, request.shell_params(self.indentation_convention), p0=self.p0, p_back=self.p_back,
                                      p_water=self.p_water, kbt=self.kbt, gamma=gamma,
                                      vertex_mass=_vertex_mass(mesh, request.protocol, self.mass_factor), dt=self.dt,
                                      device=device, dtype=self.dtype, seed=list(request.seeds), pin_com=True)
         adapter = _ImplicitAdapter(system, HealthThresholds(rupture_strain=self.rupture_strain))
         out = run_md_protocol(adapter, mesh, request.protocol, request.grid_array(), self.protocol_steps(),
-                              self.contact, max_seconds=self.max_seconds, progress=self._progress())
+                              self.contact, fraction_loaded=self._convention().loaded_fraction,
+                              max_seconds=self.max_seconds, progress=self._progress())
         info = {"system": system.settings(), "memory_bytes": system.memory_bytes()}
         info["system"].pop("n_vertices", None)
         return self._batch(request, mesh, out, info, t0)
@@ -564,7 +581,7 @@ class ExplicitTier(_MDTierBase):
         t0 = time.perf_counter()
         mesh = self._mesh(request)
         specs = []
-        for p, seed in zip(request.shell_params(), request.seeds, strict=True):
+        for p, seed in zip(request.shell_params(self.indentation_convention), request.seeds, strict=True):
             sp = bubble_spec(request.diameter_um, mesh.subdivisions, box=self.box, seed=seed, ka=p.ka, kb=p.kb,
                              p_back=self.p_back, gas_density=self.gas_density, protocol=request.protocol,
                              mass_factor=self.mass_factor, a_vertex_water=self.a_vertex_water, kbt=self.kbt,
@@ -576,7 +593,8 @@ class ExplicitTier(_MDTierBase):
         monitor = HealthMonitor(HealthConfig(rupture_strain=self.rupture_strain, check_leaks=self.health_leaks))
         adapter = _ExplicitAdapter(system, monitor)
         out = run_md_protocol(adapter, mesh, request.protocol, request.grid_array(), self.protocol_steps(),
-                              self.contact, max_seconds=self.max_seconds, progress=self._progress())
+                              self.contact, fraction_loaded=self._convention().loaded_fraction,
+                              max_seconds=self.max_seconds, progress=self._progress())
         counts = system.solvent_counts()
         info = {"n_particles": int(system.N + system.Nv), "solvent_counts": counts.tolist(),
                 "box": list(map(float, specs[0].box)), "memory_bytes": system.memory_bytes(),

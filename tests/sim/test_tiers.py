@@ -62,3 +62,59 @@ def test_quasistatic_tier_slot_refill_same_curves():
             get_tier("quasistatic", max_replicas=bad)
     with pytest.raises(ValueError, match="needs schedule"):
         get_tier("quasistatic", max_replicas=4, schedule="lockstep")
+
+
+def test_indentation_conventions_map_kb_and_name_the_allowed_values():
+    from bubblecal.sim.tiers import DEFAULT_INDENTATION_CONVENTION, INDENTATION_CONVENTIONS, indentation_convention
+
+    assert DEFAULT_INDENTATION_CONVENTION == "bubblecal-v1"  # the shipped SonoVue training sets
+    assert indentation_convention("bubblecal-v1").kb_scale == pytest.approx(KB_KERNEL_SCALE["indentation"])
+    assert indentation_convention("mirheo").kb_scale == 1.0
+    # the published patch: the pole vertex and its first ring on the subdivision-4 icosphere (2,562 vertices)
+    assert int(np.floor(indentation_convention("mirheo").loaded_fraction * 2562)) == 7
+    assert int(np.floor(indentation_convention("bubblecal-v1").loaded_fraction * 2562)) == 25
+    ind = CurveRequest("indentation", 3.2, (0.0, 500.0), PARAMS, (1, 2))
+    np.testing.assert_allclose([p.kb for p in ind.shell_params("mirheo")], PARAMS["kb"], rtol=1e-15)
+    comp = CurveRequest("compression", 3.0, (0.0, 0.5), PARAMS, (1, 2))
+    assert [p.kb for p in comp.shell_params("mirheo")] == [p.kb for p in comp.shell_params()]  # compression: no change
+    with pytest.raises(ValueError, match=r"indentation_convention must be one of \['bubblecal-v1', 'mirheo'\]"):
+        ind.shell_params("Mirheo")
+    assert set(INDENTATION_CONVENTIONS) == {"bubblecal-v1", "mirheo"}
+
+
+def test_tiers_reject_an_unknown_indentation_convention_at_construction():
+    pytest.importorskip("warp")
+    from bubblecal.sim.tiers import get_tier
+
+    for tier in ("quasistatic", "explicit", "implicit"):
+        with pytest.raises(ValueError, match="indentation_convention must be one of"):
+            get_tier(tier, indentation_convention="v2")
+
+
+def _published_rows(ref, rows):
+    from bubblecal.surrogates.dataset import filter_curves, read_published
+
+    ts, _ = filter_curves(read_published(ref / "training_head_indentation_3.2um.csv", setup="indentation"))
+    return ts.subset(np.asarray(rows))
+
+
+def test_mirheo_convention_reproduces_the_published_indentation_curves(shared_reference):
+    """Quasi-static d(F) / published d(F) on two 3.2 um training rows of very different ka / kb (16 and 0.8):
+    with the ``mirheo`` convention both are 0.97-0.98 (measured; asserted in [0.95, 1.0]) and within 2 % of each
+    other; the ``bubblecal-v1`` patch (25 vertices) gives 0.95 and 1.10, a ka / kb-dependent error (RESULTS.md)."""
+    pytest.importorskip("warp")
+    from bubblecal.sim.tiers import SHELL_PARAM_NAMES, get_tier
+    from bubblecal.surrogates.dataset import PARAM_NAMES
+
+    ts = _published_rows(shared_reference, [0, 2])
+    params = {k: ts.params[:, PARAM_NAMES.index(k)] for k in SHELL_PARAM_NAMES}
+    req = CurveRequest("indentation", 3.2, tuple(ts.x[0]), params, (0, 1), subdivisions=4)
+    pts = slice(4, 15)
+    ratio = {}
+    for conv in ("mirheo", "bubblecal-v1"):
+        batch = get_tier("quasistatic", indentation_convention=conv).run(req)
+        assert batch.status == ["ok", "ok"] and batch.info["indentation_convention"] == conv
+        ratio[conv] = np.median(batch.observable[:, pts] / ts.y[:, pts], axis=1)
+    assert np.all((ratio["mirheo"] > 0.95) & (ratio["mirheo"] < 1.0)), ratio
+    assert abs(ratio["mirheo"][0] - ratio["mirheo"][1]) < 0.02, ratio
+    assert abs(ratio["bubblecal-v1"][0] - ratio["bubblecal-v1"][1]) > 0.1, ratio

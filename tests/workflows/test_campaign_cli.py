@@ -125,6 +125,8 @@ def test_priors_list_gives_the_union_box(tmp_path):
     ('priors = "definity_full"', "priors = []", "[ranges].priors", "list of them (union box)"),
     ('priors = "definity_full"', 'priors = ["definity_full", "nosuch"]', "[ranges].priors", "'nosuch'"),
     ("max_steps = 4000", "max_step = 4000", "[tier].max_step", "allowed for tier 'quasistatic'"),
+    ("max_steps = 4000", 'indentation_convention = "published"', "[tier].indentation_convention",
+     "['bubblecal-v1', 'mirheo']"),
     ('scheduler_address = "inline"', "n_workers = 0", "[dask].n_workers", ">= 1"),
     ('scheduler_address = "inline"', "threads = 2", "[dask].threads", "allowed: scheduler_address, n_workers"),
     ("[dask]", "[cluster]", "[cluster]", "allowed: campaign, ranges, tier, dask"),
