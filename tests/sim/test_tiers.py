@@ -65,7 +65,11 @@ def test_quasistatic_tier_slot_refill_same_curves():
 
 
 def test_indentation_conventions_map_kb_and_name_the_allowed_values():
-    from bubblecal.sim.tiers import DEFAULT_INDENTATION_CONVENTION, INDENTATION_CONVENTIONS, indentation_convention
+    from bubblecal.sim.tiers import (
+        DEFAULT_INDENTATION_CONVENTION,
+        INDENTATION_CONVENTIONS,
+        indentation_convention,
+    )
 
     assert DEFAULT_INDENTATION_CONVENTION == "bubblecal-v1"  # the shipped SonoVue training sets
     assert indentation_convention("bubblecal-v1").kb_scale == pytest.approx(KB_KERNEL_SCALE["indentation"])
