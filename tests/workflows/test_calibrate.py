@@ -206,3 +206,33 @@ def test_hyperprior_bound_notes_flag_only_pressed_bounds():
     ])
     notes = hyperprior_bound_notes(hyp, spec)
     assert len(notes) == 1 and notes[0].startswith("m_ka") and "lower" in notes[0]
+
+
+def test_gpu_padding_groups_curves_by_network_shape_and_keeps_each_density(tmp_path):
+    """--device gpu pads the curves of one network shape to one length (shared compiled programs); every
+    padded dataset has the log density of its unpadded curve."""
+    import jax
+    import numpy as np
+
+    from bubblecal.inference._numpyro_utils import FlatModel
+    from bubblecal.workflows.calibrate import _dataset_objects
+
+    plan = make_plan(CalibrationConfig(agents=("sonovue",), population=200, out=tmp_path / "o"))
+    (ap,) = plan.agents
+    plain, padded = _dataset_objects(ap, pad=False), _dataset_objects(ap, pad=True)
+    n = len(ap.curves)
+    groups = {}
+    for d, curve in zip(padded[:n], ap.curves, strict=True):
+        x, _, sur, _ = d.args
+        mask = d.kwargs["mask"]
+        assert mask.sum() == len(curve.x) and np.all(mask[: len(curve.x)])
+        groups.setdefault(tuple(np.shape(w) for w in sur.weights), set()).add(len(x))
+    assert all(len(lengths) == 1 for lengths in groups.values())  # one length per network shape
+    for a, b in zip(plain[:n], padded[:n], strict=True):
+        fa, fb = FlatModel(a.model, a.args, a.kwargs), FlatModel(b.model, b.args, b.kwargs)
+        pts = jax.random.normal(jax.random.PRNGKey(0), (6, fa.dim))
+        np.testing.assert_allclose(np.asarray(jax.vmap(fb.log_terms)(pts)), np.asarray(jax.vmap(fa.log_terms)(pts)),
+                                   rtol=1e-5, atol=1e-3)
+    # curves of one shape share a signature: one compiled program
+    sigs = [FlatModel(d.model, d.args, d.kwargs).signature for d in padded[:n]]
+    assert len(set(sigs)) == len(groups)
