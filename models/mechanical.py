@@ -59,7 +59,7 @@ from bubblecal.models.likelihood import (
     sd_floor_for,
 )
 from bubblecal.priors.spec import NONLINEAR_PARAMETERS, SHELL_PARAMETERS, PriorSpec
-from bubblecal.surrogates.mlp import mlp_forward
+from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
 
 __all__ = [
     "nuts_init_values",
@@ -101,16 +101,7 @@ class TracedSurrogate:
         return cls(*(getattr(surrogate, f) for f in fields))
 
     def __call__(self, params, x):
-        # the input assembly of Surrogate.__call__: parameters broadcast against x, x appended last
-        params = jnp.asarray(params)
-        x = jnp.asarray(x)
-        if params.ndim == 0 or params.shape[-1] != len(self.param_names):
-            raise ValueError(f"params must have a last axis of length {len(self.param_names)} "
-                             f"({', '.join(self.param_names)}), got shape {params.shape}")
-        shape = jnp.broadcast_shapes(params.shape[:-1], x.shape)
-        p = jnp.broadcast_to(params, shape + (params.shape[-1],))
-        xx = jnp.broadcast_to(x, shape)[..., None].astype(p.dtype)
-        u = jnp.concatenate([p, xx], axis=-1)
+        u = surrogate_inputs(params, x, self.param_names)  # as Surrogate.__call__
         y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std, u)
         return y[..., 0]
 

@@ -97,13 +97,13 @@ class IndentationConvention:
 #: Named indentation conventions (a tier setting, ``indentation_convention``; benchmarks/RESULTS.md, session 9).
 #: ``bubblecal-v1``: physics.md's k = floor(0.01 N_v) (25 vertices on the subdivision-4 mesh) with kb x 2/3,
 #: fitted on the 3.2 um training rows only; the shipped SonoVue training sets (sessions 5-8) use it.  Its
-#: compliance d/F ~ ka^-0.64 kb^-0.38 (3.2 um), ka^-0.77 kb^-0.38 (5.8 um) has other exponents than the
-#: published curves' (ka^-0.58 kb^-0.46, ka^-0.60 kb^-0.53): a loaded patch wider than the published one
-#: (0.9-1.1 x the published d at 3.2 um, 0.72-1.10 x at 5.8 um, depending on ka / kb).
+#: compliance d/F ~ ka^-0.64 kb^-0.39 (3.2 um), ka^-0.68 kb^-0.46 (5.8 um) has other exponents than the
+#: published curves' (ka^-0.58 kb^-0.46, ka^-0.57 kb^-0.55; 16 rows each): a loaded patch wider than the
+#: published one (0.87-1.10 x the published d at 3.2 um, 0.72-1.18 x at 5.8 um, depending on ka / kb).
 #: ``mirheo``: the published curves' convention as found from those exponents: a patch of 0.28 % of the
 #: vertices (k = 7 on the subdivision-4 mesh: the pole vertex and its first ring) and the compression data's
-#: kb (scale 1).  The exponents then agree (ka^-0.58 kb^-0.45 at 3.2 um, ka^-0.59 kb^-0.50 at 5.8 um) and the
-#: quasi-static d(F) is 0.97-0.98 x the published at both diameters, flat over rows and loading points.
+#: kb (scale 1).  The exponents then agree (ka^-0.58 kb^-0.45 at 3.2 um, ka^-0.58 kb^-0.52 at 5.8 um) and the
+#: quasi-static d(F) is 0.97 x the published at both diameters (median; rows 0.97-0.98 and 0.91-1.02).
 INDENTATION_CONVENTIONS = {
     "bubblecal-v1": IndentationConvention(
         "bubblecal-v1", 2.0 / 3.0, 0.01, "k = floor(0.01 N_v) loaded vertices per pole, kernel kb = 2/3 published kb"),

@@ -63,7 +63,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from bubblecal.data.files import atomic_write
-from bubblecal.surrogates.mlp import mlp_forward
+from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
 
 __all__ = [
     "FORMAT", "FORMAT_VERSION", "BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "PARAM_NAMES",
@@ -162,19 +162,8 @@ class Surrogate:
         self._hi = np.array([self.param_ranges[k][1] for k in self.param_names])
 
     # -- evaluation ----------------------------------------------------------------------------
-    def _inputs(self, params, x):
-        params = jnp.asarray(params)
-        x = jnp.asarray(x)
-        if params.ndim == 0 or params.shape[-1] != len(self.param_names):
-            raise ValueError(f"params must have a last axis of length {len(self.param_names)} "
-                             f"({', '.join(self.param_names)}), got shape {params.shape}")
-        shape = jnp.broadcast_shapes(params.shape[:-1], x.shape)
-        p = jnp.broadcast_to(params, shape + (params.shape[-1],))
-        xx = jnp.broadcast_to(x, shape)[..., None].astype(p.dtype)
-        return jnp.concatenate([p, xx], axis=-1)
-
     def __call__(self, params, x):
-        u = self._inputs(params, x)
+        u = surrogate_inputs(params, x, self.param_names)
         y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean,
                         self.out_std, u)
         return y[..., 0]

@@ -17,8 +17,22 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
+__all__ = ["surrogate_inputs", "mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
            "xavier_uniform_weights"]
+
+
+def surrogate_inputs(params, x, param_names: Sequence[str]):
+    """Raw network inputs ``u[..., n + 1]``: ``params[..., n]`` (in ``param_names`` order) broadcast against
+    the loading coordinate ``x[...]`` (DPD displacement or force), which is appended last."""
+    params = jnp.asarray(params)
+    x = jnp.asarray(x)
+    if params.ndim == 0 or params.shape[-1] != len(param_names):
+        raise ValueError(f"params must have a last axis of length {len(param_names)} "
+                         f"({', '.join(param_names)}), got shape {params.shape}")
+    shape = jnp.broadcast_shapes(params.shape[:-1], x.shape)
+    p = jnp.broadcast_to(params, shape + (params.shape[-1],))
+    xx = jnp.broadcast_to(x, shape)[..., None].astype(p.dtype)
+    return jnp.concatenate([p, xx], axis=-1)
 
 
 def standardised_forward(weights: Sequence, biases: Sequence, z, xp=jnp):
