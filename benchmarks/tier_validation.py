@@ -230,6 +230,9 @@ def main(argv=None) -> int:
                     help="also run the quasi-static tier with the thermal plate contact (compression), reported as "
                          "quasistatic_thermal (and quasistatic_thermal_s<level> for --qs-subdivisions)")
     ap.add_argument("--max-replicas", type=int, default=None, help="quasi-static slot refill (execution only)")
+    ap.add_argument("--indentation-convention", default=None,
+                    help="every tier's indentation convention (bubblecal.sim.tiers.INDENTATION_CONVENTIONS; "
+                         "default: the tiers' default, bubblecal-v1)")
     args = ap.parse_args(argv)
 
     import warp as wp
@@ -257,6 +260,7 @@ def main(argv=None) -> int:
     diameters = [float(d) for d in args.diameters.split(",") if d.strip()]
     ref = find_reference(args.reference)
     summary = {"device": args.device, "scale": args.scale, "rows": args.rows, "tiers": tiers,
+               "indentation_convention": args.indentation_convention or "tier default",
                "reference": str(ref) if ref else None, "diameters": {}, "started": time.strftime("%Y-%m-%d %H:%M:%S")}
     if ref is None:
         print("reference folder not found: nothing to validate (skipped)")
@@ -301,6 +305,8 @@ def main(argv=None) -> int:
         rep = args.replicas or ts.n_curves
         for t in tiers:
             settings: dict = {"subdivisions": mesh.subdivisions}
+            if args.indentation_convention:
+                settings["indentation_convention"] = args.indentation_convention
             tier_name = t
             if t.startswith("quasistatic_"):
                 tier_name = "quasistatic"

@@ -2,22 +2,41 @@
 # can be carried back as .device-stores/NAME.store).  Each store comes back as one file, $OUT/NAME.jsonl.gz (the
 # shipped export, bubblecal.data.store.export_compressed), also left in /tmp/train for training on the same machine.
 #   usage: bash benchmarks/device/prod_campaigns.sh NAME [NAME ...]
-#   env: PROD_TIMEOUT total seconds (default 550), RPT replicas per task (default 2000)
+#   env: PROD_TIMEOUT total seconds (default 550), RPT replicas per task (default: the campaign file's),
+#        WORKERS Dask LocalCluster processes per campaign sharing the GPU (default: in-process, no Dask),
+#        CONCURRENT=1 runs the named campaigns at the same time (after one kernel-compiling warm-up)
 source benchmarks/device/setup.sh >/dev/null 2>&1
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
-T_END=$(( $(date +%s) + ${PROD_TIMEOUT:-550} ))
+T0=$(date +%s)
+T_END=$(( T0 + ${PROD_TIMEOUT:-550} ))
 mkdir -p /tmp/st /tmp/train
-for NAME in "$@"; do
+EXTRA=""
+[ -n "$RPT" ] && EXTRA="$EXTRA --replicas-per-task $RPT"
+[ -n "$WORKERS" ] && EXTRA="$EXTRA --workers $WORKERS"
+
+run_one() {
+  NAME=$1
   if [ ! -d /tmp/st/$NAME.store ] && [ -d .device-stores/$NAME.store ]; then cp -r .device-stores/$NAME.store /tmp/st/; fi
   LEFT=$(( T_END - $(date +%s) ))
   if [ $LEFT -gt 20 ]; then
-    timeout $LEFT python3 benchmarks/device/run_campaign.py $NAME /tmp/st/$NAME.store --replicas-per-task ${RPT:-2000} > /tmp/st/$NAME.log 2>&1
-    echo "$NAME rc=$? after $(( $(date +%s) - T_END + ${PROD_TIMEOUT:-550} )) s"
+    timeout $LEFT python3 benchmarks/device/run_campaign.py $NAME /tmp/st/$NAME.store $EXTRA > /tmp/st/$NAME.log 2>&1
+    echo "$NAME rc=$? after $(( $(date +%s) - T0 )) s"
   fi
-  grep -v "^Module" /tmp/st/$NAME.log | tail -3 | cut -c1-500
+  grep -v "^Module" /tmp/st/$NAME.log | tail -3 | cut -c1-700
   if [ -d /tmp/st/$NAME.store ]; then
     python3 -c "from bubblecal.data.store import export_compressed as e; e('/tmp/st/$NAME.store', '/tmp/train/$NAME.jsonl.gz')" \
       && cp /tmp/train/$NAME.jsonl.gz $OUT/
   fi
-done
+}
+
+if [ "${CONCURRENT:-0}" = 1 ]; then
+  # compile (or load) the kernels once, so that the concurrent processes only read the kernel cache
+  python3 benchmarks/device/run_campaign.py $1 /tmp/st/warmup.store --limit 1 --replicas-per-task 1 > /tmp/st/warmup.log 2>&1
+  echo "warm-up rc=$? after $(( $(date +%s) - T0 )) s"
+  rm -rf /tmp/st/warmup.store
+  for NAME in "$@"; do run_one $NAME & done
+  wait
+else
+  for NAME in "$@"; do run_one $NAME; done
+fi
 ls -la $OUT

@@ -1,10 +1,11 @@
 """Run a shipped campaign in-process on the lent GPU (no CLI / Dask needed there), resumable.
 
     python3 benchmarks/device/run_campaign.py NAME STORE_DIR [--limit N] [--device cuda] [--diameter D ...]
-        [--replicas-per-task N] [--max-replicas R]
+        [--replicas-per-task N] [--max-replicas R] [--workers W]
 
 Prints one progress line per finished task and the campaign summary as JSON.  Same records as
-``bubblecal sim campaign NAME --scheduler inline --store STORE_DIR``.
+``bubblecal sim campaign NAME --scheduler inline --store STORE_DIR`` (no Dask needed there); with ``--workers W``
+a Dask LocalCluster of W processes sharing the device (``bubblecal sim campaign NAME --workers W``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ def main(argv=None) -> int:
     ap.add_argument("--replicas-per-task", type=int, default=None, help="override (not part of the design)")
     ap.add_argument("--max-replicas", type=int, default=None,
                     help="quasi-static slot refill: replicas relaxing at once (not part of the design)")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="Dask LocalCluster processes on the device (default: in-process, no Dask)")
     args = ap.parse_args(argv)
     from bubblecal.sim.campaign import run_campaign
     from bubblecal.workflows.campaign import load_campaign_file
@@ -35,8 +38,8 @@ def main(argv=None) -> int:
         config = dataclasses.replace(config, replicas_per_task=args.replicas_per_task)
     if args.max_replicas is not None:
         config = dataclasses.replace(config, tier_settings={**config.tier_settings, "max_replicas": args.max_replicas})
-    summary = run_campaign(config, scheduler_address="inline", progress=True, limit=args.limit,
-                           diameters=args.diameter)
+    summary = run_campaign(config, scheduler_address="inline" if args.workers is None else "local",
+                           n_workers=args.workers, progress=True, limit=args.limit, diameters=args.diameter)
     print(json.dumps(dataclasses.asdict(summary) if dataclasses.is_dataclass(summary) else vars(summary),
                      default=str))
     return 0
