@@ -21,7 +21,8 @@ Variants (``--variants``, comma list; default all of VARIANTS):
   kfrac_<f>      loaded fraction per pole f instead of 0.01 (k = floor(f N_v) vertices)
   sub<s>         icosphere subdivision s instead of ``--subdivisions``
   R_nominal      mesh radius from the nominal diameter (5.8 -> 11.6, 3.2 -> 6.4) instead of the rows' radius
-  mirheo         the tier's indentation_convention = "mirheo" (k = floor(0.0028 N_v), kernel kb = published kb)
+  mirheo         the tier's indentation_convention = "mirheo" (vertices within 4.6 deg of a pole: 7 at subdivision 4,
+                 19 at 5; kernel kb = published kb)
   a+b            combination, e.g. kfrac_0.003+kb_x1.5 (kb_x1.5 = kernel kb equal to the published kb)
 Analysis-only (no extra simulation, from the baseline curves):
   pubref_F0      published d taken relative to the published F = 0 axial diameter (instead of 2 radius)
@@ -113,7 +114,8 @@ def loaded_fraction(fraction: float | None):
     orig = qs.quasistatic_indentation
 
     def patched(*a, **kw):
-        kw["fraction_loaded"] = fraction
+        kw.pop("fraction_loaded", None)
+        kw["pole_patch"] = {"fraction": fraction}
         return orig(*a, **kw)
 
     qs.quasistatic_indentation = patched
@@ -162,9 +164,12 @@ def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
     mesh = mesh_for_diameter(dia, sub)
     from bubblecal.sim.tiers import indentation_convention
 
-    frac = float(spec.get("fraction_loaded", indentation_convention(spec.get("convention", "bubblecal-v1")).loaded_fraction))
+    from bubblecal.sim.mesh import pole_patches
+
+    patch = ({"fraction": float(spec["fraction_loaded"])} if "fraction_loaded" in spec
+             else indentation_convention(spec.get("convention", "bubblecal-v1")).pole_patch())
     return {"variant": name, "diameter": diameter, "geometry_um": dia, "radius_dpd_mesh": mesh.radius_dpd,
-            "n_vertices": mesh.n_vertices, "k_loaded": max(1, int(np.floor(frac * mesh.n_vertices))),
+            "n_vertices": mesh.n_vertices, "k_loaded": len(pole_patches(mesh.vertices, **patch)[0]),
             "y": batch.observable, "status": list(batch.status), "wall_s": wall,
             "fire_steps": batch.info.get("fire_steps")}
 

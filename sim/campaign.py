@@ -35,7 +35,11 @@ skips what is stored) loses and duplicates nothing.  The per-task compute time i
 task, so Dask's overhead is ``1 - sum(task compute) / (wall x workers)`` (:class:`CampaignSummary`).
 
 ``scheduler_address='inline'`` runs the same loop in-process without Dask (debugging, or a machine
-without dask installed).  Several GPUs on one host: a ``dask_cuda.LocalCUDACluster`` (one worker per GPU,
+without dask installed), and there the quasi-static indentation tier with slot refill streams: each curve's
+record is appended as soon as the curve is finished (provenance ``streamed``), so a large task (one long
+refill pool per campaign, whose slowest curves are paid once) loses only its unfinished curves when killed.
+One process per GPU: processes sharing a GPU without MPS time-slice it, and a pool's latency-bound slowest
+curves then crawl (benchmarks/RESULTS.md, session 10).  Several GPUs on one host: a ``dask_cuda.LocalCUDACluster`` (one worker per GPU,
 CUDA_VISIBLE_DEVICES set per worker) and its address; a plain LocalCluster puts every 'cuda' worker on GPU 0.
 
 Clusters (SLURM via dask-jobqueue, not a dependency of bubblecal)::
@@ -53,7 +57,9 @@ time in DPD time and radius in DPD length (:mod:`bubblecal.data.units`).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import inspect
 import json
 import math
 import os
@@ -548,9 +554,12 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
 # ------------------------------------------------------------------------------------------------
 # simulate functions (run on the workers)
 # ------------------------------------------------------------------------------------------------
-def simulate_task(task: CampaignTask) -> TaskResult:
+def simulate_task(task: CampaignTask,
+                  on_curve: Callable[[int, np.ndarray, str, dict], None] | None = None) -> TaskResult:
     """The default task: ``get_tier(task.tier, **settings).run(CurveRequest, device)`` for compression /
-    indentation, ``bubblecal.sim.experiments.ringdown.ringdown_batch`` for ringdown."""
+    indentation, ``bubblecal.sim.experiments.ringdown.ringdown_batch`` for ringdown.  ``on_curve(r, y [P],
+    status, info)``: replica ``r``'s curve as soon as it is finished, where the tier reports them (quasi-static
+    indentation with slot refill); the returned result holds every curve either way."""
     if task.protocol == "ringdown":
         try:
             from bubblecal.sim.experiments.ringdown import ringdown_batch
@@ -572,7 +581,10 @@ def simulate_task(task: CampaignTask) -> TaskResult:
     tier = get_tier(task.tier, **dict(task.tier_settings))
     request = CurveRequest(protocol=task.protocol, diameter_um=task.diameter_um, grid=task.grid,
                            params=task.params, seeds=task.seeds, subdivisions=task.subdivisions)
-    batch = tier.run(request, task.device)
+    if on_curve is not None and "on_curve" in inspect.signature(tier.run).parameters:
+        batch = tier.run(request, task.device, on_curve=on_curve)
+    else:
+        batch = tier.run(request, task.device)
     return TaskResult(x=request.grid_array(), y=batch.observable, status=list(batch.status), info=dict(batch.info))
 
 
@@ -593,10 +605,20 @@ def synthetic_simulate(task: CampaignTask, work_seconds: float = 0.0, sleep_seco
     return TaskResult(x=grid, y=y, status=["ok"] * task.n_replicas, info={"synthetic": True, "acc": acc > 0})
 
 
-def _execute_task(simulate: Callable[[CampaignTask], TaskResult], task: CampaignTask) -> TaskResult:
-    """Run ``simulate(task)`` and time it (inside the worker: the per-task compute seconds)."""
+def _takes_on_curve(simulate: Callable) -> bool:
+    """Whether ``simulate`` accepts ``on_curve`` (streams finished curves; :func:`simulate_task` does)."""
+    try:
+        return "on_curve" in inspect.signature(simulate).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _execute_task(simulate: Callable[[CampaignTask], TaskResult], task: CampaignTask,
+                  on_curve: Callable | None = None) -> TaskResult:
+    """Run ``simulate(task)`` and time it (inside the worker: the per-task compute seconds); ``on_curve`` is
+    passed on when given (in-process runs only: a Dask worker cannot write the client's store)."""
     t0 = time.perf_counter()
-    res = simulate(task)
+    res = simulate(task) if on_curve is None else simulate(task, on_curve=on_curve)
     if not isinstance(res, TaskResult):
         res = TaskResult(x=np.asarray(res.x), y=np.asarray(res.y), status=list(res.status),
                          info=dict(getattr(res, "info", {}) or {}), messages=getattr(res, "messages", None))
@@ -620,8 +642,9 @@ def _replica_info(info: Mapping, r: int, n: int) -> dict:
 
 
 def _records_for(config: CampaignConfig, task: CampaignTask, res: TaskResult | None, *, code_version: str,
-                 design_hash: str, error: str | None = None) -> list[dict]:
-    """One store record per replica of ``task`` ('failed' records with ``error`` when res is None)."""
+                 design_hash: str, error: str | None = None, provenance: Mapping | None = None) -> list[dict]:
+    """One store record per replica of ``task`` ('failed' records with ``error`` when res is None);
+    ``provenance`` overrides provenance keys (a streamed curve: its task's index and size)."""
     R = task.n_replicas
     radius = radius_dpd_from_diameter_um(task.diameter_um)
     recs = []
@@ -651,6 +674,8 @@ def _records_for(config: CampaignConfig, task: CampaignTask, res: TaskResult | N
                     message, status = f"unknown status {status!r} from the simulation", "failed"
                 elif status == "ok" and not (np.all(np.isfinite(x2[r])) and np.all(np.isfinite(y[r]))):
                     status, message = "invalid", "simulation reported ok but the curve holds non-finite values"
+        if provenance:
+            prov.update(provenance)
         recs.append(make_record(
             sample_id=task.sample_ids[r], setup=config.protocol,
             params={k: float(task.params[k][r]) for k in SHELL_PARAM_NAMES}, radius_dpd=radius, x=xs, y=ys,
@@ -857,6 +882,23 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
             counts[r["status"]] += 1
         return len(recs)
 
+    def stream(task: CampaignTask, t_task: float, r: int, y_row, status: str, info: Mapping) -> int:
+        # one finished curve of a running task, written at once: an interrupted task keeps it (resume key)
+        sid = task.sample_ids[r]
+        if sid in written:
+            return 0
+        one = dataclasses.replace(task, indices=(task.indices[r],), sample_ids=(sid,), seeds=(task.seeds[r],),
+                                  params={k: np.asarray(v)[r:r + 1] for k, v in task.params.items()})
+        res = TaskResult(x=np.asarray(task.grid, dtype=np.float64), y=np.asarray(y_row, dtype=np.float64)[None, :],
+                         status=[status], info=dict(info), compute_seconds=time.perf_counter() - t_task,
+                         host=socket.gethostname(), pid=os.getpid())
+        recs = _records_for(config, one, res, code_version=version, design_hash=design_hash,
+                            provenance={"task": task.index, "replicas_in_task": task.n_replicas, "streamed": True})
+        store.append_many(recs)
+        written.add(sid)
+        counts[recs[0]["status"]] += 1
+        return 1
+
     bar = _Progress(False, 0, config.name)
     t_start = time.perf_counter()
     startup = 0.0
@@ -868,9 +910,15 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
             pass
         elif client is None and scheduler_address == "inline":
             bar = _Progress(progress, len(todo), config.name)
+            streams = _takes_on_curve(simulate)
             for task in tasks:
+                t_task = time.perf_counter()
+
+                def on_curve(r, y_row, status, info, task=task, t_task=t_task):
+                    bar.update(stream(task, t_task, r, y_row, status, info), counts)
+
                 try:
-                    res, err = _execute_task(simulate, task), None
+                    res, err = _execute_task(simulate, task, on_curve if streams else None), None
                 except Exception as exc:  # recorded or re-raised by handle()
                     res, err = None, exc
                 bar.update(handle(task, res, err), counts)

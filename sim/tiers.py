@@ -84,14 +84,21 @@ KB_KERNEL_SCALE = {"compression": 1.0, "indentation": 2.0 / 3.0}
 class IndentationConvention:
     """How a published indentation parameter set maps onto our kernels and loading.
 
-    ``kb_scale``: published kb -> our Kantor kernel's kb; ``loaded_fraction``: the pole force F is shared by
-    k = max(1, floor(loaded_fraction N_v)) top-most (and as many bottom-most) vertices.
+    ``kb_scale``: published kb -> our Kantor kernel's kb.  The pole force F is shared by the vertices of
+    :func:`bubblecal.sim.mesh.pole_patches`: ``loaded_fraction`` (k = max(1, floor(loaded_fraction N_v))
+    top-most and as many bottom-most vertices) or ``loaded_cap_deg`` (every vertex within that polar angle of
+    a pole, the same patch on every mesh level).
     """
 
     name: str
     kb_scale: float
-    loaded_fraction: float
+    loaded_fraction: float | None
     description: str
+    loaded_cap_deg: float | None = None
+
+    def pole_patch(self) -> dict:
+        """Keyword arguments of :func:`bubblecal.sim.mesh.pole_patches` (``fraction`` or ``cap_deg``)."""
+        return {"fraction": self.loaded_fraction, "cap_deg": self.loaded_cap_deg}
 
 
 #: Named indentation conventions (a tier setting, ``indentation_convention``; benchmarks/RESULTS.md, session 9).
@@ -100,16 +107,18 @@ class IndentationConvention:
 #: compliance d/F ~ ka^-0.64 kb^-0.39 (3.2 um), ka^-0.68 kb^-0.46 (5.8 um) has other exponents than the
 #: published curves' (ka^-0.58 kb^-0.46, ka^-0.57 kb^-0.55; 16 rows each): a loaded patch wider than the
 #: published one (0.87-1.10 x the published d at 3.2 um, 0.72-1.18 x at 5.8 um, depending on ka / kb).
-#: ``mirheo``: the published curves' convention as found from those exponents: a patch of 0.28 % of the
-#: vertices (k = 7 on the subdivision-4 mesh: the pole vertex and its first ring) and the compression data's
-#: kb (scale 1).  The exponents then agree (ka^-0.58 kb^-0.45 at 3.2 um, ka^-0.58 kb^-0.52 at 5.8 um) and the
-#: quasi-static d(F) is 0.97 x the published at both diameters (median; rows 0.97-0.98 and 0.91-1.02).
+#: ``mirheo``: the published curves' convention as found from those exponents: the pole vertex and its first
+#: ring on the subdivision-4 mesh (7 vertices, a polar cap of 4.6 deg) and the compression data's kb (scale 1).
+#: The exponents then agree (ka^-0.58 kb^-0.45 at 3.2 um, ka^-0.58 kb^-0.52 at 5.8 um) and the quasi-static
+#: d(F) is 0.97 x the published at both diameters (median; rows 0.97-0.98 and 0.91-1.02).  The patch is a
+#: cap, not a vertex fraction: 0.28 % of the subdivision-5 mesh (28 vertices, two rings and half of the third)
+#: is 4 % stiffer at 5.8 um than the same cap's 19 vertices, which reproduce subdivision 4 (session 10).
 INDENTATION_CONVENTIONS = {
     "bubblecal-v1": IndentationConvention(
         "bubblecal-v1", 2.0 / 3.0, 0.01, "k = floor(0.01 N_v) loaded vertices per pole, kernel kb = 2/3 published kb"),
     "mirheo": IndentationConvention(
-        "mirheo", 1.0, 0.0028, "k = floor(0.0028 N_v) loaded vertices per pole (7 at subdivision 4: the pole "
-        "vertex and its first ring), kernel kb = published kb"),
+        "mirheo", 1.0, None, "the vertices within 4.6 deg of each pole carry the pole force (the pole vertex and "
+        "its first ring at subdivision 4: 7; two rings at 5: 19), kernel kb = published kb", loaded_cap_deg=4.6),
 }
 DEFAULT_INDENTATION_CONVENTION = "bubblecal-v1"
 
@@ -315,8 +324,14 @@ class QuasistaticTier:
             raise ValueError(f"quasistatic tier: kT must be a positive DPD energy, got {self.kT!r}")
         indentation_convention(self.indentation_convention)
 
-    def run(self, request: CurveRequest, device: str = "cpu") -> CurveBatch:
-        """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``."""
+    def run(self, request: CurveRequest, device: str = "cpu",
+            on_curve: Callable[[int, np.ndarray, str, dict], None] | None = None) -> CurveBatch:
+        """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``.
+
+        ``on_curve(i, observable [P], status, info)``: indentation with slot refill (``max_replicas`` below the
+        request's replicas) reports each curve as soon as it is finished, with the row, tier status and
+        per-curve info the returned batch will hold (``info`` without the batch-wide ``settings``).
+        """
         from bubblecal.sim.experiments.quasistatic import (
             FireSettings,
             IdealGas,
@@ -344,17 +359,30 @@ class QuasistaticTier:
             res = quasistatic_compression(params, mesh, grid, thermal=thermal, **common)
             obs = res.force + res.force_bottom  # both plates (module docstring)
         else:
-            res = quasistatic_indentation(params, mesh, grid, fraction_loaded=conv.loaded_fraction, **common)
+            row_cb = None
+            if on_curve is not None:
+                def row_cb(i, row):
+                    on_curve(i, row["displacement"], _QS_STATUS[row["status"]],
+                             {**static, "fire_steps": int(np.sum(row["fire_steps"]))})
+
+            static = self._static_info(request, mesh, conv)
+            res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,
+                                          **common)
             obs = res.displacement
         status = [_QS_STATUS[s] for s in res.status]
-        info = {"tier": self.name, "mesh_subdivisions": mesh.subdivisions, "n_vertices": mesh.n_vertices,
-                "displacement_convention": DISPLACEMENT_CONVENTION if request.protocol == "compression" else None,
-                "fire_steps": res.fire_steps.sum(axis=1).tolist(), "self_avoid": bool(self.self_avoid),
-                "thermal_contact": bool(self.thermal_contact and request.protocol == "compression"),
-                "indentation_convention": conv.name if request.protocol == "indentation" else None,
+        info = {**self._static_info(request, mesh, conv), "fire_steps": res.fire_steps.sum(axis=1).tolist(),
                 "settings": res.settings}
         return CurveBatch(tier=self.name, request=request, observable=obs, status=status, info=info,
                           seconds=time.perf_counter() - t0)
+
+
+    def _static_info(self, request: CurveRequest, mesh, conv: IndentationConvention) -> dict:
+        """The info keys that do not depend on the simulation's outcome (one dict for batch and per-curve)."""
+        return {"tier": self.name, "mesh_subdivisions": mesh.subdivisions, "n_vertices": mesh.n_vertices,
+                "displacement_convention": DISPLACEMENT_CONVENTION if request.protocol == "compression" else None,
+                "self_avoid": bool(self.self_avoid),
+                "thermal_contact": bool(self.thermal_contact and request.protocol == "compression"),
+                "indentation_convention": conv.name if request.protocol == "indentation" else None}
 
 
 register_tier("quasistatic", QuasistaticTier)

@@ -117,7 +117,8 @@ def campaign(
                                            "(e.g. definity_compression_2.1um)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (e.g. of a "
                                                             "dask-jobqueue SLURMCluster); 'inline' = in-process, "
-                                                            "no Dask; 'local' = a LocalCluster. Default: [dask] "
+                                                            "no Dask (quasi-static indentation then stores each "
+                                                            "curve when it is finished); 'local' = a LocalCluster. Default: [dask] "
                                                             "of the file, else 'local'."),
     workers: int = typer.Option(None, "--workers", min=1, help="LocalCluster worker processes (default: [dask] "
                                                                "n_workers, else 1 on cuda / core count on cpu)."),

@@ -28,6 +28,8 @@ def main(argv=None) -> int:
                     help="quasi-static slot refill: replicas relaxing at once (not part of the design)")
     ap.add_argument("--workers", type=int, default=None,
                     help="Dask LocalCluster processes on the device (default: in-process, no Dask)")
+    ap.add_argument("--tier-setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="override one [tier] setting (a measurement: changes the design, so use a fresh store)")
     args = ap.parse_args(argv)
     from bubblecal.sim.campaign import run_campaign
     from bubblecal.workflows.campaign import load_campaign_file
@@ -38,6 +40,13 @@ def main(argv=None) -> int:
         config = dataclasses.replace(config, replicas_per_task=args.replicas_per_task)
     if args.max_replicas is not None:
         config = dataclasses.replace(config, tier_settings={**config.tier_settings, "max_replicas": args.max_replicas})
+    for kv in args.tier_setting:
+        key, _, value = kv.partition("=")
+        try:
+            value = json.loads(value)
+        except json.JSONDecodeError:
+            pass  # a plain string such as bubblecal-v1
+        config = dataclasses.replace(config, tier_settings={**config.tier_settings, key: value})
     summary = run_campaign(config, scheduler_address="inline" if args.workers is None else "local",
                            n_workers=args.workers, progress=True, limit=args.limit, diameters=args.diameter)
     print(json.dumps(dataclasses.asdict(summary) if dataclasses.is_dataclass(summary) else vars(summary),

@@ -51,6 +51,7 @@ import warp as wp
 
 from bubblecal.sim.experiments.quasistatic import PlateContact, _cap_distance
 from bubblecal.sim.kernels.common import kernel_decorator
+from bubblecal.sim.mesh import pole_patches
 from bubblecal.sim.tiers import (
     DEFAULT_INDENTATION_CONVENTION,
     DISPLACEMENT_CONVENTION,
@@ -291,12 +292,13 @@ class _ExplicitAdapter:
 # the protocol (shared by both tiers)
 # ------------------------------------------------------------------------------------------------
 def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: ProtocolSteps,
-                    contact: PlateContact = PlateContact(), fraction_loaded: float = 0.01,
+                    contact: PlateContact = PlateContact(), pole_patch: dict | None = None,
                     max_seconds: float | None = None, progress=None) -> dict:
     """Run the chained protocol on an adapted system; returns observables [R, P] and per-point data.
 
     ``mesh``: the (shared) reference mesh, centred at the origin (DPD length); ``grid``: total
-    displacements (compression, DPD length) or forces per pole (indentation, DPD force).
+    displacements (compression, DPD length) or forces per pole (indentation, DPD force).  ``pole_patch``:
+    keyword arguments of :func:`bubblecal.sim.mesh.pole_patches` (default ``{"fraction": 0.01}``).
     """
     t0 = time.perf_counter()
     k = _kernels(adapter.dtype)
@@ -332,9 +334,10 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
         extra["force_bottom"] = np.full((R, P), np.nan)
         extra["force_sem"] = np.full((R, P), np.nan)
     else:
-        kk = max(1, int(math.floor(fraction_loaded * nv)))
-        order = np.argsort(z0, kind="stable")
-        bottom, top = order[:kk], order[::-1][:kk]
+        top, bottom = pole_patches(mesh.vertices, **(pole_patch or {"fraction": 0.01}))
+        kk = len(top)
+        if len(bottom) != kk:  # one 1/k weight for both poles (the icosphere is symmetric)
+            raise ValueError(f"the pole patches differ in size ({kk} top, {len(bottom)} bottom vertices)")
         rows = np.concatenate([np.concatenate([o + top, o + bottom]) for o in offsets]).astype(np.int32)
         sign = np.tile(np.concatenate([-np.ones(kk), np.ones(kk)]), R).astype(adapter.np_dtype)
         rows_w = wp.array(rows, dtype=wp.int32, device=dev)
@@ -548,7 +551,7 @@ class ImplicitTier(_MDTierBase):
                                      device=device, dtype=self.dtype, seed=list(request.seeds), pin_com=True)
         adapter = _ImplicitAdapter(system, HealthThresholds(rupture_strain=self.rupture_strain))
         out = run_md_protocol(adapter, mesh, request.protocol, request.grid_array(), self.protocol_steps(),
-                              self.contact, fraction_loaded=self._convention().loaded_fraction,
+                              self.contact, pole_patch=self._convention().pole_patch(),
                               max_seconds=self.max_seconds, progress=self._progress())
         info = {"system": system.settings(), "memory_bytes": system.memory_bytes()}
         info["system"].pop("n_vertices", None)
@@ -593,7 +596,7 @@ class ExplicitTier(_MDTierBase):
         monitor = HealthMonitor(HealthConfig(rupture_strain=self.rupture_strain, check_leaks=self.health_leaks))
         adapter = _ExplicitAdapter(system, monitor)
         out = run_md_protocol(adapter, mesh, request.protocol, request.grid_array(), self.protocol_steps(),
-                              self.contact, fraction_loaded=self._convention().loaded_fraction,
+                              self.contact, pole_patch=self._convention().pole_patch(),
                               max_seconds=self.max_seconds, progress=self._progress())
         counts = system.solvent_counts()
         info = {"n_particles": int(system.N + system.Nv), "solvent_counts": counts.tolist(),

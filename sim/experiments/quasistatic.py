@@ -64,7 +64,7 @@ from bubblecal.sim.experiments.thermal_contact import (
     thermal_plate_force,
 )
 from bubblecal.sim.kernels.shell_params import ShellParams
-from bubblecal.sim.mesh import ShellMesh
+from bubblecal.sim.mesh import ShellMesh, pole_patches
 
 __all__ = [
     "IdealGas",
@@ -630,7 +630,8 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
                      progress: Callable[[int, int, float], None] | None = None,
                      batch_fraction: float = 0.05, samples: Sequence[ShellParams] | None = None,
                      compact: Callable[[_DeviceChain, np.ndarray, list], tuple] | None = None,
-                     compact_below: float = 0.125, compact_min: int = 8) -> dict:
+                     compact_below: float = 0.125, compact_min: int = 8,
+                     on_finish: Callable[[int, dict], None] | None = None) -> dict:
     """Chain the load points with every replica at its own point (device FIRE only).
 
     A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
@@ -649,7 +650,10 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     ``compact(backend, slots, params) -> (new backend, new assign)``: once the pool is empty and at most
     ``compact_below`` of the slots (and more than ``compact_min`` slots in all) still relax, they move to a
     batch of their own size (an iteration of a big batch costs a fixed floor however few of its replicas
-    relax; same iterates).  Returns the dict of :func:`_run_chain`, rows = samples.
+    relax; same iterates).  ``on_finish(s, row)`` (with ``samples``): called as soon as sample ``s`` has
+    finished its curve, with its ``status``, ``point_status``, ``fire_steps`` [P] and ``obs`` {name: [P]}
+    (a campaign writes the record at once, so an interrupted batch keeps its finished curves).
+    Returns the dict of :func:`_run_chain`, rows = samples.
     """
     from bubblecal.sim.kernels.fire import ACTIVE
 
@@ -708,6 +712,10 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
             finished = np.nonzero(waiting & done)[0]
             for r in finished:
                 x_out[sample[r] * backend.nv:(sample[r] + 1) * backend.nv] = backend.row_positions(int(r))
+                if on_finish is not None:
+                    s_ = int(sample[r])
+                    on_finish(s_, {"status": status[s_], "point_status": list(point_status[s_]),
+                                   "fire_steps": steps[s_].copy(), "obs": {k: v[s_].copy() for k, v in obs.items()}})
             n_finished += len(finished)
             refill = finished[:max(0, S - next_sample)]
             if len(refill):
@@ -773,10 +781,12 @@ _COMPACT_MIN = 8
 
 def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, n_points: int,
                       rupture_strain: float, assign_factory: Callable[[_DeviceChain], Callable],
-                      max_replicas: int | None, progress) -> dict:
+                      max_replicas: int | None, progress,
+                      on_finish: Callable[[int, dict], None] | None = None) -> dict:
     """Async chain over ``params``; with ``max_replicas`` < len(params) at most that many slots run at once
     and finished slots take the next sample, softest (smallest k_a) first: FIRE work grows as k_a falls,
-    so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order."""
+    so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order.
+    ``on_finish(i, row)``: each finished curve at once (``i`` indexes ``params``; with slot refill only)."""
     S = len(params)
     if max_replicas is None or max_replicas >= S:
         dc = dc_factory(params)
@@ -790,8 +800,10 @@ def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, 
         new.take_over(old, slots)
         return new, assign_factory(new)
 
+    finish = None if on_finish is None else (lambda s, row: on_finish(int(order[s]), row))
     out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool,
-                           compact=compact, compact_below=_COMPACT_BELOW, compact_min=_COMPACT_MIN)
+                           compact=compact, compact_below=_COMPACT_BELOW, compact_min=_COMPACT_MIN,
+                           on_finish=finish)
     inv = np.empty(S, dtype=np.int64)
     inv[order] = np.arange(S)
     nv = dc.nv
@@ -888,10 +900,12 @@ class IndentationResult(_ChainResult):
 def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
                             forces_dpd: Sequence[float] | np.ndarray, *, gas: IdealGas | None = IdealGas(),
                             device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
-                            rupture_strain: float = 1.0, fraction_loaded: float = 0.01, minimizer: str = "device",
+                            rupture_strain: float = 1.0, fraction_loaded: float | None = None,
+                            pole_patch: dict | None = None, minimizer: str = "device",
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
                             max_replicas: int | None = None,
-                            progress: Callable[[int, int, float], None] | None = None) -> IndentationResult:
+                            progress: Callable[[int, int, float], None] | None = None,
+                            on_curve: Callable[[int, dict], None] | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
 
     Args:
@@ -902,7 +916,10 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         device, dtype: Warp device and float type (default ``wp.float64``).
         fire: :class:`FireSettings` (ftol in DPD force per vertex).
         rupture_strain: max |A_t/A0_t - 1| above which a replica is 'ruptured'.
-        fraction_loaded: k = max(1, floor(fraction_loaded N_v)) loaded vertices per pole.
+        fraction_loaded: k = max(1, floor(fraction_loaded N_v)) loaded vertices per pole (the default
+            0.01 when neither this nor ``pole_patch`` is given).
+        pole_patch: keyword arguments of :func:`bubblecal.sim.mesh.pole_patches` (``{"cap_deg": 4.6}``
+            for a polar cap); excludes ``fraction_loaded``.
         minimizer: ``"device"`` (default: :class:`bubblecal.sim.minimize_device.DeviceFire`, all state
             and forces on the Warp device) or ``"numpy"`` (host FIRE, the reference implementation).
         sync_every: device FIRE iterations between host status checks (default 25 CUDA / 4 CPU).
@@ -919,6 +936,9 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         progress: optional ``progress(j, n_points, seconds)`` called after every load point
             (compression: every sub-step); with slot refill ``progress(k, n_params, seconds)`` after every
             finished curve.
+        on_curve: optional ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (slot refill
+            only: ``max_replicas`` < R with the async device schedule), ``row`` = {"displacement" [P] (DPD
+            length), "status", "point_status", "fire_steps" [P]}: the same numbers as the returned rows.
 
     Returns: :class:`IndentationResult`; displacement in DPD length.
     """
@@ -926,15 +946,20 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     forces = validate_grid(forces_dpd, "forces_dpd")
     schedule = _check_common(rupture_strain, fire, minimizer, schedule)
     _check_max_replicas(max_replicas, schedule)
-    if not (0 < fraction_loaded < 0.5):
-        raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {fraction_loaded!r}")
+    if pole_patch is not None and fraction_loaded is not None:
+        raise ValueError("give fraction_loaded or pole_patch, not both")
+    patch_kw = dict(pole_patch) if pole_patch is not None else {"fraction": 0.01 if fraction_loaded is None
+                                                                 else fraction_loaded}
+    if patch_kw.get("fraction") is not None and not (0 < patch_kw["fraction"] < 0.5):
+        raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {patch_kw['fraction']!r}")
     params = _check_params(params, mesh, gas)
     R, nv = len(params), mesh.n_vertices
     z0 = mesh.vertices[:, 2]
     zc = float(mesh.vertices[:, 2].mean())
-    k = max(1, int(math.floor(fraction_loaded * nv)))
-    order = np.argsort(z0, kind="stable")
-    bottom, top = order[:k], order[::-1][:k]
+    top, bottom = pole_patches(mesh.vertices, **patch_kw)
+    k = len(top)
+    if len(bottom) != k:  # one 1/k weight for both poles (the icosphere is symmetric)
+        raise ValueError(f"the pole patches differ in size ({k} top, {len(bottom)} bottom vertices)")
     equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
     free_v = np.ones((nv, 3), dtype=bool)
     free_v[equator, 2] = False
@@ -949,8 +974,18 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                                 unit=unit, tag=tag, sync_every=sync_every, loads=forces if extrapolate else None)
 
         if schedule == "async":
+            finish = None
+            if on_curve is not None:
+                h0_ = float(z0.max() - z0.min())
+
+                def finish(i, row):
+                    h = row["obs"].get("H", np.full(len(forces), np.nan))
+                    on_curve(i, {"displacement": h0_ - h, "status": row["status"],
+                                 "point_status": row["point_status"], "fire_steps": row["fire_steps"]})
+
             out = _run_device_async(make_chain, params, len(forces), rupture_strain,
-                                    lambda dc: (lambda jj: dc.set_load_rows(forces[jj])), max_replicas, progress)
+                                    lambda dc: (lambda jj: dc.set_load_rows(forces[jj])), max_replicas, progress,
+                                    on_finish=finish)
         else:
             dc = make_chain(params)
             out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
@@ -981,6 +1016,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
     P = out["obs"].get("patch", np.full((R, len(forces)), np.nan))
     settings = {"k_loaded_per_pole": k, "n_equator_anchored": int(equator.size),
+                "pole_patch": {key: v for key, v in patch_kw.items() if v is not None},
                 "gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
                 "com": "mean force removed (x, y, z)", "equator": "|z - z_c| < 0.25 l_min anchored in z",
                 "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,

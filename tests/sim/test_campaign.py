@@ -336,3 +336,60 @@ def test_unstable_is_retried_only_with_a_larger_step_budget(tmp_path):
     run_campaign(c, scheduler_address="inline", simulate=FAST, progress=False)
     assert pending_indices(c) == [] and store_status(c.store_path).counts == {**store_status(c.store_path).counts,
                                                                               "ok": 2, "unstable": 2}
+
+
+class _Killed(BaseException):
+    """Stands for a killed process (not an Exception: the campaign loop must not catch it)."""
+
+
+def _killed_after(n_curves: int):
+    """A simulate function that runs the real task and dies once ``n_curves`` curves have been streamed."""
+    from bubblecal.sim.campaign import simulate_task
+
+    def simulate(task, on_curve=None):
+        seen = []
+
+        def cb(r, y, status, info):
+            on_curve(r, y, status, info)
+            seen.append(r)
+            if len(seen) == n_curves:
+                raise _Killed()
+
+        return simulate_task(task, on_curve=cb)
+
+    return simulate
+
+
+def test_inline_indentation_streams_finished_curves_and_a_killed_task_keeps_them(tmp_path):
+    """Quasi-static indentation with slot refill writes each curve when it is finished: a task killed after
+    3 of its 6 curves keeps those 3, the restart runs only the other 3, and every record equals the record of
+    an uninterrupted run of the same design (curve, status, seed), streamed or written at the task's end."""
+    kw = dict(protocol="indentation", diameter_um=3.2, n_samples=6, replicas_per_task=6, subdivisions=2,
+              tier="quasistatic", tier_settings={"max_replicas": 2, "max_steps": 20000},
+              loading_grid=(0.0, 20.0, 40.0))
+    ref = cfg(tmp_path, store=str(tmp_path / "ref.store"), **kw)
+    run_campaign(ref, scheduler_address="inline", progress=False)
+    ref_recs = {r["sample_id"]: r for r in CampaignStore(ref.store_path).read()}
+    assert len(ref_recs) == 6 and all(r["provenance"].get("streamed") for r in ref_recs.values())
+    assert {r["provenance"]["replicas_in_task"] for r in ref_recs.values()} == {6}
+
+    c = cfg(tmp_path, store=str(tmp_path / "k.store"), **kw)
+    with pytest.raises(_Killed):
+        run_campaign(c, scheduler_address="inline", progress=False, simulate=_killed_after(3))
+    kept = CampaignStore(c.store_path).read()
+    assert len(kept) == 3 and len(pending_indices(c)) == 3  # the finished curves survive the kill
+    s = run_campaign(c, scheduler_address="inline", progress=False)
+    assert s.n_submitted == 3 and s.n_written == 3
+    assert lines_per_sample(c.store_path) == Counter({sid: 1 for sid in sample_ids(c)})  # none twice
+    for r in CampaignStore(c.store_path).read():
+        want = ref_recs[r["sample_id"]]
+        assert (r["status"], r["seed"], r["params"], r["x"]) == (want["status"], want["seed"], want["params"], want["x"])
+        np.testing.assert_array_equal(r["y"], want["y"])  # the same FIRE iterates: identical curves
+        assert r["provenance"]["info"]["fire_steps"] == want["provenance"]["info"]["fire_steps"]
+    # without slot refill nothing streams: the task's records are written at its end
+    once = cfg(tmp_path, store=str(tmp_path / "once.store"), **{**kw, "tier_settings": {"max_steps": 20000}})
+    run_campaign(once, scheduler_address="inline", progress=False)
+    recs = CampaignStore(once.store_path).read()
+    assert not any(r["provenance"].get("streamed") for r in recs)
+    for r in recs:
+        np.testing.assert_array_equal(r["y"], ref_recs[r["sample_id"]]["y"])

@@ -94,3 +94,34 @@ def test_build_rejects_bad_meshes():
         build_shell_mesh(m.vertices, m.faces[:, [0, 2, 1]])
     with pytest.raises(ValueError, match="closed"):
         build_shell_mesh(m.vertices, m.faces[:-1])
+
+
+def test_pole_patches_fraction_keeps_the_top_most_vertices_and_the_cap_is_mesh_independent():
+    from bubblecal.sim.mesh import pole_patches
+
+    m4 = icosphere(11.5, 4, center=(1.0, -2.0, 3.0))
+    top, bottom = pole_patches(m4.vertices, fraction=0.01)
+    order = np.argsort(m4.vertices[:, 2], kind="stable")  # physics.md: k = floor(0.01 N_v) by z
+    assert len(top) == 25 and set(top) == set(order[::-1][:25]) and set(bottom) == set(order[:25])
+    # the Mirheo patch: the pole vertex and its first ring at subdivision 4, two full rings at 5
+    counts = {s: len(pole_patches(icosphere(11.5, s).vertices, cap_deg=4.6)[0]) for s in (3, 4, 5)}
+    assert counts == {3: 1, 4: 7, 5: 19}
+    m5 = icosphere(11.5, 5, center=(1.0, -2.0, 3.0))
+    for m in (m4, m5):
+        top, bottom = pole_patches(m.vertices, cap_deg=4.6)
+        c = m.vertices.mean(axis=0)
+        u = (m.vertices - c) / np.linalg.norm(m.vertices - c, axis=1)[:, None]
+        polar_top = np.degrees(np.arccos(np.clip(u[top, 2], -1, 1)))
+        assert polar_top[0] == pytest.approx(0.0, abs=1e-9) and polar_top.max() <= 4.6  # pole first, all in the cap
+        assert len(bottom) == len(top) and np.all(u[bottom, 2] < -0.99)
+        outside = np.setdiff1d(np.arange(m.n_vertices), np.concatenate([top, bottom]))
+        assert np.degrees(np.arccos(np.abs(u[outside, 2]).max())) > 5.4  # the next ring is well outside
+    assert len(pole_patches(m4.vertices, cap_deg=0.0)[0]) == 1  # the pole vertex alone
+    with pytest.raises(ValueError, match="exactly one of fraction"):
+        pole_patches(m4.vertices, fraction=0.01, cap_deg=4.6)
+    with pytest.raises(ValueError, match="exactly one of fraction"):
+        pole_patches(m4.vertices)
+    with pytest.raises(ValueError, match=r"cap_deg must lie in \[0, 90\)"):
+        pole_patches(m4.vertices, cap_deg=95.0)
+    with pytest.raises(ValueError, match=r"fraction must lie in \(0, 0.5\)"):
+        pole_patches(m4.vertices, fraction=0.7)

@@ -74,9 +74,14 @@ def test_indentation_conventions_map_kb_and_name_the_allowed_values():
     assert DEFAULT_INDENTATION_CONVENTION == "bubblecal-v1"  # the shipped SonoVue training sets
     assert indentation_convention("bubblecal-v1").kb_scale == pytest.approx(KB_KERNEL_SCALE["indentation"])
     assert indentation_convention("mirheo").kb_scale == 1.0
-    # the published patch: the pole vertex and its first ring on the subdivision-4 icosphere (2,562 vertices)
-    assert int(np.floor(indentation_convention("mirheo").loaded_fraction * 2562)) == 7
-    assert int(np.floor(indentation_convention("bubblecal-v1").loaded_fraction * 2562)) == 25
+    # the published patch: the pole vertex and its first ring on the subdivision-4 icosphere (2,562 vertices),
+    # the same cap (two rings) at subdivision 5; bubblecal-v1: 1 % of the vertices
+    from bubblecal.sim.mesh import icosphere, pole_patches
+
+    for sub, n_mirheo, n_v1 in ((4, 7, 25), (5, 19, 102)):
+        v = icosphere(11.5, sub).vertices
+        assert len(pole_patches(v, **indentation_convention("mirheo").pole_patch())[0]) == n_mirheo
+        assert len(pole_patches(v, **indentation_convention("bubblecal-v1").pole_patch())[1]) == n_v1
     ind = CurveRequest("indentation", 3.2, (0.0, 500.0), PARAMS, (1, 2))
     np.testing.assert_allclose([p.kb for p in ind.shell_params("mirheo")], PARAMS["kb"], rtol=1e-15)
     comp = CurveRequest("compression", 3.0, (0.0, 0.5), PARAMS, (1, 2))

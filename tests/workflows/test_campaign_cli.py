@@ -58,8 +58,19 @@ def plain(text: str) -> str:
 def test_shipped_campaigns_are_valid():
     names = available_campaigns()
     mech = [n for n in names if "ringdown" not in n]
-    assert len(mech) == 6 and {"definity_ringdown", "sonovue_ringdown"} <= set(names)
+    mirheo = [n for n in mech if n.endswith("_mirheo")]
+    assert len(mech) == 9 and {"definity_ringdown", "sonovue_ringdown"} <= set(names)
+    # the Mirheo-convention twins of the three indentation sets: same box, seed and grid, another design
+    assert sorted(mirheo) == [f"sonovue_indentation_{d}um_mirheo" for d in ("3.2", "3.4", "5.8")]
+    for n in mirheo:
+        twin, c = load_campaign_config(n[: -len("_mirheo")]), load_campaign_config(n)
+        assert c.tier_settings["indentation_convention"] == "mirheo" and "indentation_convention" not in twin.tier_settings
+        assert (c.seed, c.n_samples, c.ranges, c.grid_for(c.diameter_um)) == (
+            twin.seed, twin.n_samples, twin.ranges, twin.grid_for(twin.diameter_um))
+        assert c.design_hash() != twin.design_hash() and c.replicas_per_task == twin.replicas_per_task
     for n in mech:
+        if n in mirheo:
+            continue
         c = load_campaign_config(n)
         # compression spans the union of the three workflow boxes (1.5x the full box's ka x kb area): 7,500 points
         assert c.n_samples == (7500 if c.protocol == "compression" else 6000) and c.design == "lhs"
