@@ -162,9 +162,8 @@ def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
         batch = tier.run(req, device=args.device)
     wall = time.perf_counter() - t0
     mesh = mesh_for_diameter(dia, sub)
-    from bubblecal.sim.tiers import indentation_convention
-
     from bubblecal.sim.mesh import pole_patches
+    from bubblecal.sim.tiers import indentation_convention
 
     patch = ({"fraction": float(spec["fraction_loaded"])} if "fraction_loaded" in spec
              else indentation_convention(spec.get("convention", "bubblecal-v1")).pole_patch())

@@ -3,8 +3,10 @@
 # shipped export, bubblecal.data.store.export_compressed), also left in /tmp/train for training on the same machine.
 #   usage: bash benchmarks/device/prod_campaigns.sh NAME [NAME ...]
 #   env: PROD_TIMEOUT total seconds (default 550), RPT replicas per task (default: the campaign file's),
-#        WORKERS Dask LocalCluster processes per campaign sharing the GPU (default: in-process, no Dask),
-#        CONCURRENT=1 runs the named campaigns at the same time (after one kernel-compiling warm-up)
+#        WORKERS Dask LocalCluster processes (default: in-process, no Dask; in-process runs store each quasi-static
+#        indentation curve as it finishes).  One campaign at a time: processes sharing the GPU without MPS
+#        time-slice it and the slowest curves crawl (benchmarks/RESULTS.md, session 10: 9 processes, 24 min,
+#        no task finished).
 source benchmarks/device/setup.sh >/dev/null 2>&1
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
 T0=$(date +%s)
@@ -29,14 +31,5 @@ run_one() {
   fi
 }
 
-if [ "${CONCURRENT:-0}" = 1 ]; then
-  # compile (or load) the kernels once, so that the concurrent processes only read the kernel cache
-  python3 benchmarks/device/run_campaign.py $1 /tmp/st/warmup.store --limit 1 --replicas-per-task 1 > /tmp/st/warmup.log 2>&1
-  echo "warm-up rc=$? after $(( $(date +%s) - T0 )) s"
-  rm -rf /tmp/st/warmup.store
-  for NAME in "$@"; do run_one $NAME & done
-  wait
-else
-  for NAME in "$@"; do run_one $NAME; done
-fi
+for NAME in "$@"; do run_one $NAME; done
 ls -la $OUT

@@ -5,7 +5,7 @@
 #   usage: bash benchmarks/device/sweep_pipeline.sh CAMPAIGN[,CAMPAIGN..] NAME:SETUP:DIA:DATA [...]
 #          (CAMPAIGN list may be "-"; a DATA under /tmp/train appears when its campaign has been exported)
 #   env: CPU_WIDTHS (32,64,128) GPU_WIDTHS (256) CPU_PAR (14) GPU_JOBS (2) MAX_EPOCHS (1000); for the campaigns
-#        (benchmarks/device/prod_campaigns.sh): RPT (the file's), WORKERS, CONCURRENT (0), PROD_TIMEOUT (1500)
+#        (benchmarks/device/prod_campaigns.sh): RPT (the file's), WORKERS, PROD_TIMEOUT (1500)
 #   progress and results: bash benchmarks/device/sweep_status.sh
 source benchmarks/device/setup.sh >/dev/null 2>&1
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
@@ -45,7 +45,7 @@ chmod +x /tmp/sw/train_one.sh
     # CPU pool starts at once (indentation sets exist; compression jobs wait for their export)
     ( xargs -P ${CPU_PAR:-14} -L 1 /tmp/sw/train_one.sh < /tmp/sw/cpu_jobs.txt; touch /tmp/sw/cpu_done ) &
     if [ '$CAMPAIGNS' != '-' ]; then
-      OUT=/tmp/prod_out PROD_TIMEOUT=${PROD_TIMEOUT:-1500} RPT=${RPT:-} WORKERS=${WORKERS:-} CONCURRENT=${CONCURRENT:-0} bash benchmarks/device/prod_campaigns.sh ${CAMPAIGNS//,/ } \
+      OUT=/tmp/prod_out PROD_TIMEOUT=${PROD_TIMEOUT:-1500} RPT=${RPT:-} WORKERS=${WORKERS:-} bash benchmarks/device/prod_campaigns.sh ${CAMPAIGNS//,/ } \
         > /tmp/sw/campaigns.log 2>&1
     fi
     touch /tmp/sw/campaigns_done

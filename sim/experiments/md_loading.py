@@ -303,7 +303,6 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
     t0 = time.perf_counter()
     k = _kernels(adapter.dtype)
     dev, R, P = adapter.device, adapter.R, len(grid)
-    nv = mesh.n_vertices
     z0 = mesh.vertices[:, 2]
     state = wp.array(np.zeros(4), dtype=wp.float64, device=dev)
     status = ["ok"] * R

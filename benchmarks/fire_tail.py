@@ -1,0 +1,107 @@
+"""Do other FIRE controls shorten the slowest quasi-static indentation curves, and at what change of the curve?
+
+The wall time of a campaign task is set by its slowest curve (benchmarks/RESULTS.md, sessions 6 and 10): an
+iteration of the slowest replica costs a fixed ~0.3 ms on an H100 however few replicas relax.  This script takes
+the ``--n`` slowest curves of a campaign store (FIRE iterations in ``provenance.info.fire_steps``), re-runs them
+one replica each with the quasi-static tier's settings (float64, ftol 0.05, max_steps 100,000 per point, the
+store's indentation convention) under FIRE variants, and reports per variant and curve the FIRE iterations and
+the relative L2 change of d(F) against the baseline variant (same controls as the store).
+
+    python benchmarks/fire_tail.py STORE [--n 3] [--variants baseline,dtmax_0.1,dtmax_0.2,move_0.02]
+        [--device cpu] [--diameter 3.2] [--out DIR]
+
+Variants: ``baseline`` (FireSettings defaults of the tier: dt 0.005, dt_max 0.05, max_move 0.01);
+``dtmax_<x>`` (dt_max = x); ``move_<x>`` (max_move = x); combinations joined by '+'.
+Prints a table and one JSON line last.  Iteration counts do not depend on the device.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+
+def parse_variant(name: str) -> dict:
+    """'dtmax_0.1+move_0.02' -> {'dt_max': 0.1, 'max_move': 0.02} (FireSettings overrides)."""
+    out: dict = {}
+    for part in name.split("+"):
+        if part == "baseline":
+            continue
+        key, _, value = part.partition("_")
+        field = {"dtmax": "dt_max", "move": "max_move", "dt": "dt"}.get(key)
+        if field is None or not value:
+            raise SystemExit(f"unknown variant part {part!r} (baseline, dtmax_<x>, move_<x>, dt_<x>)")
+        out[field] = float(value)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("store")
+    ap.add_argument("--n", type=int, default=3, help="the n slowest curves of the store")
+    ap.add_argument("--variants", default="baseline,dtmax_0.1,dtmax_0.2,move_0.02")
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--diameter", type=float, default=None, help="um (default: the records' radius)")
+    ap.add_argument("--subdivisions", type=int, default=4)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args(argv)
+
+    import warp as wp
+
+    wp.config.quiet = True
+    from bubblecal.data.store import CampaignStore
+    from bubblecal.sim.experiments.quasistatic import FireSettings, IdealGas, quasistatic_indentation
+    from bubblecal.sim.mesh import mesh_for_diameter
+    from bubblecal.sim.system import resolve_dtype
+    from bubblecal.sim.tiers import CurveRequest, indentation_convention
+
+    recs = [r for r in CampaignStore(args.store).read(warn=False) if r["setup"] == "indentation"]
+    steps = np.array([r["provenance"].get("info", {}).get("fire_steps", 0) for r in recs])
+    slow = [recs[i] for i in np.argsort(-steps)[: args.n]]
+    rows = []
+    base_y: dict[str, np.ndarray] = {}
+    t_all = time.perf_counter()
+    for rec in slow:
+        info = rec["provenance"].get("info", {})
+        conv = indentation_convention(info.get("indentation_convention") or "bubblecal-v1")
+        dia = args.diameter if args.diameter else rec["radius_dpd"] * 0.5
+        mesh = mesh_for_diameter(dia, args.subdivisions)
+        params = {k: np.array([v]) for k, v in rec["params"].items()}
+        req = CurveRequest("indentation", dia, tuple(rec["x"]), params, (int(rec["seed"]),),
+                           subdivisions=args.subdivisions)
+        sp = req.shell_params(conv.name)
+        for variant in args.variants.split(","):
+            fire = FireSettings(ftol=0.05, max_steps=100_000, **parse_variant(variant))
+            t0 = time.perf_counter()
+            res = quasistatic_indentation(sp, mesh, req.grid_array(), gas=IdealGas(p0=3.0), device=args.device,
+                                          dtype=resolve_dtype("float64"), fire=fire, pole_patch=conv.pole_patch())
+            y = res.displacement[0]
+            if variant == args.variants.split(",")[0]:
+                base_y[rec["sample_id"]] = y
+            ref = base_y[rec["sample_id"]]
+            rel = float(np.linalg.norm(y - ref) / np.linalg.norm(ref)) if np.all(np.isfinite(y)) else float("nan")
+            row = {"sample_id": rec["sample_id"], "ka": rec["params"]["ka"], "kb": rec["params"]["kb"],
+                   "variant": variant, "status": res.status[0], "fire_steps": int(res.fire_steps.sum()),
+                   "store_fire_steps": int(info.get("fire_steps", 0)), "max_point_steps": int(res.fire_steps.max()),
+                   "rel_l2_vs_first": rel, "wall_s": round(time.perf_counter() - t0, 1)}
+            rows.append(row)
+            print(f"{row['sample_id']}  ka {row['ka']:9.0f} kb {row['kb']:7.0f}  {variant:22s} {row['status']:13s} "
+                  f"FIRE {row['fire_steps']:8d} (store {row['store_fire_steps']:8d}, max/point {row['max_point_steps']:6d})"
+                  f"  dL2 {rel:.4f}  {row['wall_s']} s", flush=True)
+    out = {"benchmark": "fire_tail", "store": args.store, "device": args.device, "rows": rows,
+           "total_wall_s": round(time.perf_counter() - t_all, 1)}
+    if args.out:
+        from pathlib import Path
+
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "fire_tail.json").write_text(json.dumps(out, indent=1))
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
