@@ -35,7 +35,7 @@ skips what is stored) loses and duplicates nothing.  The per-task compute time i
 task, so Dask's overhead is ``1 - sum(task compute) / (wall x workers)`` (:class:`CampaignSummary`).
 
 ``scheduler_address='inline'`` runs the same loop in-process without Dask (debugging, or a machine
-without dask installed), and there the quasi-static indentation tier with slot refill streams: each curve's
+without dask installed), and there the quasi-static indentation tier (async schedule) streams: each curve's
 record is appended as soon as the curve is finished (provenance ``streamed``), so a large task (one long
 refill pool per campaign, whose slowest curves are paid once) loses only its unfinished curves when killed.
 One process per GPU: processes sharing a GPU without MPS time-slice it, and a pool's latency-bound slowest
@@ -559,7 +559,7 @@ def simulate_task(task: CampaignTask,
     """The default task: ``get_tier(task.tier, **settings).run(CurveRequest, device)`` for compression /
     indentation, ``bubblecal.sim.experiments.ringdown.ringdown_batch`` for ringdown.  ``on_curve(r, y [P],
     status, info)``: replica ``r``'s curve as soon as it is finished, where the tier reports them (quasi-static
-    indentation with slot refill); the returned result holds every curve either way."""
+    indentation, async schedule); the returned result holds every curve either way."""
     if task.protocol == "ringdown":
         try:
             from bubblecal.sim.experiments.ringdown import ringdown_batch

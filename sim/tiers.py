@@ -328,9 +328,9 @@ class QuasistaticTier:
             on_curve: Callable[[int, np.ndarray, str, dict], None] | None = None) -> CurveBatch:
         """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``.
 
-        ``on_curve(i, observable [P], status, info)``: indentation with slot refill (``max_replicas`` below the
-        request's replicas) reports each curve as soon as it is finished, with the row, tier status and
-        per-curve info the returned batch will hold (``info`` without the batch-wide ``settings``).
+        ``on_curve(i, observable [P], status, info)``: indentation (async schedule) reports each curve as soon
+        as it is finished, with the row, tier status and per-curve info the returned batch will hold (``info``
+        without the batch-wide ``settings``).
         """
         from bubblecal.sim.experiments.quasistatic import (
             FireSettings,

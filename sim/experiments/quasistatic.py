@@ -650,7 +650,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     ``compact(backend, slots, params) -> (new backend, new assign)``: once the pool is empty and at most
     ``compact_below`` of the slots (and more than ``compact_min`` slots in all) still relax, they move to a
     batch of their own size (an iteration of a big batch costs a fixed floor however few of its replicas
-    relax; same iterates).  ``on_finish(s, row)`` (with ``samples``): called as soon as sample ``s`` has
+    relax; same iterates).  ``on_finish(s, row)``: called as soon as sample (or replica) ``s`` has
     finished its curve, with its ``status``, ``point_status``, ``fire_steps`` [P] and ``obs`` {name: [P]}
     (a campaign writes the record at once, so an interrupted batch keeps its finished curves).
     Returns the dict of :func:`_run_chain`, rows = samples.
@@ -708,14 +708,15 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
         # failed replicas return to (and stay frozen at) the reference so their rows stay finite
         backend.reset_failed(failed)
         restart = waiting & ~done
+        finished = np.nonzero(waiting & done)[0]
+        if on_finish is not None:
+            for r in finished:
+                s_ = int(sample[r])
+                on_finish(s_, {"status": status[s_], "point_status": list(point_status[s_]),
+                               "fire_steps": steps[s_].copy(), "obs": {k: v[s_].copy() for k, v in obs.items()}})
         if stream:
-            finished = np.nonzero(waiting & done)[0]
             for r in finished:
                 x_out[sample[r] * backend.nv:(sample[r] + 1) * backend.nv] = backend.row_positions(int(r))
-                if on_finish is not None:
-                    s_ = int(sample[r])
-                    on_finish(s_, {"status": status[s_], "point_status": list(point_status[s_]),
-                                   "fire_steps": steps[s_].copy(), "obs": {k: v[s_].copy() for k, v in obs.items()}})
             n_finished += len(finished)
             refill = finished[:max(0, S - next_sample)]
             if len(refill):
@@ -786,11 +787,12 @@ def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, 
     """Async chain over ``params``; with ``max_replicas`` < len(params) at most that many slots run at once
     and finished slots take the next sample, softest (smallest k_a) first: FIRE work grows as k_a falls,
     so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order.
-    ``on_finish(i, row)``: each finished curve at once (``i`` indexes ``params``; with slot refill only)."""
+    ``on_finish(i, row)``: each finished curve at once (``i`` indexes ``params``)."""
     S = len(params)
     if max_replicas is None or max_replicas >= S:
         dc = dc_factory(params)
-        return _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress)
+        return _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress,
+                                on_finish=on_finish)
     order = np.argsort([p.ka for p in params], kind="stable")
     pool = [params[int(i)] for i in order]
     dc = dc_factory(pool[:max_replicas])
@@ -936,9 +938,9 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         progress: optional ``progress(j, n_points, seconds)`` called after every load point
             (compression: every sub-step); with slot refill ``progress(k, n_params, seconds)`` after every
             finished curve.
-        on_curve: optional ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (slot refill
-            only: ``max_replicas`` < R with the async device schedule), ``row`` = {"displacement" [P] (DPD
-            length), "status", "point_status", "fire_steps" [P]}: the same numbers as the returned rows.
+        on_curve: optional ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (the async
+            device schedule), ``row`` = {"displacement" [P] (DPD length), "status", "point_status",
+            "fire_steps" [P]}: the same numbers as the returned rows.
 
     Returns: :class:`IndentationResult`; displacement in DPD length.
     """

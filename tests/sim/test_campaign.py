@@ -386,10 +386,13 @@ def test_inline_indentation_streams_finished_curves_and_a_killed_task_keeps_them
         assert (r["status"], r["seed"], r["params"], r["x"]) == (want["status"], want["seed"], want["params"], want["x"])
         np.testing.assert_array_equal(r["y"], want["y"])  # the same FIRE iterates: identical curves
         assert r["provenance"]["info"]["fire_steps"] == want["provenance"]["info"]["fire_steps"]
-    # without slot refill nothing streams: the task's records are written at its end
-    once = cfg(tmp_path, store=str(tmp_path / "once.store"), **{**kw, "tier_settings": {"max_steps": 20000}})
-    run_campaign(once, scheduler_address="inline", progress=False)
-    recs = CampaignStore(once.store_path).read()
-    assert not any(r["provenance"].get("streamed") for r in recs)
-    for r in recs:
-        np.testing.assert_array_equal(r["y"], ref_recs[r["sample_id"]]["y"])
+    # without slot refill (one slot per replica) the curves stream too; lock-step has no per-curve end: written
+    # at the task's end; both give the same curves
+    for name, extra in (("async", {}), ("lockstep", {"schedule": "lockstep"})):
+        once = cfg(tmp_path, store=str(tmp_path / f"{name}.store"),
+                   **{**kw, "tier_settings": {"max_steps": 20000, **extra}})
+        run_campaign(once, scheduler_address="inline", progress=False)
+        recs = CampaignStore(once.store_path).read()
+        assert [bool(r["provenance"].get("streamed")) for r in recs] == [name == "async"] * 6
+        for r in recs:
+            np.testing.assert_array_equal(r["y"], ref_recs[r["sample_id"]]["y"])
