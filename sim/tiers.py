@@ -329,8 +329,8 @@ class QuasistaticTier:
         """Simulate ``request`` (see :class:`CurveRequest` for units) on Warp ``device``.
 
         ``on_curve(i, observable [P], status, info)``: indentation (async schedule) reports each curve as soon
-        as it is finished, with the row, tier status and per-curve info the returned batch will hold (``info``
-        without the batch-wide ``settings``).
+        as it is finished, with the row, tier status and per-curve info the returned batch will hold (its
+        ``settings`` less the batch total ``fire_evaluations``).
         """
         from bubblecal.sim.experiments.quasistatic import (
             FireSettings,
@@ -363,7 +363,7 @@ class QuasistaticTier:
             if on_curve is not None:
                 def row_cb(i, row):
                     on_curve(i, row["displacement"], _QS_STATUS[row["status"]],
-                             {**static, "fire_steps": int(np.sum(row["fire_steps"]))})
+                             {**static, "fire_steps": int(np.sum(row["fire_steps"])), "settings": row["settings"]})
 
             static = self._static_info(request, mesh, conv)
             res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,

@@ -20,12 +20,16 @@ run_one() {
   NAME=$1
   if [ ! -d /tmp/st/$NAME.store ] && [ -d .device-stores/$NAME.store ]; then cp -r .device-stores/$NAME.store /tmp/st/; fi
   LEFT=$(( T_END - $(date +%s) ))
+  RC=1
   if [ $LEFT -gt 20 ]; then
     timeout $LEFT python3 benchmarks/device/run_campaign.py $NAME /tmp/st/$NAME.store $EXTRA > /tmp/st/$NAME.log 2>&1
-    echo "$NAME rc=$? after $(( $(date +%s) - T0 )) s"
+    RC=$?
+    echo "$NAME rc=$RC after $(( $(date +%s) - T0 )) s"
   fi
   grep -v "^Module" /tmp/st/$NAME.log | tail -3 | cut -c1-700
-  if [ -d /tmp/st/$NAME.store ]; then
+  # only a finished design is exported (training waits for the file); an unfinished store stays in /tmp/st
+  # (sweep_status.sh returns it as NAME.store.tgz; carried back as .device-stores/NAME.store it resumes)
+  if [ $RC -eq 0 ] && [ -d /tmp/st/$NAME.store ]; then
     python3 -c "from bubblecal.data.store import export_compressed as e; e('/tmp/st/$NAME.store', '/tmp/train/$NAME.jsonl.gz')" \
       && cp /tmp/train/$NAME.jsonl.gz $OUT/
   fi

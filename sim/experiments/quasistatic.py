@@ -940,7 +940,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             finished curve.
         on_curve: optional ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (the async
             device schedule), ``row`` = {"displacement" [P] (DPD length), "status", "point_status",
-            "fire_steps" [P]}: the same numbers as the returned rows.
+            "fire_steps" [P], "settings" (the result's, less the batch total ``fire_evaluations``)}: the same
+            numbers as the returned rows.
 
     Returns: :class:`IndentationResult`; displacement in DPD length.
     """
@@ -968,6 +969,15 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     unit = np.zeros((nv, 3))
     unit[top, 2] = -1.0 / k
     unit[bottom, 2] = 1.0 / k
+    static_settings = {"k_loaded_per_pole": k, "n_equator_anchored": int(equator.size),
+                       "pole_patch": {key: v for key, v in patch_kw.items() if v is not None},
+                       "gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
+                       "com": "mean force removed (x, y, z)", "equator": "|z - z_c| < 0.25 l_min anchored in z",
+                       "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,
+                       "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
+                       "dtype": _dtype_name(dtype),
+                       "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
+                       "schedule": schedule, "max_replicas": max_replicas}
     if minimizer == "device":
         tag = np.zeros(nv, dtype=np.int32)
         tag[top], tag[bottom] = 1, -1
@@ -983,7 +993,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                 def finish(i, row):
                     h = row["obs"].get("H", np.full(len(forces), np.nan))
                     on_curve(i, {"displacement": h0_ - h, "status": row["status"],
-                                 "point_status": row["point_status"], "fire_steps": row["fire_steps"]})
+                                 "point_status": row["point_status"], "fire_steps": row["fire_steps"],
+                                 "settings": static_settings})
 
             out = _run_device_async(make_chain, params, len(forces), rupture_strain,
                                     lambda dc: (lambda jj: dc.set_load_rows(forces[jj])), max_replicas, progress,
@@ -1017,15 +1028,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     patch0 = float(z0[top].mean() - z0[bottom].mean())
     H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
     P = out["obs"].get("patch", np.full((R, len(forces)), np.nan))
-    settings = {"k_loaded_per_pole": k, "n_equator_anchored": int(equator.size),
-                "pole_patch": {key: v for key, v in patch_kw.items() if v is not None},
-                "gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
-                "com": "mean force removed (x, y, z)", "equator": "|z - z_c| < 0.25 l_min anchored in z",
-                "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,
-                "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
-                "dtype": _dtype_name(dtype), "fire_evaluations": out["fire_evaluations"],
-                "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
-                "schedule": schedule, "max_replicas": max_replicas}
+    settings = {**static_settings, "fire_evaluations": out["fire_evaluations"]}
     return IndentationResult(forces=forces, displacement=h0 - H, axial_diameter=H,
                              axial_diameter0=np.full(R, h0), d_patch=patch0 - P, volume=out["volume"],
                              max_area_strain=out["max_area_strain"], fmax=out["fmax"],
