@@ -581,7 +581,7 @@ def simulate_task(task: CampaignTask,
     tier = get_tier(task.tier, **dict(task.tier_settings))
     request = CurveRequest(protocol=task.protocol, diameter_um=task.diameter_um, grid=task.grid,
                            params=task.params, seeds=task.seeds, subdivisions=task.subdivisions)
-    if on_curve is not None and "on_curve" in inspect.signature(tier.run).parameters:
+    if on_curve is not None and _takes_on_curve(tier.run):
         batch = tier.run(request, task.device, on_curve=on_curve)
     else:
         batch = tier.run(request, task.device)

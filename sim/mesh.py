@@ -264,7 +264,8 @@ def pole_patches(vertices: np.ndarray, *, fraction: float | None = None,
     convention).  ``cap_deg``: every vertex within ``cap_deg`` degrees of polar angle from a pole (at least
     the pole-most one): a patch of the same size on every mesh level (4.6 deg = the pole vertex and its first
     ring at subdivision 4, two rings at 5), where a vertex fraction grows a partial ring on finer meshes.
-    Exactly one of the two is given.
+    Exactly one of the two is given.  Both patches have the same size (the callers weight every loaded vertex
+    by 1/k): a mesh whose caps differ raises ValueError.
     """
     if (fraction is None) == (cap_deg is None):
         raise ValueError("give exactly one of fraction (loaded vertices / N_v) and cap_deg (polar cap, degrees)")
@@ -288,6 +289,8 @@ def pole_patches(vertices: np.ndarray, *, fraction: float | None = None,
         if idx.size == 0:  # a coarse mesh without a vertex in the cap: the pole-most vertex alone
             idx = np.array([int(np.argmax(c))])
         out.append(idx[np.argsort(-c[idx], kind="stable")])
+    if len(out[0]) != len(out[1]):
+        raise ValueError(f"the pole patches differ in size ({len(out[0])} top, {len(out[1])} bottom vertices)")
     return out[0], out[1]
 
 

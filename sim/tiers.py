@@ -352,6 +352,7 @@ class QuasistaticTier:
                       extrapolate=self.extrapolate, schedule=self.schedule, max_replicas=self.max_replicas)
         grid = request.grid_array()
         conv = indentation_convention(self.indentation_convention)
+        static = self._static_info(request, mesh, conv)
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid))
                   for p in request.shell_params(conv.name)]
         if request.protocol == "compression":
@@ -365,16 +366,13 @@ class QuasistaticTier:
                     on_curve(i, row["displacement"], _QS_STATUS[row["status"]],
                              {**static, "fire_steps": int(np.sum(row["fire_steps"])), "settings": row["settings"]})
 
-            static = self._static_info(request, mesh, conv)
             res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,
                                           **common)
             obs = res.displacement
         status = [_QS_STATUS[s] for s in res.status]
-        info = {**self._static_info(request, mesh, conv), "fire_steps": res.fire_steps.sum(axis=1).tolist(),
-                "settings": res.settings}
+        info = {**static, "fire_steps": res.fire_steps.sum(axis=1).tolist(), "settings": res.settings}
         return CurveBatch(tier=self.name, request=request, observable=obs, status=status, info=info,
                           seconds=time.perf_counter() - t0)
-
 
     def _static_info(self, request: CurveRequest, mesh, conv: IndentationConvention) -> dict:
         """The info keys that do not depend on the simulation's outcome (one dict for batch and per-curve)."""

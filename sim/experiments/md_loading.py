@@ -335,8 +335,6 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
     else:
         top, bottom = pole_patches(mesh.vertices, **(pole_patch or {"fraction": 0.01}))
         kk = len(top)
-        if len(bottom) != kk:  # one 1/k weight for both poles (the icosphere is symmetric)
-            raise ValueError(f"the pole patches differ in size ({kk} top, {len(bottom)} bottom vertices)")
         rows = np.concatenate([np.concatenate([o + top, o + bottom]) for o in offsets]).astype(np.int32)
         sign = np.tile(np.concatenate([-np.ones(kk), np.ones(kk)]), R).astype(adapter.np_dtype)
         rows_w = wp.array(rows, dtype=wp.int32, device=dev)

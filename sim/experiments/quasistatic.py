@@ -961,8 +961,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     zc = float(mesh.vertices[:, 2].mean())
     top, bottom = pole_patches(mesh.vertices, **patch_kw)
     k = len(top)
-    if len(bottom) != k:  # one 1/k weight for both poles (the icosphere is symmetric)
-        raise ValueError(f"the pole patches differ in size ({k} top, {len(bottom)} bottom vertices)")
+    h0 = float(z0.max() - z0.min())
     equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
     free_v = np.ones((nv, 3), dtype=bool)
     free_v[equator, 2] = False
@@ -988,11 +987,9 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         if schedule == "async":
             finish = None
             if on_curve is not None:
-                h0_ = float(z0.max() - z0.min())
-
                 def finish(i, row):
                     h = row["obs"].get("H", np.full(len(forces), np.nan))
-                    on_curve(i, {"displacement": h0_ - h, "status": row["status"],
+                    on_curve(i, {"displacement": h0 - h, "status": row["status"],
                                  "point_status": row["point_status"], "fire_steps": row["fire_steps"],
                                  "settings": static_settings})
 
@@ -1024,7 +1021,6 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
 
         hc = _HostChain(b, make, np.tile(free_v, (R, 1)), fire, measure)
         out = _run_chain(hc, len(forces), rupture_strain, progress=progress)
-    h0 = float(z0.max() - z0.min())
     patch0 = float(z0[top].mean() - z0[bottom].mean())
     H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
     P = out["obs"].get("patch", np.full((R, len(forces)), np.nan))

@@ -125,3 +125,7 @@ def test_pole_patches_fraction_keeps_the_top_most_vertices_and_the_cap_is_mesh_i
         pole_patches(m4.vertices, cap_deg=95.0)
     with pytest.raises(ValueError, match=r"fraction must lie in \(0, 0.5\)"):
         pole_patches(m4.vertices, fraction=0.7)
+    # a cloud whose two caps hold different numbers of vertices cannot share one 1/k weight
+    lopsided = np.array([[0, 0, 1.0], [0.02, 0, 0.9998], [0, 0, -1.0], [1.0, 0, 0], [-1.0, 0, 0]])
+    with pytest.raises(ValueError, match=r"the pole patches differ in size \(2 top, 1 bottom vertices\)"):
+        pole_patches(lopsided, cap_deg=4.6)
