@@ -7,7 +7,7 @@
 #        indentation curve as it finishes).  One campaign at a time: processes sharing the GPU without MPS
 #        time-slice it and the slowest curves crawl (benchmarks/RESULTS.md, session 10: 9 processes, 24 min,
 #        no task finished).
-source benchmarks/device/setup.sh >/dev/null 2>&1
+source ${SETUP_SH:-benchmarks/device/setup.sh} >/dev/null 2>&1
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
 T0=$(date +%s)
 T_END=$(( T0 + ${PROD_TIMEOUT:-550} ))
