@@ -11,27 +11,28 @@ source ${SETUP_SH:-benchmarks/device/setup.sh} >/dev/null 2>&1
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
 T0=$(date +%s)
 T_END=$(( T0 + ${PROD_TIMEOUT:-550} ))
-mkdir -p /tmp/st /tmp/train
+ST=${ST_DIR:-/tmp/st}; TR=${TRAIN_DIR:-/tmp/train}
+mkdir -p $ST $TR
 EXTRA=""
 [ -n "$RPT" ] && EXTRA="$EXTRA --replicas-per-task $RPT"
 [ -n "$WORKERS" ] && EXTRA="$EXTRA --workers $WORKERS"
 
 run_one() {
   NAME=$1
-  if [ ! -d /tmp/st/$NAME.store ] && [ -d .device-stores/$NAME.store ]; then cp -r .device-stores/$NAME.store /tmp/st/; fi
+  if [ ! -d $ST/$NAME.store ] && [ -d .device-stores/$NAME.store ]; then cp -r .device-stores/$NAME.store $ST/; fi
   LEFT=$(( T_END - $(date +%s) ))
   RC=1
   if [ $LEFT -gt 20 ]; then
-    timeout $LEFT python3 benchmarks/device/run_campaign.py $NAME /tmp/st/$NAME.store $EXTRA > /tmp/st/$NAME.log 2>&1
+    timeout $LEFT python3 benchmarks/device/run_campaign.py $NAME $ST/$NAME.store $EXTRA > $ST/$NAME.log 2>&1
     RC=$?
     echo "$NAME rc=$RC after $(( $(date +%s) - T0 )) s"
   fi
-  grep -v "^Module" /tmp/st/$NAME.log | tail -3 | cut -c1-700
-  # only a finished design is exported (training waits for the file); an unfinished store stays in /tmp/st
+  grep -v "^Module" $ST/$NAME.log | tail -3 | cut -c1-700
+  # only a finished design is exported (training waits for the file); an unfinished store stays in $ST
   # (sweep_status.sh returns it as NAME.store.tgz; carried back as .device-stores/NAME.store it resumes)
-  if [ $RC -eq 0 ] && [ -d /tmp/st/$NAME.store ]; then
-    python3 -c "from bubblecal.data.store import export_compressed as e; e('/tmp/st/$NAME.store', '/tmp/train/$NAME.jsonl.gz')" \
-      && cp /tmp/train/$NAME.jsonl.gz $OUT/
+  if [ $RC -eq 0 ] && [ -d $ST/$NAME.store ]; then
+    python3 -c "from bubblecal.data.store import export_compressed as e; e('$ST/$NAME.store', '$TR/$NAME.jsonl.gz')" \
+      && cp $TR/$NAME.jsonl.gz $OUT/
   fi
 }
 

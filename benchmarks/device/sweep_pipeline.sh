@@ -9,9 +9,10 @@
 #   env: CPU_WIDTHS (32,64,128) GPU_WIDTHS (256) CPU_PAR (14) GPU_JOBS per GPU (2) MAX_EPOCHS (1000);
 #        LANE_AFTER_<k>: a command run on GPU k after its campaigns, before it takes training jobs (e.g. a
 #        tier validation writing under /tmp/sw, which comes back in sw.tgz);
-#        for the campaigns (benchmarks/device/prod_campaigns.sh): RPT (the file's), WORKERS, PROD_TIMEOUT (1500)
+#        for the campaigns (benchmarks/device/prod_campaigns.sh): RPT (the file's), WORKERS, PROD_TIMEOUT (1500);
+#        for tests (tests/test_device_scripts.py, a fake python3): SETUP_SH, SW_DIR, TRAIN_DIR, PROD_OUT, POLL_S
 #   progress and results: bash benchmarks/device/sweep_status.sh
-SW=${SW_DIR:-/tmp/sw}
+SW=${SW_DIR:-/tmp/sw}; TR=${TRAIN_DIR:-/tmp/train}  # (the dirs are settable for the local test)
 if [ "$1" = "--body" ]; then
   # ---- the background body (started below with setsid) ----
   shift; LANES=$1; shift
@@ -21,7 +22,7 @@ if [ "$1" = "--body" ]; then
     (
       export CUDA_VISIBLE_DEVICES=$K
       if [ "$LANE" != "-" ]; then
-        OUT=/tmp/prod_out PROD_TIMEOUT=${PROD_TIMEOUT:-1500} RPT=${RPT:-} WORKERS=${WORKERS:-} \
+        OUT=${PROD_OUT:-/tmp/prod_out} PROD_TIMEOUT=${PROD_TIMEOUT:-1500} RPT=${RPT:-} WORKERS=${WORKERS:-} \
           bash benchmarks/device/prod_campaigns.sh $(echo "$LANE" | tr , ' ') > $SW/campaigns_$K.log 2>&1
       fi
       touch $SW/lane${K}_campaigns_done
@@ -41,7 +42,7 @@ fi
 
 source ${SETUP_SH:-benchmarks/device/setup.sh} >/dev/null 2>&1
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1 XLA_PYTHON_CLIENT_PREALLOCATE=false
-mkdir -p $SW/claims /tmp/train /tmp/prod_out
+mkdir -p $SW/claims $TR ${PROD_OUT:-/tmp/prod_out}
 LANES=$1; shift
 EP=${MAX_EPOCHS:-1000}
 if [ -f $SW/pipeline.pid ] && kill -0 "$(cat $SW/pipeline.pid)" 2>/dev/null; then echo "pipeline running"; exit 0; fi
@@ -68,7 +69,7 @@ cat > $SW/train_one.sh <<EOF
 # train one architecture into the set's checkpoint folder (waits for a campaign's export)
 export JAX_PLATFORMS=cpu  # the parity check only: many processes must not each preallocate GPU memory
 W=\$1; DEP=\$2; NAME=\$3; SETUP=\$4; DIA=\$5; DATA=\$6; DEV=\${7:-cpu}
-while [ ! -f \$DATA ]; do sleep 10; done
+while [ ! -f \$DATA ]; do sleep ${POLL_S:-10}; done
 ${PYTHON:-python3} -m bubblecal.workflows.cli surrogates train \$DATA --setup \$SETUP --diameter \$DIA --sweep --widths \$W \\
   --depths \$DEP --jobs 1 --device \$DEV --max-epochs $EP --no-onnx --quiet --checkpoints $SW/\$NAME/checkpoints \\
   --out $SW/\$NAME/run_\${W}x\${DEP} > $SW/\$NAME/log_\${W}x\${DEP}.txt 2>&1
@@ -89,7 +90,7 @@ while true; do
     RAN=1; break
   done < $SW/gpu_jobs.txt
   [ \$LEFT = 0 ] && break
-  [ \$RAN = 0 ] && sleep 10
+  [ \$RAN = 0 ] && sleep ${POLL_S:-10}
 done
 EOF
 chmod +x $SW/train_one.sh $SW/gpu_worker.sh

@@ -31,8 +31,8 @@ def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
         sur = bundle.get(curve.kind, curve.diameter_um)
         md = sur.metadata
         assert not md.get("synthetic", False)
-        # trained on the shipped set of the campaign of this diameter
-        name = f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um"
+        # trained on the shipped set of the campaign of this diameter (indentation: the Mirheo convention's twin)
+        name = f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um" + ("_mirheo" if curve.kind == "indentation" else "")
         assert md["source"].endswith(f"data/training/{name}.jsonl.gz"), (name, md["source"])
         assert md["n_curves_train"] >= 4500  # 90 % of >= 5,000 valid curves (10 % held out)
         cfg = load_campaign_file(name).config
@@ -91,6 +91,7 @@ def test_info_prints_the_provenance():
     r = CliRunner().invoke(app, ["info", str(PATH)])
     assert r.exit_code == 0, r.output
     for name in ("definity_compression_2.1um", "definity_compression_2.9um", "definity_compression_3.0um",
-                 "sonovue_indentation_3.2um", "sonovue_indentation_3.4um", "sonovue_indentation_5.8um"):
+                 "sonovue_indentation_3.2um_mirheo", "sonovue_indentation_3.4um_mirheo",
+                 "sonovue_indentation_5.8um_mirheo"):
         assert f"trained on data/training/{name}.jsonl.gz" in r.output
     assert "acoustic definity" in r.output and "acoustic sonovue" in r.output
