@@ -16,7 +16,7 @@ SW=${SW_DIR:-/tmp/sw}; TR=${TRAIN_DIR:-/tmp/train}  # (the dirs are settable for
 if [ "$1" = "--body" ]; then
   # ---- the background body (started below with setsid) ----
   shift; LANES=$1; shift
-  ( xargs -P ${CPU_PAR:-14} -L 1 $SW/train_one.sh < $SW/cpu_jobs.txt; touch $SW/cpu_done ) &
+  ( xargs -r -P ${CPU_PAR:-14} -L 1 $SW/train_one.sh < $SW/cpu_jobs.txt; touch $SW/cpu_done ) &
   K=0
   for LANE in $(echo "$LANES" | tr / ' '); do
     (
