@@ -155,6 +155,14 @@ def campaign(
     except CampaignConfigError as exc:
         raise fail(f"--device: {exc.detail}") from None
     c = cf.config
+    if c.protocol == "indentation" and "indentation_convention" not in c.tier_settings:
+        # the tiers' default predates the Mirheo convention; a new design most likely wants the shipped one
+        from rich.markup import escape
+
+        console.print(f"[yellow]note[/]: {escape(str(cf.path))}: \\[tier].indentation_convention is not set, so this indentation "
+                      "campaign uses the tiers' default 'bubblecal-v1' (1 % of the vertices loaded per pole, kernel "
+                      "k_b x 2/3); the published Mirheo curves and the shipped SonoVue sets and surrogates use "
+                      "'mirheo' (set indentation_convention = \"mirheo\" under \\[tier])", highlight=False)
     if dry_run:
         n_done = n_pending = None
         note = "(not created yet)"

@@ -203,6 +203,17 @@ def test_cli_dry_run_run_resume_and_status(tmp_path):
     assert "done / pending │ 2 / 0" in plain(res.output) and "(exists)" in plain(res.output)
 
 
+def test_cli_notes_an_indentation_campaign_without_a_convention():
+    for name, noted in (("sonovue_indentation_3.2um", True), ("sonovue_indentation_3.2um_mirheo", False),
+                        ("definity_compression_2.1um", False)):
+        res = runner.invoke(app, ["sim", "campaign", name, "--dry-run"])
+        assert res.exit_code == 0, res.output
+        out = plain(res.output)
+        assert ("[tier].indentation_convention is not set" in out) == noted, (name, out[:300])
+        if noted:
+            assert "tiers' default 'bubblecal-v1'" in out and 'indentation_convention = "mirheo" under [tier]' in out
+
+
 def test_cli_errors_exit_1(tmp_path):
     res = runner.invoke(app, ["sim", "campaign", str(write(tmp_path, GOOD.replace("n_samples = 2", "n_samples = 0")))])
     assert res.exit_code == 1 and "[campaign].n_samples" in res.output
