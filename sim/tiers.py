@@ -31,7 +31,8 @@ scale 2/3 would give 0.80).
 
 Indentation convention (tier setting ``indentation_convention``, :data:`INDENTATION_CONVENTIONS`): the scale 2/3
 above was fitted at 3.2 um with physics.md's k = floor(0.01 N_v) loaded vertices per pole (``bubblecal-v1``,
-the default and the convention of the shipped SonoVue training sets).  It compensated the loaded patch, not the
+the tiers' default; the SonoVue training sets of sessions 5-10 used it, the shipped ones since session 11 use
+``mirheo``).  It compensated the loaded patch, not the
 bending modulus: at 5.8 um it leaves a 10-28 % gap that depends on ka / kb.  The published curves' compliance
 exponents are reproduced only by a patch of ~7 vertices per pole on the subdivision-4 mesh with the
 compression data's kb (scale 1): ``mirheo``, 0.97-0.98 x the published d(F) at 3.2 and 5.8 um.
@@ -103,7 +104,7 @@ class IndentationConvention:
 
 #: Named indentation conventions (a tier setting, ``indentation_convention``; benchmarks/RESULTS.md, session 9).
 #: ``bubblecal-v1``: physics.md's k = floor(0.01 N_v) (25 vertices on the subdivision-4 mesh) with kb x 2/3,
-#: fitted on the 3.2 um training rows only; the shipped SonoVue training sets (sessions 5-8) use it.  Its
+#: fitted on the 3.2 um training rows only; the SonoVue training sets of sessions 5-10 used it.  Its
 #: compliance d/F ~ ka^-0.64 kb^-0.39 (3.2 um), ka^-0.68 kb^-0.46 (5.8 um) has other exponents than the
 #: published curves' (ka^-0.58 kb^-0.46, ka^-0.57 kb^-0.55; 16 rows each): a loaded patch wider than the
 #: published one (0.87-1.10 x the published d at 3.2 um, 0.72-1.18 x at 5.8 um, depending on ka / kb).

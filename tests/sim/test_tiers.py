@@ -71,7 +71,7 @@ def test_indentation_conventions_map_kb_and_name_the_allowed_values():
         indentation_convention,
     )
 
-    assert DEFAULT_INDENTATION_CONVENTION == "bubblecal-v1"  # the shipped SonoVue training sets
+    assert DEFAULT_INDENTATION_CONVENTION == "bubblecal-v1"  # campaign files without the setting keep their design
     assert indentation_convention("bubblecal-v1").kb_scale == pytest.approx(KB_KERNEL_SCALE["indentation"])
     assert indentation_convention("mirheo").kb_scale == 1.0
     # the published patch: the pole vertex and its first ring on the subdivision-4 icosphere (2,562 vertices),
