@@ -324,6 +324,7 @@ def main(argv=None) -> int:
             tier = get_tier(tier_name, **settings)
             y = np.full_like(y_pub, np.nan)
             status: list[str] = []
+            health: list = []  # MD tiers: the health check behind a non-ok status (NAN, LEAK, ...) and its point
             t0 = time.perf_counter()
             for b0 in range(0, ts.n_curves, rep):
                 idx = np.arange(b0, min(ts.n_curves, b0 + rep))
@@ -335,6 +336,7 @@ def main(argv=None) -> int:
                 batch = tier.run(req, device=args.device)
                 y[idx] = batch.observable
                 status += list(batch.status)
+                health += list(batch.info.get("health") or [None] * len(batch.status))
                 el = time.perf_counter() - t0
                 eta = el / (idx[-1] + 1) * (ts.n_curves - idx[-1] - 1)
                 print(f"  {t}: {idx[-1] + 1}/{ts.n_curves} rows, {el:.1f} s, ETA {eta:.0f} s, status {batch.status}",
@@ -342,7 +344,7 @@ def main(argv=None) -> int:
             wall = time.perf_counter() - t0
             curves[t] = y
             n_ok = sum(s == "ok" for s in status)
-            entry = {"wall_s": wall, "status": status, "curves_per_gpu_hour": n_ok / wall * 3600 if wall > 0 else None,
+            entry = {"wall_s": wall, "status": status, "health": health, "curves_per_gpu_hour": n_ok / wall * 3600 if wall > 0 else None,
                      "rel_l2_vs_published": stats(rel_l2(y, y_pub)),
                      "rel_l2_rows": [None if not np.isfinite(v) else float(v) for v in rel_l2(y, y_pub)]}
             if t != "explicit" and "explicit" in curves:

@@ -307,6 +307,8 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
     state = wp.array(np.zeros(4), dtype=wp.float64, device=dev)
     status = ["ok"] * R
     point_status = [["ok"] * P for _ in range(R)]
+    # the health check's own verdict (e.g. NAN vs LEAK, both 'failed') and the point it came at, per replica
+    health = [None] * R
     obs = np.full((R, P), np.nan)
     extra: dict[str, np.ndarray] = {}
     offsets = np.asarray(adapter.offsets, dtype=np.int64)
@@ -375,12 +377,13 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
         adapter.advance(n)
         adapter_steps[0] += n
 
-    def apply_health(j_done: int):
+    def apply_health(j_done: int, where: str | None = None):
         names = adapter.health()
         for r, nm in enumerate(names):
             ts = STATUS_MAP.get(nm, "failed")
             if status[r] == "ok" and ts != "ok":
                 status[r] = ts
+                health[r] = {"check": nm, "at": where or f"point {j_done + 1}"}
                 for jj in range(max(j_done, 0), P):
                     point_status[r][jj] = ts
                 if j_done >= 0 and j_done < P:
@@ -391,7 +394,7 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
 
     set_ramp(start_value, start_value, 0)
     advance(steps.equilibration_steps)
-    apply_health(0)
+    apply_health(0, "equilibration")
     h_eq = extent() if protocol == "indentation" else None
     prev = start_value
     n_samples = steps.hold_steps // steps.sample_every
@@ -442,7 +445,8 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
             for j in range(P):
                 if point_status[r][j] != "ok":
                     obs[r, j] = np.nan
-    out = {"observable": obs, "status": status, "point_status": point_status, "steps": adapter_steps[0],
+    out = {"observable": obs, "status": status, "point_status": point_status, "health": health,
+           "steps": adapter_steps[0],
            "seconds": time.perf_counter() - t0, **{k_: v.tolist() for k_, v in extra.items()}}
     if h_eq is not None:
         out["axial_diameter_equilibrated"] = h_eq.tolist()
@@ -511,7 +515,7 @@ class _MDTierBase:
                      "protocol_steps": dataclasses.asdict(steps), "dt": self.dt, "md_steps": out["steps"],
                      "indentation_convention": self.indentation_convention if request.protocol == "indentation"
                      else None,
-                     "point_status": out["point_status"], "contact": {**dataclasses.asdict(self.contact),
+                     "point_status": out["point_status"], "health": out["health"], "contact": {**dataclasses.asdict(self.contact),
                                                                       "cutoff": self.contact.cutoff}})
         for key in ("force_top", "force_bottom", "force_sem", "axial_diameter", "axial_sem",
                     "axial_diameter_equilibrated", "initial_diameter_reference"):

@@ -77,6 +77,9 @@ def test_forced_rupture_status():
     b = ImplicitTier(rupture_strain=1e-4, **FAST).run(req)  # thermal strain > 1e-4 -> 'ruptured'
     assert b.status == ["ruptured", "ruptured"]
     assert np.all(np.isnan(b.observable)) and not b.ok.any()
+    # the health check's own verdict and where it came (a 'failed' status can be NAN or LEAK underneath)
+    assert [h["check"] for h in b.info["health"]] == ["RUPTURE", "RUPTURE"]
+    assert b.info["health"][0]["at"] == "point 1"  # FAST has no equilibration steps
 
 
 def test_explicit_tier_smoke():
@@ -86,6 +89,7 @@ def test_explicit_tier_smoke():
     b = get_tier("explicit", ramp_steps=100, hold_steps=100, sample_every=50, equilibration_steps=50).run(req)
     assert b.observable.shape == (2, 2)
     assert b.status == ["ok", "ok"], b.info["point_status"]
+    assert b.info["health"] == [None, None]
     assert np.all(np.isfinite(b.observable)) and np.all(b.observable >= 0)
     assert b.info["md_steps"] == 50 + 100 + 2 * 100
     assert b.info["n_particles"] > 2 * 162
