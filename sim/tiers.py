@@ -288,6 +288,9 @@ class QuasistaticTier:
     the request's next parameter set (softest k_a first), so a request much larger than the GPU's batch runs at
     full occupancy: the task's wall time follows the mean FIRE work per curve instead of the slowest curve's
     (at 3.2 um the slowest needs ~100x the median).  None: one slot per replica of the request.
+    ``stop_unstable``: a curve whose FIRE reaches ``max_steps`` at a point ends there ('unstable', its converged
+    prefix kept, later points NaN) instead of going on; off by default (the shipped sets ran without it).  The
+    slowest curves of a campaign pool are mostly such curves (benchmarks/RESULTS.md, session 11).
     ``thermal_contact`` (compression only; indentation has no plates): the plates act through the mean force of
     each vertex's thermal normal fluctuation at temperature ``kT`` (DPD energy) against the WCA's hard-wall
     distance (:mod:`bubblecal.sim.experiments.thermal_contact`): the entropic contact force of the thermal tiers.
@@ -306,11 +309,14 @@ class QuasistaticTier:
     thermal_contact: bool = False
     kT: float = 1.0
     indentation_convention: str = DEFAULT_INDENTATION_CONVENTION
+    stop_unstable: bool = False
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
         if isinstance(self.dtype, str) and self.dtype not in ("float64", "float32"):
             raise ValueError(f"quasistatic tier: dtype must be 'float64' or 'float32', got {self.dtype!r}")
+        if not isinstance(self.stop_unstable, bool):
+            raise ValueError(f"quasistatic tier: stop_unstable must be true or false, got {self.stop_unstable!r}")
         if self.schedule not in ("async", "lockstep"):
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
         if self.max_replicas is not None:
@@ -346,7 +352,7 @@ class QuasistaticTier:
         t0 = time.perf_counter()
         sub = self.subdivisions if self.subdivisions is not None else request.subdivisions
         mesh = mesh_for_diameter(request.diameter_um, sub)
-        fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps)
+        fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable)
         gas = IdealGas(p0=self.gas_p0)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,

@@ -41,7 +41,7 @@ Choices (stated once; also returned in ``result.settings``):
   the bottom plate's is returned too (``force_bottom``; equal at equilibrium).  "Both plates"
   (sum) would be twice this -- keep it consistent with the data's convention.
 * **Status per replica**: ``'ok'``; ``'not_converged'`` (FIRE hit ``max_steps`` at some point; the
-  chain goes on); ``'nonfinite'``; ``'ruptured'`` (max triangle area strain |A/A0 - 1| above
+  chain goes on, or ends there with ``FireSettings.stop_at_max_steps``); ``'nonfinite'``; ``'ruptured'`` (max triangle area strain |A/A0 - 1| above
   ``rupture_strain``, default 1.0).  After ``nonfinite`` / ``ruptured`` the replica is frozen and its
   later observables are NaN.  ``point_status[r][j]`` holds the per-point verdict.
 """
@@ -140,13 +140,17 @@ class PlateContact:
 @dataclass(frozen=True)
 class FireSettings:
     """FIRE controls for every load point: ``ftol`` (absolute per-vertex force norm, DPD force),
-    ``max_steps`` per point, ``dt`` / ``dt_max`` (DPD time, unit FIRE mass), ``max_move`` (length/step)."""
+    ``max_steps`` per point, ``dt`` / ``dt_max`` (DPD time, unit FIRE mass), ``max_move`` (length/step).
+    ``stop_at_max_steps``: a replica whose FIRE reaches ``max_steps`` at a point ends its curve there
+    ('not_converged', that point and the later ones NaN, the converged prefix kept) instead of going on to the
+    last point; such curves are not trained on past their prefix, and they make most of a pool's tail."""
 
     ftol: float = 0.05
     max_steps: int = 20_000
     dt: float = 5e-3
     dt_max: float = 5e-2
     max_move: float = 0.01
+    stop_at_max_steps: bool = False
 
 
 def plate_force_energy(h: np.ndarray, contact: PlateContact) -> tuple[np.ndarray, np.ndarray]:
@@ -564,16 +568,18 @@ def _result_tables(n: int, n_points: int):
 
 
 def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callable[[int], None] | None = None,
-               progress: Callable[[int, int, float], None] | None = None) -> dict:
+               progress: Callable[[int, int, float], None] | None = None, stop_unstable: bool = False) -> dict:
     """Chain the load points on ``backend`` (:class:`_HostChain` / :class:`_DeviceChain`); returns
-    per-replica/point arrays and statuses.  ``progress(j, n_points, seconds)`` after every point."""
+    per-replica/point arrays and statuses.  ``progress(j, n_points, seconds)`` after every point.
+    ``stop_unstable``: a 'not_converged' point ends the replica's curve (:class:`FireSettings`)."""
     from bubblecal.sim.minimize import STATUS_CONVERGED, STATUS_NONFINITE
 
     R = backend.R
+    terminal = _terminal(stop_unstable)
     status, point_status, steps, fmax, strain, volume, obs = _result_tables(R, n_points)
     t0 = time.perf_counter()
     for j in range(n_points):
-        alive = np.array([s not in _FAILED for s in status])
+        alive = np.array([s not in terminal for s in status])
         if not alive.any():
             for r in range(R):
                 point_status[r][j:] = [status[r]] * (n_points - j)
@@ -595,23 +601,28 @@ def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callabl
             else:
                 ps = STATUS_OK
             point_status[r][j] = ps
-            if ps in _FAILED or status[r] == STATUS_OK:
+            if ps in terminal or status[r] == STATUS_OK:
                 status[r] = ps if ps != STATUS_OK else status[r]
             steps[r, j] = fsteps[r]
             fmax[r, j] = ffmax[r]
-            if ps in _FAILED:
+            if ps in terminal:
                 continue
             strain[r, j] = eps[r]
             volume[r, j] = vols[r]
             for k, v in m.items():
                 obs.setdefault(k, np.full((R, n_points), np.nan))[r, j] = v[r]
         # failed replicas restart from (and stay frozen at) the reference so their rows stay finite
-        backend.reset_failed(np.array([s in _FAILED for s in status]))
+        backend.reset_failed(np.array([s in terminal for s in status]))
         if progress is not None:
             progress(j, n_points, time.perf_counter() - t0)
     return {"status": status, "point_status": point_status, "fire_steps": steps, "fmax": fmax,
             "max_area_strain": strain, "volume": volume, "obs": obs, "x": backend.x_final(),
             "fire_evaluations": int(backend.n_evaluations)}
+
+
+def _terminal(stop_unstable: bool) -> tuple[str, ...]:
+    """Point verdicts that end a replica's curve."""
+    return _FAILED + ((STATUS_NOT_CONVERGED,) if stop_unstable else ())
 
 
 def _classify(fire_code: int, finite: bool, eps: float, rupture_strain: float) -> str:
@@ -631,7 +642,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
                      batch_fraction: float = 0.05, samples: Sequence[ShellParams] | None = None,
                      compact: Callable[[_DeviceChain, np.ndarray, list], tuple] | None = None,
                      compact_below: float = 0.125, compact_min: int = 8,
-                     on_finish: Callable[[int, dict], None] | None = None) -> dict:
+                     on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False) -> dict:
     """Chain the load points with every replica at its own point (device FIRE only).
 
     A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
@@ -653,6 +664,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     relax; same iterates).  ``on_finish(s, row)``: called as soon as sample (or replica) ``s`` has
     finished its curve, with its ``status``, ``point_status``, ``fire_steps`` [P] and ``obs`` {name: [P]}
     (a campaign writes the record at once, so an interrupted batch keeps its finished curves).
+    ``stop_unstable``: a 'not_converged' point ends the curve (its slot is free at once).
     Returns the dict of :func:`_run_chain`, rows = samples.
     """
     from bubblecal.sim.kernels.fire import ACTIVE
@@ -663,6 +675,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     if S < R:
         raise ValueError(f"samples: {S} parameter sets for {R} slots")
     fs = backend.fire_settings
+    terminal = _terminal(stop_unstable)
     status, point_status, steps, fmax, strain, volume, obs = _result_tables(S, n_points)
     x_out = np.zeros((S * backend.nv, 3)) if stream else None
     sample = np.arange(R)  # sample held by each slot
@@ -692,7 +705,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
             point_status[s_][jr] = ps
             steps[s_, jr] = fsteps[r]
             fmax[s_, jr] = ffmax[r]
-            if ps in _FAILED:
+            if ps in terminal:
                 status[s_] = ps
                 point_status[s_][jr + 1:] = [ps] * (n_points - jr - 1)
                 failed[r] = done[r] = True
@@ -783,7 +796,7 @@ _COMPACT_MIN = 8
 def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, n_points: int,
                       rupture_strain: float, assign_factory: Callable[[_DeviceChain], Callable],
                       max_replicas: int | None, progress,
-                      on_finish: Callable[[int, dict], None] | None = None) -> dict:
+                      on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False) -> dict:
     """Async chain over ``params``; with ``max_replicas`` < len(params) at most that many slots run at once
     and finished slots take the next sample, softest (smallest k_a) first: FIRE work grows as k_a falls,
     so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order.
@@ -792,7 +805,7 @@ def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, 
     if max_replicas is None or max_replicas >= S:
         dc = dc_factory(params)
         return _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress,
-                                on_finish=on_finish)
+                                on_finish=on_finish, stop_unstable=stop_unstable)
     order = np.argsort([p.ka for p in params], kind="stable")
     pool = [params[int(i)] for i in order]
     dc = dc_factory(pool[:max_replicas])
@@ -805,7 +818,7 @@ def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, 
     finish = None if on_finish is None else (lambda s, row: on_finish(int(order[s]), row))
     out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool,
                            compact=compact, compact_below=_COMPACT_BELOW, compact_min=_COMPACT_MIN,
-                           on_finish=finish)
+                           on_finish=finish, stop_unstable=stop_unstable)
     inv = np.empty(S, dtype=np.int64)
     inv[order] = np.arange(S)
     nv = dc.nv
@@ -995,11 +1008,11 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
 
             out = _run_device_async(make_chain, params, len(forces), rupture_strain,
                                     lambda dc: (lambda jj: dc.set_load_rows(forces[jj])), max_replicas, progress,
-                                    on_finish=finish)
+                                    on_finish=finish, stop_unstable=fire.stop_at_max_steps)
         else:
             dc = make_chain(params)
             out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
-                             progress=progress)
+                             progress=progress, stop_unstable=fire.stop_at_max_steps)
     else:
         b = _Batch(params, mesh, gas, device, dtype)
         unit_all = np.tile(unit, (R, 1))
@@ -1020,7 +1033,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             return {"H": h, "patch": patch}
 
         hc = _HostChain(b, make, np.tile(free_v, (R, 1)), fire, measure)
-        out = _run_chain(hc, len(forces), rupture_strain, progress=progress)
+        out = _run_chain(hc, len(forces), rupture_strain, progress=progress, stop_unstable=fire.stop_at_max_steps)
     patch0 = float(z0[top].mean() - z0[bottom].mean())
     H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
     P = out["obs"].get("patch", np.full((R, len(forces)), np.nan))
@@ -1112,11 +1125,12 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         if schedule == "async":
             out = _run_device_async(make_chain, params, len(disp), rupture_strain,
                                     lambda dc: (lambda jj: dc.set_plate_rows(plate[jj], 2 * zc - plate[jj])),
-                                    max_replicas, progress)
+                                    max_replicas, progress, stop_unstable=fire.stop_at_max_steps)
         else:
             dc = make_chain(params)
             out = _run_chain(dc, len(disp), rupture_strain,
-                             set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress)
+                             set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress,
+                             stop_unstable=fire.stop_at_max_steps)
     else:
         b = _Batch(params, mesh, gas, device, dtype)
         if thermal is not None:
@@ -1152,7 +1166,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                     "contacts": (plate[j] - z < reach).reshape(R, nv).sum(axis=1).astype(float)}
 
         hc = _HostChain(b, make, np.ones((R * nv, 3), dtype=bool), fire, measure)
-        out = _run_chain(hc, len(disp), rupture_strain, progress=progress)
+        out = _run_chain(hc, len(disp), rupture_strain, progress=progress, stop_unstable=fire.stop_at_max_steps)
     fire_evaluations = out["fire_evaluations"]
     out = _select_points(out, keep)
     nan = np.full((R, len(keep)), np.nan)

@@ -277,6 +277,56 @@ def test_async_schedule_same_iterates_as_lockstep(mesh, protocol):
     np.testing.assert_array_equal(pool.x_final, lock.x_final)
 
 
+@pytest.mark.parametrize("protocol", ["compression", "indentation"])
+def test_stop_at_max_steps_ends_the_curve_and_keeps_the_rest_bit_identical(mesh, protocol):
+    # the same mixed set as above: with stop_at_max_steps the not-converged curve ends at its first max_steps point
+    # (that point and the later ones NaN, no more FIRE work), its converged prefix and every other curve unchanged
+    import dataclasses
+
+    p = [_p(), _p(ka=KA / 4), ShellParams(ka=KA / 8, kb=KB, b1=0.7, b2=0.75, a3=-2.0, a4=8.0, self_avoid=False),
+         _p(ka=200.0, kb=5.0)]
+    if protocol == "compression":
+        run, grid, key = quasistatic_compression, [0.0, 0.12, 0.24, 0.36, 0.48], "force"
+        fire = FireSettings(max_steps=400)
+    else:
+        # a point after the one that hits max_steps, so that stopping saves work
+        run, grid, key = quasistatic_indentation, [0.0, 10.0, 20.0, 40.0, 2000.0, 2100.0], "displacement"
+        fire = FireSettings(max_steps=600)
+    stop = dataclasses.replace(fire, stop_at_max_steps=True)
+    base = run(p, mesh, grid, fire=fire, rupture_strain=0.5)
+    assert "not_converged" in base.status, base.status
+    runs = {"lockstep": run(p, mesh, grid, fire=stop, schedule="lockstep", rupture_strain=0.5),
+            "async": run(p, mesh, grid, fire=stop, rupture_strain=0.5),
+            "refill": run(p, mesh, grid, fire=stop, rupture_strain=0.5, max_replicas=2)}
+    for name, r in runs.items():
+        assert r.settings["fire"]["stop_at_max_steps"] is True
+        assert r.status == base.status, name
+        y, y0 = getattr(r, key), getattr(base, key)
+        for i, st in enumerate(base.status):
+            if st != "not_converged":
+                assert r.point_status[i] == base.point_status[i], name
+                np.testing.assert_array_equal(r.fire_steps[i], base.fire_steps[i])
+                np.testing.assert_array_equal(y[i], y0[i])
+                continue
+            j = base.point_status[i].index("not_converged")
+            assert r.point_status[i] == base.point_status[i][:j] + ["not_converged"] * (len(grid) - j), name
+            np.testing.assert_array_equal(y[i, :j], y0[i, :j])  # the converged prefix, bit for bit
+            assert np.all(np.isnan(y[i, j:])) and np.all(np.isfinite(y0[i, j:]))
+            np.testing.assert_array_equal(r.fire_steps[i, :j + 1], base.fire_steps[i, :j + 1])
+            assert np.all(r.fire_steps[i, j + 1:] == 0) and r.fire_steps[i].sum() < base.fire_steps[i].sum()
+    for name in ("async", "refill"):
+        np.testing.assert_array_equal(runs[name].fire_steps, runs["lockstep"].fire_steps)
+        np.testing.assert_array_equal(getattr(runs[name], key), getattr(runs["lockstep"], key))
+
+
+def test_quasistatic_tier_stop_unstable_setting():
+    from bubblecal.sim.tiers import get_tier
+
+    assert get_tier("quasistatic").stop_unstable is False  # the shipped sets ran without it
+    with pytest.raises(ValueError, match="stop_unstable must be true or false"):
+        get_tier("quasistatic", stop_unstable="yes")
+
+
 def test_compacting_the_last_curves_keeps_their_iterates(mesh, monkeypatch):
     import bubblecal.sim.experiments.quasistatic as qs
 
