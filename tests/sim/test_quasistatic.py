@@ -241,18 +241,22 @@ def test_minimizer_choice_validated(mesh):
         quasistatic_indentation([_p()], mesh, [0.0], minimizer="scipy")
 
 
-@pytest.mark.parametrize("protocol", ["compression", "indentation"])
-def test_async_schedule_same_iterates_as_lockstep(mesh, protocol):
-    # replicas of very different stiffness reach their points at different FIRE iterations; one hits max_steps
-    # at some point and one ruptures: every replica must follow exactly its lock-step iterates
+def _mixed_case(protocol: str, extra_points: tuple = ()):
+    """Replicas of very different stiffness that reach their points at different FIRE iterations; one hits
+    max_steps at some point and one ruptures (rupture_strain 0.5): (params, run, grid, observable name, fire)."""
     p = [_p(), _p(ka=KA / 4), ShellParams(ka=KA / 8, kb=KB, b1=0.7, b2=0.75, a3=-2.0, a4=8.0, self_avoid=False),
          _p(ka=200.0, kb=5.0)]
     if protocol == "compression":
-        run, grid, key = quasistatic_compression, [0.0, 0.12, 0.24, 0.36, 0.48], "force"
-        fire = FireSettings(max_steps=400)
-    else:
-        run, grid, key = quasistatic_indentation, [0.0, 10.0, 20.0, 40.0, 2000.0], "displacement"
-        fire = FireSettings(max_steps=600)
+        return p, quasistatic_compression, [0.0, 0.12, 0.24, 0.36, 0.48, *extra_points], "force", \
+            FireSettings(max_steps=400)
+    return p, quasistatic_indentation, [0.0, 10.0, 20.0, 40.0, 2000.0, *extra_points], "displacement", \
+        FireSettings(max_steps=600)
+
+
+@pytest.mark.parametrize("protocol", ["compression", "indentation"])
+def test_async_schedule_same_iterates_as_lockstep(mesh, protocol):
+    # every replica of the mixed set must follow exactly its lock-step iterates
+    p, run, grid, key, fire = _mixed_case(protocol)
     lock = run(p, mesh, grid, fire=fire, schedule="lockstep", rupture_strain=0.5)
     asy = run(p, mesh, grid, fire=fire, rupture_strain=0.5)
     assert asy.settings["schedule"] == "async" and lock.settings["schedule"] == "lockstep"
@@ -283,15 +287,8 @@ def test_stop_at_max_steps_ends_the_curve_and_keeps_the_rest_bit_identical(mesh,
     # (that point and the later ones NaN, no more FIRE work), its converged prefix and every other curve unchanged
     import dataclasses
 
-    p = [_p(), _p(ka=KA / 4), ShellParams(ka=KA / 8, kb=KB, b1=0.7, b2=0.75, a3=-2.0, a4=8.0, self_avoid=False),
-         _p(ka=200.0, kb=5.0)]
-    if protocol == "compression":
-        run, grid, key = quasistatic_compression, [0.0, 0.12, 0.24, 0.36, 0.48], "force"
-        fire = FireSettings(max_steps=400)
-    else:
-        # a point after the one that hits max_steps, so that stopping saves work
-        run, grid, key = quasistatic_indentation, [0.0, 10.0, 20.0, 40.0, 2000.0, 2100.0], "displacement"
-        fire = FireSettings(max_steps=600)
+    # indentation: a point after the one that hits max_steps, so that stopping saves work
+    p, run, grid, key, fire = _mixed_case(protocol, () if protocol == "compression" else (2100.0,))
     stop = dataclasses.replace(fire, stop_at_max_steps=True)
     base = run(p, mesh, grid, fire=fire, rupture_strain=0.5)
     assert "not_converged" in base.status, base.status
