@@ -1,35 +1,61 @@
-"""Per-store FIRE work and statuses of campaign stores (a throughput diagnosis on the lent GPU).
+"""Per-store FIRE work and statuses of campaign stores (a throughput diagnosis; runs anywhere, the lent GPU too).
 
-    python3 benchmarks/device/fire_work.py STORE [STORE ...]
+    python3 benchmarks/device/fire_work.py STORE [STORE ...] [--top 20]
 
-Prints per store: records, statuses, median / p90 / max FIRE iterations per curve (provenance.info.fire_steps),
-task compute seconds, and one JSON line.
+Prints per store: records, statuses, median / p90 / max / sum of FIRE iterations per curve
+(provenance.info.fire_steps), task compute seconds, and which curves make a pool's tail: the statuses of the
+``--top`` slowest curves, the slowest curve of each status and the share of all FIRE work spent on curves the
+training does not use ('unstable', 'failed'); then one JSON line.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from collections import Counter
 
 import numpy as np
 
+STATUSES = ("ok", "unstable", "ruptured", "failed")
 
-def main(argv=None) -> int:
+
+def fire_work(path: str, top: int = 20) -> dict:
+    """FIRE work (iterations, dimensionless counts) by record of one campaign store or export."""
     from bubblecal.data.store import CampaignStore
 
+    recs = CampaignStore(path).read(warn=False)
+    steps = np.array([r["provenance"].get("info", {}).get("fire_steps", np.nan) for r in recs], dtype=float)
+    status = np.array([r["status"] for r in recs])
+    tasks = {r["provenance"].get("task"): r["provenance"].get("task_compute_s") for r in recs}
+    have = len(recs) > 0 and np.isfinite(steps).any()
+    slow = np.argsort(-np.nan_to_num(steps, nan=-1.0))[:top]
+    unused = np.isin(status, ("unstable", "failed"))
+    return {"records": len(recs), "status": dict(Counter(status.tolist())),
+            "fire_steps_median": float(np.nanmedian(steps)) if have else None,
+            "fire_steps_p90": float(np.nanpercentile(steps, 90)) if have else None,
+            "fire_steps_max": float(np.nanmax(steps)) if have else None,
+            "fire_steps_sum": float(np.nansum(steps)), "task_compute_s": tasks,
+            "top": top, "top_statuses": dict(Counter(status[slow].tolist())),
+            "slowest_by_status": {s: int(np.nanmax(steps[status == s])) for s in STATUSES
+                                  if have and np.isfinite(steps[status == s]).any()},
+            "unused_work_share": float(np.nansum(steps[unused]) / np.nansum(steps)) if have else None}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("stores", nargs="+")
+    ap.add_argument("--top", type=int, default=20, help="the slowest curves whose statuses are counted")
+    args = ap.parse_args(argv)
     out = {}
-    for path in (argv if argv is not None else sys.argv[1:]):
-        recs = CampaignStore(path).read(warn=False)
-        steps = np.array([r["provenance"].get("info", {}).get("fire_steps", np.nan) for r in recs], dtype=float)
-        tasks = {r["provenance"].get("task"): r["provenance"].get("task_compute_s") for r in recs}
-        row = {"records": len(recs), "status": dict(Counter(r["status"] for r in recs)),
-               "fire_steps_median": float(np.nanmedian(steps)) if len(recs) else None,
-               "fire_steps_p90": float(np.nanpercentile(steps, 90)) if len(recs) else None,
-               "fire_steps_max": float(np.nanmax(steps)) if len(recs) else None,
-               "fire_steps_sum": float(np.nansum(steps)), "task_compute_s": tasks}
-        print(path, row)
-        out[path] = row
+    for path in args.stores:
+        row = out[path] = fire_work(path, args.top)
+        print(path, {k: v for k, v in row.items() if k not in ("top_statuses", "slowest_by_status",
+                                                                 "unused_work_share")})
+        share = row["unused_work_share"]
+        print(f"  tail: {row['top']} slowest {row['top_statuses']}; slowest "
+              + " / ".join(f"{s} {row['slowest_by_status'].get(s, 0):,}" for s in STATUSES)
+              + f"; unstable + failed work {'-' if share is None else f'{100 * share:.1f} %'}")
     print(json.dumps(out))
     return 0
 
