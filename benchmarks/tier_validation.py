@@ -344,7 +344,8 @@ def main(argv=None) -> int:
             wall = time.perf_counter() - t0
             curves[t] = y
             n_ok = sum(s == "ok" for s in status)
-            entry = {"wall_s": wall, "status": status, "health": health, "curves_per_gpu_hour": n_ok / wall * 3600 if wall > 0 else None,
+            entry = {"wall_s": wall, "status": status, "health": health,
+                     "curves_per_gpu_hour": n_ok / wall * 3600 if wall > 0 else None,
                      "rel_l2_vs_published": stats(rel_l2(y, y_pub)),
                      "rel_l2_rows": [None if not np.isfinite(v) else float(v) for v in rel_l2(y, y_pub)]}
             if t != "explicit" and "explicit" in curves:
