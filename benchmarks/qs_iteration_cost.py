@@ -5,8 +5,11 @@ with few replicas relaxing, so this measures whether an iteration gets cheaper w
 (finished replicas skip every kernel's work) and what CUDA-graph replay saves over plain launches.
 
     python benchmarks/qs_iteration_cost.py --device cuda [--replicas 500] [--diameter 3.2] [--iters 2000]
+        [--profile 100]
 
-Prints a table (ms per iteration by active replicas and graph on/off) and one JSON line.
+Prints a table (ms per iteration by active replicas and graph on/off) and one JSON line.  ``--profile N``
+also times N plain-launch iterations per row kernel by kernel (CUDA events, Warp's ScopedTimer): the GPU time of
+each kernel per iteration and their sum, against the wall time per iteration (the rest is launch latency).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ def main(argv=None) -> int:
     ap.add_argument("--subdivisions", type=int, default=4)
     ap.add_argument("--iters", type=int, default=2000)
     ap.add_argument("--active", default="all,50,5,1")
+    ap.add_argument("--profile", type=int, default=0, help="iterations timed kernel by kernel (CUDA only)")
     args = ap.parse_args(argv)
     import warp as wp
 
@@ -71,14 +75,36 @@ def main(argv=None) -> int:
                 dc.fire.advance()
             wp.synchronize_device(dc.device)
             ms = 1e3 * (time.perf_counter() - t0) / (n_chunks * dc.fire.sync_every)
-            rows.append({"graph": bool(dc.fire.use_graph), "requested_graph": graph, "active": n_act, "replicas": R,
-                         "n_vertices": nv, "ms_per_iteration": ms,
-                         "us_per_active_replica_iteration": 1e3 * ms / n_act})
+            row = {"graph": bool(dc.fire.use_graph), "requested_graph": graph, "active": n_act, "replicas": R,
+                   "n_vertices": nv, "ms_per_iteration": ms, "us_per_active_replica_iteration": 1e3 * ms / n_act}
+            if args.profile and not graph:
+                row["kernels_us_per_iteration"] = _kernel_profile(wp, dc, args.profile)
+                row["kernels_sum_us"] = sum(row["kernels_us_per_iteration"].values())
+                print("  GPU us per iteration by kernel (sum %.1f us of %.1f us wall): %s" % (
+                    row["kernels_sum_us"], 1e3 * ms, ", ".join(f"{k} {v:.1f}" for k, v in
+                                                               row["kernels_us_per_iteration"].items())))
+            rows.append(row)
             print(f"graph={dc.fire.use_graph!s:5} active={n_act:5d}/{R}: {ms:.4f} ms per iteration "
                   f"({1e3 * ms / n_act:.2f} us per active replica-iteration)", flush=True)
     print(json.dumps({"benchmark": "qs_iteration_cost", "device": args.device, "diameter_um": args.diameter,
                       "subdivisions": args.subdivisions, "rows": rows}))
     return 0
+
+
+def _kernel_profile(wp, dc, n_iters: int) -> dict:
+    """GPU microseconds per iteration of each kernel (and memset / memcpy) over ``n_iters`` plain iterations,
+    largest first."""
+    acc: dict[str, float] = {}
+
+    def report(results, indent=""):
+        for r in results:
+            acc[r.name] = acc.get(r.name, 0.0) + r.elapsed  # ms
+
+    wp.synchronize_device(dc.device)
+    with wp.ScopedTimer("fire", print=False, cuda_filter=wp.TIMING_ALL, synchronize=True, report_func=report):
+        for _ in range(n_iters):
+            dc.fire._iteration()
+    return dict(sorted(((k, 1e3 * v / n_iters) for k, v in acc.items()), key=lambda kv: -kv[1]))
 
 
 if __name__ == "__main__":
