@@ -80,9 +80,9 @@ def main(argv=None) -> int:
             if args.profile and not graph:
                 row["kernels_us_per_iteration"] = _kernel_profile(wp, dc, args.profile)
                 row["kernels_sum_us"] = sum(row["kernels_us_per_iteration"].values())
-                print("  GPU us per iteration by kernel (sum %.1f us of %.1f us wall): %s" % (
-                    row["kernels_sum_us"], 1e3 * ms, ", ".join(f"{k} {v:.1f}" for k, v in
-                                                               row["kernels_us_per_iteration"].items())))
+                by_kernel = ", ".join(f"{k} {v:.1f}" for k, v in row["kernels_us_per_iteration"].items())
+                print(f"  GPU us per iteration by kernel (sum {row['kernels_sum_us']:.1f} us of {1e3 * ms:.1f} us "
+                      f"wall): {by_kernel}")
             rows.append(row)
             print(f"graph={dc.fire.use_graph!s:5} active={n_act:5d}/{R}: {ms:.4f} ms per iteration "
                   f"({1e3 * ms / n_act:.2f} us per active replica-iteration)", flush=True)
@@ -93,17 +93,15 @@ def main(argv=None) -> int:
 
 def _kernel_profile(wp, dc, n_iters: int) -> dict:
     """GPU microseconds per iteration of each kernel (and memset / memcpy) over ``n_iters`` plain iterations,
-    largest first."""
-    acc: dict[str, float] = {}
-
-    def report(results, indent=""):
-        for r in results:
-            acc[r.name] = acc.get(r.name, 0.0) + r.elapsed  # ms
-
+    largest first (empty on the CPU: CUDA activity timing only)."""
     wp.synchronize_device(dc.device)
-    with wp.ScopedTimer("fire", print=False, cuda_filter=wp.TIMING_ALL, synchronize=True, report_func=report):
+    # results are collected only with cuda_filter set; print=False skips Warp's own report
+    with wp.ScopedTimer("fire", print=False, cuda_filter=wp.TIMING_ALL, synchronize=True) as timer:
         for _ in range(n_iters):
             dc.fire._iteration()
+    acc: dict[str, float] = {}
+    for r in timer.timing_results:
+        acc[r.name] = acc.get(r.name, 0.0) + r.elapsed  # ms
     return dict(sorted(((k, 1e3 * v / n_iters) for k, v in acc.items()), key=lambda kv: -kv[1]))
 
 

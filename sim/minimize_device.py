@@ -33,7 +33,7 @@ import warp as wp
 from bubblecal.sim.graphs import ChunkGraph
 from bubblecal.sim.kernels.fire import ACTIVE, CONVERGED, FROZEN, MAX_STEPS, NONFINITE, fire_kernels
 
-__all__ = ["DeviceFire", "DeviceFireResult", "numpy_force_fn", "STATUS_NAMES"]
+__all__ = ["DeviceFire", "DeviceFireResult", "numpy_force_fn", "STATUS_NAMES", "cuda_threads_per_replica"]
 
 #: status code -> name (names shared with :mod:`bubblecal.sim.minimize`, plus ``"frozen"``)
 STATUS_NAMES = {ACTIVE: "max_steps", CONVERGED: "converged", MAX_STEPS: "max_steps", NONFINITE: "nonfinite",
@@ -61,6 +61,18 @@ class DeviceFireResult:
     @property
     def all_converged(self) -> bool:
         return bool(np.all(self.converged))
+
+
+def cuda_threads_per_replica(n_replicas: int, max_rows: int, min_threads: int = 64, max_threads: int = 1024,
+                             target_threads: int = 16384) -> int:
+    """Threads per replica of the row passes on a GPU: 64 for big batches, doubled (up to 1,024) while the
+    launch holds fewer than ``target_threads`` threads, never more than a replica's rows.  Why: each thread
+    walks its replica's rows with stride T, so with few replicas the loop's memory latency sets the iteration
+    time (one 2,562-vertex replica at T = 64: 0.245 ms per FIRE iteration on an H100, benchmarks/RESULTS.md)."""
+    t = int(min_threads)
+    while t < max_threads and n_replicas * t < target_threads:
+        t *= 2
+    return max(1, min(t, int(max_rows)))
 
 
 def numpy_force_fn(callback: Callable[[np.ndarray], np.ndarray]):
@@ -91,7 +103,8 @@ class DeviceFire:
             :func:`bubblecal.sim.minimize.fire_minimize` (dt_max default 10 dt, dt_min dt/50,
             ``max_move`` None: no cap), in the caller's time / length units.
         sync_every: iterations between host status checks (default 25 on CUDA, 4 on CPU).
-        threads_per_replica: threads per replica of the row passes (default 64 on CUDA, 1 on CPU).
+        threads_per_replica: threads per replica of the row passes (default on CUDA
+            :func:`cuda_threads_per_replica`, 1 on CPU).
         use_graph: capture ``sync_every`` iterations as a CUDA graph (default: on CUDA when
             ``force_fn`` is capturable; falls back to plain launches if capture fails).
     """
@@ -125,7 +138,8 @@ class DeviceFire:
         if self.sync_every < 1:
             raise ValueError("sync_every must be >= 1")
         max_rows = int(np.max(np.diff(rs)))
-        self.nthr = int(threads_per_replica) if threads_per_replica else (min(64, max_rows) if cuda else 1)
+        self.nthr = int(threads_per_replica) if threads_per_replica else (
+            cuda_threads_per_replica(self.R, max_rows) if cuda else 1)
         capturable = bool(getattr(force_fn, "capturable", True))
         self._chunks = ChunkGraph(self._iteration, self.device,
                                   cuda and capturable and (True if use_graph is None else bool(use_graph)))

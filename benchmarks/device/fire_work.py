@@ -20,13 +20,21 @@ import numpy as np
 STATUSES = ("ok", "unstable", "ruptured", "failed")
 
 
-def fire_work(path: str, top: int = 20) -> dict:
-    """FIRE work (iterations, dimensionless counts) by record of one campaign store or export."""
+def load_work(path: str) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+    """Records of a campaign store or export and, per record, FIRE iterations (NaN where not recorded), status
+    and k_a (DPD units)."""
     from bubblecal.data.store import CampaignStore
 
     recs = CampaignStore(path).read(warn=False)
     steps = np.array([r["provenance"].get("info", {}).get("fire_steps", np.nan) for r in recs], dtype=float)
     status = np.array([r["status"] for r in recs])
+    ka = np.array([r["params"]["ka"] for r in recs], dtype=float)
+    return recs, steps, status, ka
+
+
+def fire_work(path: str, top: int = 20) -> dict:
+    """FIRE work (iterations, dimensionless counts) by record of one campaign store or export."""
+    recs, steps, status, _ = load_work(path)
     tasks = {r["provenance"].get("task"): r["provenance"].get("task_compute_s") for r in recs}
     have = len(recs) > 0 and np.isfinite(steps).any()
     slow = np.argsort(-np.nan_to_num(steps, nan=-1.0))[:top]

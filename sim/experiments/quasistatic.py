@@ -787,8 +787,8 @@ def _select_points(out: dict, keep: np.ndarray) -> dict:
 
 
 # the last relaxing curves of an emptied pool move to a batch of their own size when at most this fraction of the
-# slots (and more than _COMPACT_MIN slots in all) still relax: an iteration of 500 slots costs >= 0.34 ms on an
-# H100 however few relax (benchmarks/qs_iteration_cost.py)
+# slots (and more than _COMPACT_MIN slots in all) still relax: an iteration of 500 slots costs >= 0.32 ms on an
+# H100 however few relax, one of a batch of 8 slots 0.085 ms (benchmarks/qs_iteration_cost.py, session 12)
 _COMPACT_BELOW = 0.125
 _COMPACT_MIN = 8
 

@@ -10,7 +10,7 @@ wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
 from bubblecal.sim.minimize import fire_minimize  # noqa: E402
-from bubblecal.sim.minimize_device import DeviceFire, numpy_force_fn  # noqa: E402
+from bubblecal.sim.minimize_device import DeviceFire, cuda_threads_per_replica, numpy_force_fn  # noqa: E402
 
 
 @wp.kernel
@@ -99,6 +99,44 @@ def test_warp_force_kernel_sync_every_and_frozen_replicas():
         np.testing.assert_array_equal(res.steps, runs[0][0].steps)
         np.testing.assert_array_equal(x, runs[0][1])
     assert np.isnan(runs[0][0].fmax[1])
+
+
+def test_threads_per_replica_change_only_the_summation_order():
+    """More threads per replica (what a small batch gets on a GPU) split each replica's row loop and its
+    reductions: the same minimum and the same FIRE step counts as one thread per replica."""
+    k, target, groups, x0 = _wells(2)
+    k[groups == 1] = 5.0  # (the stiff wells stall under the move cap, see above)
+    k[groups == 2] = 3.0
+    dev = "cpu"
+    ka = wp.array(k, dtype=wp.vec3d, device=dev)
+    ta = wp.array(target, dtype=wp.vec3d, device=dev)
+
+    def forces(x, f):
+        wp.launch(_spring_kernel, dim=12, inputs=[x, f, ka, ta], device=dev)
+
+    runs = []
+    for nthr in (1, 3, 4):  # 3: rows per replica not a multiple; 4: one row per thread
+        d = DeviceFire([0, 4, 8, 12], forces, device=dev, dt=0.01, max_move=0.05, sync_every=5,
+                       remove_mean=(True, False, False), threads_per_replica=nthr)
+        assert d.nthr == nthr
+        d.set_positions(x0)
+        runs.append((d.minimize(ftol=1e-8, max_steps=20_000), d.positions()))
+    for res, x in runs[1:]:
+        assert res.status == ["converged"] * 3
+        np.testing.assert_array_equal(res.steps, runs[0][0].steps)
+        np.testing.assert_allclose(x, runs[0][1], rtol=0, atol=1e-9)
+
+
+def test_cuda_threads_per_replica_grows_for_small_batches():
+    # big batches keep 64 threads per replica; small ones get more (<= 1,024, <= the rows), >= 16,384 in all
+    assert cuda_threads_per_replica(500, 2562) == 64
+    assert cuda_threads_per_replica(1000, 2562) == 64
+    assert cuda_threads_per_replica(62, 2562) == 512
+    assert cuda_threads_per_replica(1, 2562) == 1024
+    assert cuda_threads_per_replica(1, 300) == 300
+    for R in (1, 2, 7, 16, 33, 128, 255, 256):
+        t = cuda_threads_per_replica(R, 10242)
+        assert 64 <= t <= 1024 and (R * t >= 16384 or t == 1024)
 
 
 def test_max_steps_nonfinite_and_max_move():

@@ -1,0 +1,57 @@
+"""The slot-refill pool model (benchmarks/device/pool_model.py) on schedules with hand-computed wall times."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "device" / "pool_model.py"
+
+
+@pytest.fixture(scope="module")
+def pm():
+    spec = importlib.util.spec_from_file_location("pool_model", PATH)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["pool_model"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_equal_curves_cost_their_batches(pm):
+    # 4 curves of 10 iterations through 2 slots at 1 ms per batch iteration: 20 batch iterations
+    t = pm.pool_seconds(np.full(4, 10.0), np.arange(4.0), 2, lambda R, k: 1.0)
+    assert t == pytest.approx(0.020)
+
+
+def test_softest_first_order(pm):
+    # k_a order puts the long curve last: [1, 1] then [10] -> 11 iterations (unsorted [10, 1, 1] would take 10)
+    t = pm.pool_seconds(np.array([10.0, 1.0, 1.0]), np.array([3.0, 1.0, 2.0]), 2, lambda R, k: 1.0)
+    assert t == pytest.approx(0.011)
+
+
+def test_last_curves_move_to_a_batch_of_their_own_size(pm):
+    # 16 slots, cost = batch size in ms; 15 one-iteration curves and one of 100: 16 ms, then 99 x 1 ms once the
+    # last curve (<= 1/8 of 16 slots) runs alone
+    steps = np.r_[np.ones(15), 100.0]
+    t = pm.pool_seconds(steps, np.arange(16.0), 16, lambda R, k: float(R))
+    assert t == pytest.approx(0.016 + 0.099)
+
+
+def test_cost_table_and_interpolation(pm):
+    lines = [{"threads_per_replica": "a", "rows": [
+        {"graph": True, "replicas": 1, "active": 1, "ms_per_iteration": 0.1},
+        {"graph": True, "replicas": 10, "active": 10, "ms_per_iteration": 1.0},
+        {"graph": True, "replicas": 10, "active": 1, "ms_per_iteration": 0.2},
+        {"graph": False, "replicas": 10, "active": 10, "ms_per_iteration": 9.0}]},
+        {"threads_per_replica": "b", "rows": [{"graph": True, "replicas": 1, "active": 1, "ms_per_iteration": 0.05}]}]
+    table = pm.cost_table(lines, "a")
+    assert table == {1: (0.1, 0.1), 10: (1.0, 0.2)}  # plain-launch rows ignored
+    assert pm.cost_table(lines, "b") == {1: (0.05, 0.05)}
+    cost = pm.iteration_cost(table)
+    assert cost(10, 10) == pytest.approx(1.0) and cost(10, 1) == pytest.approx(0.2)
+    assert cost(5, 5) == pytest.approx(0.1 + 0.9 * 4 / 9)  # all relaxing, between the measured sizes
+    assert cost(20, 20) == pytest.approx(2.0)  # beyond the largest size: proportional
