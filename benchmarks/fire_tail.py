@@ -7,11 +7,14 @@ one replica each with the quasi-static tier's settings (float64, ftol 0.05, max_
 store's indentation convention) under FIRE variants, and reports per variant and curve the FIRE iterations and
 the relative L2 change of d(F) against the baseline variant (same controls as the store).
 
-    python benchmarks/fire_tail.py STORE [--n 3] [--variants baseline,dtmax_0.1,dtmax_0.2,move_0.02]
+    python benchmarks/fire_tail.py STORE [--n 3] [--quantiles 0.5,0.9] [--variants baseline,dtmax_0.1,move_0.02]
         [--device cpu] [--diameter 3.2] [--out DIR]
 
-Variants: ``baseline`` (FireSettings defaults of the tier: dt 0.005, dt_max 0.05, max_move 0.01);
-``dtmax_<x>`` (dt_max = x); ``move_<x>`` (max_move = x); combinations joined by '+'.
+Variants: ``baseline`` (FireSettings defaults of the tier: dt 0.005, dt_max 0.05, max_move 0.01, ftol 0.05 and the
+FIRE 2.0 constants n_delay 5, f_inc 1.1, f_dec 0.5, alpha0 0.1, f_alpha 0.99); ``dtmax_<x>``, ``move_<x>``,
+``dt_<x>``, ``ftol_<x>``, ``ndelay_<n>``, ``finc_<x>``, ``fdec_<x>``, ``alpha_<x>``, ``falpha_<x>`` set one
+control; combinations joined by '+'.  ``--quantiles``: also the curves at these quantiles of the store's FIRE work
+(the bulk of a pool, not only its tail).
 Prints a table and one JSON line last.  Iteration counts do not depend on the device.
 """
 
@@ -24,6 +27,9 @@ import time
 
 import numpy as np
 
+VARIANT_FIELDS = {"dtmax": "dt_max", "move": "max_move", "dt": "dt", "ftol": "ftol", "ndelay": "n_delay",
+                  "finc": "f_inc", "fdec": "f_dec", "alpha": "alpha0", "falpha": "f_alpha"}
+
 
 def parse_variant(name: str) -> dict:
     """'dtmax_0.1+move_0.02' -> {'dt_max': 0.1, 'max_move': 0.02} (FireSettings overrides)."""
@@ -32,10 +38,11 @@ def parse_variant(name: str) -> dict:
         if part == "baseline":
             continue
         key, _, value = part.partition("_")
-        field = {"dtmax": "dt_max", "move": "max_move", "dt": "dt"}.get(key)
+        field = VARIANT_FIELDS.get(key)
         if field is None or not value:
-            raise SystemExit(f"unknown variant part {part!r} (baseline, dtmax_<x>, move_<x>, dt_<x>)")
-        out[field] = float(value)
+            raise SystemExit(f"unknown variant part {part!r} (baseline, or <key>_<value> with key in "
+                             f"{', '.join(VARIANT_FIELDS)})")
+        out[field] = int(value) if field == "n_delay" else float(value)
     return out
 
 
@@ -43,6 +50,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("store")
     ap.add_argument("--n", type=int, default=3, help="the n slowest curves of the store")
+    ap.add_argument("--quantiles", default="", help="comma list: also the curves at these quantiles of FIRE work")
     ap.add_argument("--variants", default="baseline,dtmax_0.1,dtmax_0.2,move_0.02")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--diameter", type=float, default=None, help="um (default: the records' radius)")
@@ -61,7 +69,13 @@ def main(argv=None) -> int:
 
     recs = [r for r in CampaignStore(args.store).read(warn=False) if r["setup"] == "indentation"]
     steps = np.array([r["provenance"].get("info", {}).get("fire_steps", 0) for r in recs])
-    slow = [recs[i] for i in np.argsort(-steps)[: args.n]]
+    order = np.argsort(-steps)
+    picks = list(order[: args.n])
+    for q in (float(v) for v in args.quantiles.split(",") if v):
+        i = int(order[min(len(order) - 1, int(round((1.0 - q) * (len(order) - 1))))])
+        if i not in picks:
+            picks.append(i)
+    slow = [recs[i] for i in picks]
     rows = []
     base_y: dict[str, np.ndarray] = {}
     t_all = time.perf_counter()
@@ -75,7 +89,7 @@ def main(argv=None) -> int:
                            subdivisions=args.subdivisions)
         sp = req.shell_params(conv.name)
         for variant in args.variants.split(","):
-            fire = FireSettings(ftol=0.05, max_steps=100_000, **parse_variant(variant))
+            fire = FireSettings(**{"ftol": 0.05, "max_steps": 100_000, **parse_variant(variant)})
             t0 = time.perf_counter()
             res = quasistatic_indentation(sp, mesh, req.grid_array(), gas=IdealGas(p0=3.0), device=args.device,
                                           dtype=resolve_dtype("float64"), fire=fire, pole_patch=conv.pole_patch())

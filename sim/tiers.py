@@ -291,6 +291,10 @@ class QuasistaticTier:
     ``stop_unstable``: a curve whose FIRE reaches ``max_steps`` at a point ends there ('unstable', its converged
     prefix kept, later points NaN) instead of going on; off by default (the shipped sets ran without it).  The
     slowest curves of a campaign pool are mostly such curves (benchmarks/RESULTS.md, session 11).
+    ``first_load_ramp`` (indentation only): reach the first positive force through this many halvings
+    (F1/2^n ... F1/2, not reported): the first point from the unloaded shape took ~58 % of all FIRE work at
+    3.2 um, and the ramp cuts a curve's work 2-3x (benchmarks/RESULTS.md, session 12); 0 (default) = none, as the
+    shipped sets ran.  Part of the design (curves change within the FIRE tolerance).
     ``thermal_contact`` (compression only; indentation has no plates): the plates act through the mean force of
     each vertex's thermal normal fluctuation at temperature ``kT`` (DPD energy) against the WCA's hard-wall
     distance (:mod:`bubblecal.sim.experiments.thermal_contact`): the entropic contact force of the thermal tiers.
@@ -310,6 +314,7 @@ class QuasistaticTier:
     kT: float = 1.0
     indentation_convention: str = DEFAULT_INDENTATION_CONVENTION
     stop_unstable: bool = False
+    first_load_ramp: int = 0
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
@@ -317,6 +322,9 @@ class QuasistaticTier:
             raise ValueError(f"quasistatic tier: dtype must be 'float64' or 'float32', got {self.dtype!r}")
         if not isinstance(self.stop_unstable, bool):
             raise ValueError(f"quasistatic tier: stop_unstable must be true or false, got {self.stop_unstable!r}")
+        r = self.first_load_ramp
+        if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 20:
+            raise ValueError(f"quasistatic tier: first_load_ramp must be an integer in [0, 20], got {r!r}")
         if self.schedule not in ("async", "lockstep"):
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
         if self.max_replicas is not None:
@@ -363,6 +371,9 @@ class QuasistaticTier:
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid))
                   for p in request.shell_params(conv.name)]
         if request.protocol == "compression":
+            if self.first_load_ramp:
+                raise ValueError("quasistatic tier: first_load_ramp applies to indentation only (compression "
+                                 "refines its plate steps itself)")
             thermal = ThermalContact(kT=float(self.kT)) if self.thermal_contact else None
             res = quasistatic_compression(params, mesh, grid, thermal=thermal, **common)
             obs = res.force + res.force_bottom  # both plates (module docstring)
@@ -374,7 +385,7 @@ class QuasistaticTier:
                              {**static, "fire_steps": int(np.sum(row["fire_steps"])), "settings": row["settings"]})
 
             res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,
-                                          **common)
+                                          first_load_ramp=self.first_load_ramp, **common)
             obs = res.displacement
         status = [_QS_STATUS[s] for s in res.status]
         info = {**static, "fire_steps": res.fire_steps.sum(axis=1).tolist(), "settings": res.settings}

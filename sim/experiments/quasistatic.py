@@ -140,7 +140,9 @@ class PlateContact:
 @dataclass(frozen=True)
 class FireSettings:
     """FIRE controls for every load point: ``ftol`` (absolute per-vertex force norm, DPD force),
-    ``max_steps`` per point, ``dt`` / ``dt_max`` (DPD time, unit FIRE mass), ``max_move`` (length/step).
+    ``max_steps`` per point, ``dt`` / ``dt_max`` (DPD time, unit FIRE mass), ``max_move`` (length/step);
+    ``n_delay``, ``f_inc``, ``f_dec``, ``alpha0``, ``f_alpha``: the FIRE 2.0 constants of
+    :func:`bubblecal.sim.minimize.fire_minimize` (dimensionless).
     ``stop_at_max_steps``: a replica whose FIRE reaches ``max_steps`` at a point ends its curve there
     ('not_converged', that point and the later ones NaN, the converged prefix kept) instead of going on to the
     last point; such curves are not trained on past their prefix, and they make most of a pool's tail."""
@@ -151,6 +153,16 @@ class FireSettings:
     dt_max: float = 5e-2
     max_move: float = 0.01
     stop_at_max_steps: bool = False
+    n_delay: int = 5
+    f_inc: float = 1.1
+    f_dec: float = 0.5
+    alpha0: float = 0.1
+    f_alpha: float = 0.99
+
+    def constants(self) -> dict:
+        """Keyword arguments of the FIRE minimisers (time step, move cap and the FIRE 2.0 constants)."""
+        return {"dt": self.dt, "dt_max": self.dt_max, "max_move": self.max_move, "n_delay": self.n_delay,
+                "f_inc": self.f_inc, "f_dec": self.f_dec, "alpha0": self.alpha0, "f_alpha": self.f_alpha}
 
 
 def plate_force_energy(h: np.ndarray, contact: PlateContact) -> tuple[np.ndarray, np.ndarray]:
@@ -291,7 +303,7 @@ class _HostChain:
         b, fire = self.b, self.fire
         groups = np.where(alive[b.groups], b.groups, -1)
         res = fire_minimize(self.make(j, alive), self.x, groups, n_groups=self.R, free=self.free, ftol=fire.ftol,
-                            max_steps=fire.max_steps, dt=fire.dt, dt_max=fire.dt_max, max_move=fire.max_move)
+                            max_steps=fire.max_steps, **fire.constants())
         self.xn = res.x
         self.n_evaluations += res.n_evaluations
         return res.status, res.steps, res.fmax
@@ -346,7 +358,7 @@ class _DeviceChain:
         self.fire_settings = fire
         self.fire = DeviceFire(np.arange(R + 1) * nv, self._forces, device=dev, dtype=T,
                                free=np.tile(np.asarray(free_v, dtype=bool), (R, 1)), remove_mean=remove_mean,
-                               dt=fire.dt, dt_max=fire.dt_max, max_move=fire.max_move, sync_every=sync_every,
+                               **fire.constants(), sync_every=sync_every,
                                use_graph=use_graph)
         self.nthr = self.fire.nthr
         self.row_start = self.fire.row_start
@@ -773,14 +785,33 @@ def _refine_grid(grid: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndar
     return np.asarray(pts), np.asarray(keep)
 
 
+def _ramp_grid(grid: np.ndarray, n_ramp: int) -> tuple[np.ndarray, np.ndarray]:
+    """Insert ``n_ramp`` geometric sub-points base + (F - base) / 2^k, k = n_ramp ... 1, before the first positive
+    load F of ``grid`` (base = the load before it, or 0); returns (grid with sub-points, indices of ``grid``).
+    Why: from the unloaded shape FIRE needs ~58 % of a curve's work for the first load point (3.2 um); reached
+    through halvings, each start is the predictor's extrapolation (2-3x fewer iterations in all)."""
+    grid = np.asarray(grid, dtype=np.float64)
+    pos = np.nonzero(grid > 0)[0]
+    if n_ramp <= 0 or pos.size == 0:
+        return grid, np.arange(grid.size)
+    j1 = int(pos[0])
+    base = float(grid[j1 - 1]) if j1 > 0 else 0.0
+    sub = [base + (float(grid[j1]) - base) / 2.0 ** k for k in range(n_ramp, 0, -1)]
+    full = np.r_[grid[:j1], sub, grid[j1:]]
+    return full, np.r_[np.arange(j1), np.arange(j1 + n_ramp, full.size)]
+
+
+def _sum_substeps(fire_steps: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """FIRE steps per reported point (last axis), each including those of the sub-points before it."""
+    return np.add.reduceat(fire_steps, np.r_[0, keep[:-1] + 1], axis=-1) if len(keep) else fire_steps[..., :0]
+
+
 def _select_points(out: dict, keep: np.ndarray) -> dict:
     """Restrict the per-point arrays of :func:`_run_chain` to the reported points (failures are kept)."""
     sel = dict(out)
     for k in ("fmax", "max_area_strain", "volume"):
         sel[k] = out[k][:, keep]
-    # FIRE steps of a reported point include those of its sub-steps
-    sel["fire_steps"] = np.add.reduceat(out["fire_steps"], np.r_[0, keep[:-1] + 1], axis=1) \
-        if len(keep) else out["fire_steps"][:, :0]
+    sel["fire_steps"] = _sum_substeps(out["fire_steps"], keep)
     sel["point_status"] = [[ps[j] for j in keep] for ps in out["point_status"]]
     sel["obs"] = {k: v[:, keep] for k, v in out["obs"].items()}
     return sel
@@ -918,7 +949,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                             rupture_strain: float = 1.0, fraction_loaded: float | None = None,
                             pole_patch: dict | None = None, minimizer: str = "device",
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
-                            max_replicas: int | None = None,
+                            max_replicas: int | None = None, first_load_ramp: int = 0,
                             progress: Callable[[int, int, float], None] | None = None,
                             on_curve: Callable[[int, dict], None] | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
@@ -948,6 +979,10 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             takes the next parameter set (softest k_a first), so a large batch runs at full occupancy and
             its wall time follows the total FIRE work, not the slowest curve.  Same curves as one slot per
             parameter set.  None (default): one slot per parameter set.
+        first_load_ramp: relax through this many geometric sub-points F1/2^n ... F1/2 before the first positive
+            force F1 (:func:`_ramp_grid`; the curve keeps the requested points, whose FIRE steps include their
+            sub-points'): same minima within ``fire.ftol``, 2-3x fewer FIRE iterations at 3.2 um (benchmarks/
+            RESULTS.md, session 12).  0 (default): none.
         progress: optional ``progress(j, n_points, seconds)`` called after every load point
             (compression: every sub-step); with slot refill ``progress(k, n_params, seconds)`` after every
             finished curve.
@@ -960,6 +995,11 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     """
     t0 = time.perf_counter()
     forces = validate_grid(forces_dpd, "forces_dpd")
+    if isinstance(first_load_ramp, bool) or not isinstance(first_load_ramp, (int, np.integer)) \
+            or not 0 <= first_load_ramp <= 20:
+        raise ValueError(f"first_load_ramp must be an integer in [0, 20], got {first_load_ramp!r}")
+    # the chain runs on the grid with the ramp's sub-points; results keep the requested points only
+    chain_forces, keep = _ramp_grid(forces, int(first_load_ramp))
     schedule = _check_common(rupture_strain, fire, minimizer, schedule)
     _check_max_replicas(max_replicas, schedule)
     if pole_patch is not None and fraction_loaded is not None:
@@ -989,36 +1029,37 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                        "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": minimizer,
                        "dtype": _dtype_name(dtype),
                        "start": "linear extrapolation" if extrapolate and minimizer == "device" else "previous minimum",
-                       "schedule": schedule, "max_replicas": max_replicas}
+                       "schedule": schedule, "max_replicas": max_replicas, "first_load_ramp": int(first_load_ramp)}
     if minimizer == "device":
         tag = np.zeros(nv, dtype=np.int32)
         tag[top], tag[bottom] = 1, -1
         def make_chain(ps):
             return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=free_v, remove_mean=(True, True, True),
-                                unit=unit, tag=tag, sync_every=sync_every, loads=forces if extrapolate else None)
+                                unit=unit, tag=tag, sync_every=sync_every,
+                                loads=chain_forces if extrapolate else None)
 
         if schedule == "async":
             finish = None
             if on_curve is not None:
                 def finish(i, row):
-                    h = row["obs"].get("H", np.full(len(forces), np.nan))
+                    h = row["obs"].get("H", np.full(len(chain_forces), np.nan))[keep]
                     on_curve(i, {"displacement": h0 - h, "status": row["status"],
-                                 "point_status": row["point_status"], "fire_steps": row["fire_steps"],
-                                 "settings": static_settings})
+                                 "point_status": [row["point_status"][j] for j in keep],
+                                 "fire_steps": _sum_substeps(row["fire_steps"], keep), "settings": static_settings})
 
-            out = _run_device_async(make_chain, params, len(forces), rupture_strain,
-                                    lambda dc: (lambda jj: dc.set_load_rows(forces[jj])), max_replicas, progress,
-                                    on_finish=finish, stop_unstable=fire.stop_at_max_steps)
+            out = _run_device_async(make_chain, params, len(chain_forces), rupture_strain,
+                                    lambda dc: (lambda jj: dc.set_load_rows(chain_forces[jj])), max_replicas,
+                                    progress, on_finish=finish, stop_unstable=fire.stop_at_max_steps)
         else:
             dc = make_chain(params)
-            out = _run_chain(dc, len(forces), rupture_strain, set_point=lambda j: dc.set_load(forces[j]),
+            out = _run_chain(dc, len(chain_forces), rupture_strain, set_point=lambda j: dc.set_load(chain_forces[j]),
                              progress=progress, stop_unstable=fire.stop_at_max_steps)
     else:
         b = _Batch(params, mesh, gas, device, dtype)
         unit_all = np.tile(unit, (R, 1))
 
         def make(j, alive):
-            fext = forces[j] * unit_all
+            fext = chain_forces[j] * unit_all
 
             def ef(x):
                 f = b.shell_gas_forces(x) + fext
@@ -1033,7 +1074,9 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             return {"H": h, "patch": patch}
 
         hc = _HostChain(b, make, np.tile(free_v, (R, 1)), fire, measure)
-        out = _run_chain(hc, len(forces), rupture_strain, progress=progress, stop_unstable=fire.stop_at_max_steps)
+        out = _run_chain(hc, len(chain_forces), rupture_strain, progress=progress,
+                         stop_unstable=fire.stop_at_max_steps)
+    out = _select_points(out, keep)
     patch0 = float(z0[top].mean() - z0[bottom].mean())
     H = out["obs"].get("H", np.full((R, len(forces)), np.nan))
     P = out["obs"].get("patch", np.full((R, len(forces)), np.nan))

@@ -324,6 +324,66 @@ def test_quasistatic_tier_stop_unstable_setting():
         get_tier("quasistatic", stop_unstable="yes")
 
 
+def test_ramp_grid_inserts_halvings_before_the_first_positive_load():
+    from bubblecal.sim.experiments.quasistatic import _ramp_grid, _sum_substeps
+
+    full, keep = _ramp_grid(np.array([0.0, 10.0, 20.0]), 3)
+    np.testing.assert_array_equal(full, [0.0, 1.25, 2.5, 5.0, 10.0, 20.0])
+    np.testing.assert_array_equal(keep, [0, 4, 5])
+    np.testing.assert_array_equal(_sum_substeps(np.array([0, 1, 2, 3, 4, 5]), keep), [0, 10, 5])
+    full, keep = _ramp_grid(np.array([4.0, 8.0]), 2)  # no unloaded point: the ramp starts from zero load
+    np.testing.assert_array_equal(full, [1.0, 2.0, 4.0, 8.0])
+    np.testing.assert_array_equal(keep, [2, 3])
+    for grid, n in (([0.0, 5.0], 0), ([0.0, 0.0], 4)):
+        full, keep = _ramp_grid(np.array(grid), n)
+        np.testing.assert_array_equal(full, grid)
+        np.testing.assert_array_equal(keep, np.arange(len(grid)))
+
+
+@pytest.mark.parametrize("schedule", ["async", "lockstep"])
+def test_first_load_ramp_is_the_grid_with_its_sub_points(mesh, schedule):
+    """The ramp runs the chain on the grid with the halvings and reports the requested points only: bit for bit
+    the run on the full grid, FIRE steps of a point including its sub-points'; the curve itself moves only within
+    the FIRE tolerance against no ramp."""
+    p = [_p(), _p(ka=KA / 4, kb=2 * KB)]
+    grid, n = [0.0, 10.0, 20.0, 40.0], 3
+    full = [0.0, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0]
+    rows = {}
+    ramp = quasistatic_indentation(p, mesh, grid, first_load_ramp=n, schedule=schedule,
+                                   on_curve=(lambda i, row: rows.__setitem__(i, row)) if schedule == "async" else None)
+    ref = quasistatic_indentation(p, mesh, full, schedule=schedule)
+    keep = [0, 4, 5, 6]
+    np.testing.assert_array_equal(ramp.forces, grid)
+    np.testing.assert_array_equal(ramp.displacement, ref.displacement[:, keep])
+    assert ramp.status == ref.status == ["ok", "ok"]
+    np.testing.assert_array_equal(ramp.fire_steps[:, 1], ref.fire_steps[:, 1:5].sum(axis=1))
+    np.testing.assert_array_equal(ramp.fire_steps.sum(axis=1), ref.fire_steps.sum(axis=1))
+    assert ramp.settings["first_load_ramp"] == n
+    if schedule == "async":
+        for i in range(2):
+            np.testing.assert_array_equal(rows[i]["displacement"], ramp.displacement[i])
+            np.testing.assert_array_equal(rows[i]["fire_steps"], ramp.fire_steps[i])
+            assert rows[i]["point_status"] == ramp.point_status[i]
+    plain = quasistatic_indentation(p, mesh, grid, schedule=schedule)
+    rel = np.linalg.norm(ramp.displacement - plain.displacement, axis=1) / np.linalg.norm(plain.displacement, axis=1)
+    assert np.all(rel < 0.02), rel
+    with pytest.raises(ValueError, match="first_load_ramp"):
+        quasistatic_indentation(p, mesh, grid, first_load_ramp=-1)
+
+
+def test_quasistatic_tier_first_load_ramp_setting():
+    from bubblecal.sim.tiers import CurveRequest, get_tier
+
+    assert get_tier("quasistatic").first_load_ramp == 0  # the shipped sets ran without it
+    for bad in (-1, 21, 2.0, True):
+        with pytest.raises(ValueError, match="first_load_ramp must be an integer"):
+            get_tier("quasistatic", first_load_ramp=bad)
+    req = CurveRequest("compression", 2.1, (0.0, 0.12), {k: np.array([v]) for k, v in dict(ka=KA, kb=KB, b1=0.0, b2=0.0, a3=0.0, a4=0.0).items()}, (1,),
+                       subdivisions=2)
+    with pytest.raises(ValueError, match="indentation only"):
+        get_tier("quasistatic", first_load_ramp=2).run(req)
+
+
 def test_compacting_the_last_curves_keeps_their_iterates(mesh, monkeypatch):
     import bubblecal.sim.experiments.quasistatic as qs
 
