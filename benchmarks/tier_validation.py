@@ -16,6 +16,10 @@ Usage (CPU smoke):
       --out /tmp/tv
 GPU (see benchmarks/RESULTS.md for the recommended calls, each < 9 minutes):
   python benchmarks/tier_validation.py --device cuda --diameters 2.1 --rows 5 --tiers explicit --out out/tv21
+Re-gate a quasi-static variant on a CPU against the explicit curves of an earlier (GPU) run of the same rows:
+  python benchmarks/tier_validation.py --device cpu --tiers quasistatic --rows 4 --lhs 20 --seed 3 --diameters 3.2 \
+      --indentation-convention mirheo --qs-setting first_load_ramp=6 \
+      --explicit-curves benchmarks/figures/gate_indentation_3.2um_mirheo.csv --out /tmp/gr32
 """
 
 from __future__ import annotations
@@ -186,6 +190,28 @@ def overlay(path: Path, diameter: float, protocol: str, x: np.ndarray, y_pub: np
     plt.close(fig)
 
 
+def explicit_from_csv(path: str, ts) -> np.ndarray:
+    """The explicit tier's curves [rows, points] from an earlier run's ``curves_<d>um.csv`` (columns row, point, x,
+    ..., explicit) for the same rows: re-gating a cheaper tier variant without re-running the explicit tier."""
+    import csv
+
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows or "explicit" not in rows[0]:
+        raise SystemExit(f"--explicit-curves {path}: no 'explicit' column")
+    n_rows, n_pts = max(int(r["row"]) for r in rows), max(int(r["point"]) for r in rows)
+    if (n_rows, n_pts) != ts.x.shape:
+        raise SystemExit(f"--explicit-curves {path}: {n_rows} rows x {n_pts} points, this run has "
+                         f"{ts.x.shape[0]} x {ts.x.shape[1]} (same --rows / --lhs / --seed / --diameters needed)")
+    y, x = np.full(ts.x.shape, np.nan), np.full(ts.x.shape, np.nan)
+    for r in rows:
+        i, j = int(r["row"]) - 1, int(r["point"]) - 1
+        y[i, j], x[i, j] = float(r["explicit"]), float(r["x"])
+    if not np.allclose(x, ts.x, rtol=1e-9, atol=1e-9):
+        raise SystemExit(f"--explicit-curves {path}: its loading grids differ from this run's rows")
+    return y
+
+
 def write_diameter_files(out: Path, d: float, protocol: str, ts, y_pub: np.ndarray, curves: dict, res: dict,
                          summary: dict) -> None:
     """curves_<d>um.csv (every finished tier), overlay_<d>um.png and tier_validation.json for diameter ``d``."""
@@ -230,6 +256,11 @@ def main(argv=None) -> int:
                     help="also run the quasi-static tier with the thermal plate contact (compression), reported as "
                          "quasistatic_thermal (and quasistatic_thermal_s<level> for --qs-subdivisions)")
     ap.add_argument("--max-replicas", type=int, default=None, help="quasi-static slot refill (execution only)")
+    ap.add_argument("--qs-setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="extra quasi-static tier setting (JSON value), e.g. first_load_ramp=6; repeatable")
+    ap.add_argument("--explicit-curves", default=None, metavar="CSV",
+                    help="take the explicit tier's curves from an earlier run's curves_<d>um.csv (same rows; one "
+                         "diameter) instead of simulating them")
     ap.add_argument("--indentation-convention", default=None,
                     help="every tier's indentation convention (bubblecal.sim.tiers.INDENTATION_CONVENTIONS; "
                          "default: the tiers' default, bubblecal-v1)")
@@ -249,6 +280,19 @@ def main(argv=None) -> int:
     for t in tiers:
         if t not in TIERS:
             ap.error(f"--tiers: unknown tier {t!r} (choose from {TIERS})")
+    if args.explicit_curves and "explicit" not in tiers:
+        tiers.append("explicit")
+    if args.explicit_curves and len([d for d in args.diameters.split(",") if d.strip()]) != 1:
+        ap.error("--explicit-curves: one diameter per run")
+    qs_extra = {}
+    for kv in args.qs_setting:
+        key, sep, value = kv.partition("=")
+        if not sep:
+            ap.error(f"--qs-setting {kv!r}: expected KEY=VALUE")
+        try:
+            qs_extra[key] = json.loads(value)
+        except json.JSONDecodeError:
+            qs_extra[key] = value  # a plain string
     tiers.sort(key=TIERS.index)  # explicit first: the others are compared with it
     extra_qs = [int(v) for v in args.qs_subdivisions.split(",") if v.strip()]
     if args.qs_thermal:
@@ -261,6 +305,7 @@ def main(argv=None) -> int:
     ref = find_reference(args.reference)
     summary = {"device": args.device, "scale": args.scale, "rows": args.rows, "tiers": tiers,
                "indentation_convention": args.indentation_convention or "tier default",
+               "qs_settings": qs_extra, "explicit_curves": args.explicit_curves,
                "reference": str(ref) if ref else None, "diameters": {}, "started": time.strftime("%Y-%m-%d %H:%M:%S")}
     if ref is None:
         print("reference folder not found: nothing to validate (skipped)")
@@ -315,8 +360,18 @@ def main(argv=None) -> int:
                 settings["thermal_contact"] = t.startswith("quasistatic_thermal")
             if tier_name == "quasistatic":
                 settings["dtype"] = args.qs_dtype
+                settings.update(qs_extra)
                 if args.max_replicas:
                     settings["max_replicas"] = args.max_replicas
+            if t == "explicit" and args.explicit_curves:
+                y = explicit_from_csv(args.explicit_curves, ts)
+                curves[t] = y
+                status = ["ok" if np.all(np.isfinite(row)) else "from_csv_not_finite" for row in y]
+                res["tiers"][t] = {"wall_s": 0.0, "status": status, "health": [None] * len(status),
+                                   "source": args.explicit_curves, "curves_per_gpu_hour": None,
+                                   "rel_l2_vs_published": stats(rel_l2(y, y_pub)),
+                                   "rel_l2_rows": [None if not np.isfinite(v) else float(v) for v in rel_l2(y, y_pub)]}
+                continue
             if t in ("explicit", "implicit"):
                 settings.update(scale=args.scale, verbose=True, max_seconds=args.max_seconds)
             if t == "implicit":

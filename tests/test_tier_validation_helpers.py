@@ -1,0 +1,46 @@
+"""benchmarks/tier_validation.py: re-gating against stored explicit curves (``--explicit-curves``)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "tier_validation.py"
+
+
+@pytest.fixture(scope="module")
+def tv():
+    spec = importlib.util.spec_from_file_location("tier_validation", PATH)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["tier_validation"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _csv(path, x, y):
+    lines = ["row,point,x,published,explicit,quasistatic"]
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            lines.append(f"{i + 1},{j + 1},{float(x[i, j])!r},nan,{float(y[i, j])!r},0.0")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_explicit_curves_from_an_earlier_run(tv, tmp_path):
+    x = np.tile(np.linspace(0.0, 6000.0, 4), (3, 1))
+    y = np.arange(12.0).reshape(3, 4) / 7.0
+    y[2, 3] = np.nan  # a curve the explicit tier lost stays NaN
+    _csv(tmp_path / "c.csv", x, y)
+    got = tv.explicit_from_csv(str(tmp_path / "c.csv"), SimpleNamespace(x=x))
+    np.testing.assert_array_equal(got, y)
+    with pytest.raises(SystemExit, match="3 rows x 4 points, this run has 2 x 4"):
+        tv.explicit_from_csv(str(tmp_path / "c.csv"), SimpleNamespace(x=x[:2]))
+    with pytest.raises(SystemExit, match="loading grids differ"):
+        tv.explicit_from_csv(str(tmp_path / "c.csv"), SimpleNamespace(x=2.0 * x))
+    (tmp_path / "d.csv").write_text("row,point,x,published\n1,1,0.0,0.0\n")
+    with pytest.raises(SystemExit, match="no 'explicit' column"):
+        tv.explicit_from_csv(str(tmp_path / "d.csv"), SimpleNamespace(x=x))
