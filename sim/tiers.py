@@ -293,8 +293,8 @@ class QuasistaticTier:
     slowest curves of a campaign pool are mostly such curves (benchmarks/RESULTS.md, session 11).
     ``first_load_ramp`` (indentation only): reach the first positive force through this many halvings
     (F1/2^n ... F1/2, not reported): the first point from the unloaded shape took ~58 % of all FIRE work at
-    3.2 um, and 6 halvings leave 0.54x / 0.75x of the work at 3.2 / 5.8 um (benchmarks/RESULTS.md, session 12);
-    0 (default) = none, as the shipped sets ran.  Part of the design (curves move by <= 0.4 %; gates unchanged).
+    3.2 um, and 6 halvings leave 0.54x / 0.57x / 0.75x of the work at 3.2 / 3.4 / 5.8 um (benchmarks/RESULTS.md,
+    session 12); 0 (default) = none, as the shipped sets ran.  Part of the design (curves move by <= 0.5 %; gates unchanged).
     ``thermal_contact`` (compression only; indentation has no plates): the plates act through the mean force of
     each vertex's thermal normal fluctuation at temperature ``kT`` (DPD energy) against the WCA's hard-wall
     distance (:mod:`bubblecal.sim.experiments.thermal_contact`): the entropic contact force of the thermal tiers.

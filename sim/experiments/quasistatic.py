@@ -789,7 +789,7 @@ def _ramp_grid(grid: np.ndarray, n_ramp: int) -> tuple[np.ndarray, np.ndarray]:
     """Insert ``n_ramp`` geometric sub-points base + (F - base) / 2^k, k = n_ramp ... 1, before the first positive
     load F of ``grid`` (base = the load before it, or 0); returns (grid with sub-points, indices of ``grid``).
     Why: from the unloaded shape FIRE needs ~58 % of a curve's work for the first load point (3.2 um); reached
-    through halvings, each start is the predictor's extrapolation (0.54x / 0.75x of the FIRE work at 3.2 / 5.8 um)."""
+    through halvings, each start is the predictor's extrapolation (0.54x-0.75x of the FIRE work, 3.2-5.8 um)."""
     grid = np.asarray(grid, dtype=np.float64)
     pos = np.nonzero(grid > 0)[0]
     if n_ramp <= 0 or pos.size == 0:
@@ -981,7 +981,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             parameter set.  None (default): one slot per parameter set.
         first_load_ramp: relax through this many geometric sub-points F1/2^n ... F1/2 before the first positive
             force F1 (:func:`_ramp_grid`; the curve keeps the requested points, whose FIRE steps include their
-            sub-points'): curves within 0.4 %, 0.54x / 0.75x of the FIRE iterations at 3.2 / 5.8 um
+            sub-points'): curves within 0.5 %, 0.54x / 0.57x / 0.75x of the FIRE iterations at 3.2 / 3.4 / 5.8 um
             (benchmarks/RESULTS.md, session 12).  0 (default): none.
         progress: optional ``progress(j, n_points, seconds)`` called after every load point
             (compression: every sub-step); with slot refill ``progress(k, n_params, seconds)`` after every
