@@ -21,6 +21,28 @@ def shared_reference_dir() -> Path | None:
     return None
 
 
+def _load_script(relpath: str):
+    """Import a repository script that is not part of the package (e.g. ``benchmarks/device/pool_model.py``) as a
+    module named after its file; its own folder goes on ``sys.path`` for its sibling imports."""
+    import importlib.util
+    import sys
+
+    path = REPO_ROOT / relpath
+    sys.path.insert(0, str(path.parent))
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[path.stem] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="session")
+def load_script():
+    """``load_script("benchmarks/...py")``: a repository script outside the package, imported as a module
+    (the tests run with --import-mode=importlib, so they cannot import this file)."""
+    return _load_script
+
+
 @pytest.fixture
 def shared_reference() -> Path:
     """Path of the shared reference data; the test is skipped when it is not present."""

@@ -2,23 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "device" / "pool_model.py"
-
 
 @pytest.fixture(scope="module")
-def pm():
-    spec = importlib.util.spec_from_file_location("pool_model", PATH)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["pool_model"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+def pm(load_script):
+    return load_script("benchmarks/device/pool_model.py")
 
 
 def test_equal_curves_cost_their_batches(pm):

@@ -2,24 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "tier_validation.py"
-
 
 @pytest.fixture(scope="module")
-def tv():
-    spec = importlib.util.spec_from_file_location("tier_validation", PATH)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["tier_validation"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+def tv(load_script):
+    return load_script("benchmarks/tier_validation.py")
 
 
 def _csv(path, x, y):

@@ -33,6 +33,17 @@ def _wells(seed=0):
     return k, target, groups, x0
 
 
+def _spring_forces(k, target, dev):
+    """Warp force function of the harmonic wells (k, target [12, 3]) on ``dev``."""
+    ka = wp.array(k, dtype=wp.vec3d, device=dev)
+    ta = wp.array(target, dtype=wp.vec3d, device=dev)
+
+    def forces(x, f):
+        wp.launch(_spring_kernel, dim=12, inputs=[x, f, ka, ta], device=dev)
+
+    return forces
+
+
 def _numpy_reference(k, target, groups, x0, free, remove_mean, **kw):
     comps = np.array(remove_mean)
 
@@ -80,11 +91,7 @@ def test_warp_force_kernel_sync_every_and_frozen_replicas():
     k, target, groups, x0 = _wells(1)
     k[groups == 2] = 3.0
     dev = "cpu"
-    ka = wp.array(k, dtype=wp.vec3d, device=dev)
-    ta = wp.array(target, dtype=wp.vec3d, device=dev)
-
-    def forces(x, f):
-        wp.launch(_spring_kernel, dim=12, inputs=[x, f, ka, ta], device=dev)
+    forces = _spring_forces(k, target, dev)
 
     runs = []
     for sync in (1, 5, 40):
@@ -108,11 +115,7 @@ def test_threads_per_replica_change_only_the_summation_order():
     k[groups == 1] = 5.0  # (the stiff wells stall under the move cap, see above)
     k[groups == 2] = 3.0
     dev = "cpu"
-    ka = wp.array(k, dtype=wp.vec3d, device=dev)
-    ta = wp.array(target, dtype=wp.vec3d, device=dev)
-
-    def forces(x, f):
-        wp.launch(_spring_kernel, dim=12, inputs=[x, f, ka, ta], device=dev)
+    forces = _spring_forces(k, target, dev)
 
     runs = []
     for nthr in (1, 3, 4):  # 3: rows per replica not a multiple; 4: one row per thread
