@@ -5,7 +5,7 @@ with few replicas relaxing, so this measures whether an iteration gets cheaper w
 (finished replicas skip every kernel's work) and what CUDA-graph replay saves over plain launches.
 
     python benchmarks/qs_iteration_cost.py --device cuda [--replicas 500] [--diameter 3.2] [--iters 2000]
-        [--profile 100]
+        [--profile 100] [--force-mode gather|scatter]
 
 Prints a table (ms per iteration by active replicas and graph on/off) and one JSON line.  ``--profile N``
 also times N plain-launch iterations per row kernel by kernel (CUDA events, Warp's ScopedTimer): the GPU time of
@@ -30,6 +30,8 @@ def main(argv=None) -> int:
     ap.add_argument("--iters", type=int, default=2000)
     ap.add_argument("--active", default="all,50,5,1")
     ap.add_argument("--profile", type=int, default=0, help="iterations timed kernel by kernel (CUDA only)")
+    ap.add_argument("--force-mode", default="auto", choices=("auto", "gather", "scatter"),
+                    help="shell forces per vertex (gather, the GPU default) or per element with atomics (scatter)")
     args = ap.parse_args(argv)
     import warp as wp
 
@@ -56,7 +58,7 @@ def main(argv=None) -> int:
     free[np.abs(z0 - z0.mean()) < 0.25 * mesh.min_edge_length(), 2] = False
     rows = []
     for graph in (True, False):
-        fire = FireSettings(ftol=1e-30, max_steps=10**9)  # nobody converges while we time
+        fire = FireSettings(ftol=1e-30, max_steps=10**9, force_mode=args.force_mode)  # nobody converges while we time
         dc = _DeviceChain(params, mesh, IdealGas(), args.device, None, fire, free_v=free,
                           remove_mean=(True, True, True), unit=unit, tag=tag, use_graph=graph, loads=forces)
         dc.set_load_rows(np.full(R, forces[5]))
@@ -75,7 +77,8 @@ def main(argv=None) -> int:
                 dc.fire.advance()
             wp.synchronize_device(dc.device)
             ms = 1e3 * (time.perf_counter() - t0) / (n_chunks * dc.fire.sync_every)
-            row = {"graph": bool(dc.fire.use_graph), "requested_graph": graph, "active": n_act, "replicas": R,
+            row = {"graph": bool(dc.fire.use_graph), "requested_graph": graph, "force_mode": dc.ff.force_mode,
+                   "active": n_act, "replicas": R,
                    "n_vertices": nv, "ms_per_iteration": ms, "us_per_active_replica_iteration": 1e3 * ms / n_act}
             if args.profile and not graph:
                 row["kernels_us_per_iteration"] = _kernel_profile(wp, dc, args.profile)

@@ -295,6 +295,9 @@ class QuasistaticTier:
     (F1/2^n ... F1/2, not reported): the first point from the unloaded shape took ~58 % of all FIRE work at
     3.2 um, and 6 halvings leave 0.54x / 0.57x / 0.75x of the work at 3.2 / 3.4 / 5.8 um (benchmarks/RESULTS.md,
     session 12); 0 (default) = none, as the shipped sets ran.  Part of the design (curves move by <= 0.5 %; gates unchanged).
+    ``force_mode``: ``"auto"`` (default: per-vertex gather on a GPU, per-element scatter with atomics on the CPU),
+    ``"gather"`` or ``"scatter"`` (:class:`~bubblecal.sim.kernels.shell.ShellForceField`): the same forces up to the
+    summation order; a measurement knob (benchmarks/qs_iteration_cost.py ``--force-mode``).
     ``thermal_contact`` (compression only; indentation has no plates): the plates act through the mean force of
     each vertex's thermal normal fluctuation at temperature ``kT`` (DPD energy) against the WCA's hard-wall
     distance (:mod:`bubblecal.sim.experiments.thermal_contact`): the entropic contact force of the thermal tiers.
@@ -315,6 +318,7 @@ class QuasistaticTier:
     indentation_convention: str = DEFAULT_INDENTATION_CONVENTION
     stop_unstable: bool = False
     first_load_ramp: int = 0
+    force_mode: str = "auto"
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
@@ -325,6 +329,8 @@ class QuasistaticTier:
         r = self.first_load_ramp
         if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 20:
             raise ValueError(f"quasistatic tier: first_load_ramp must be an integer in [0, 20], got {r!r}")
+        if self.force_mode not in ("auto", "gather", "scatter"):
+            raise ValueError(f"quasistatic tier: force_mode must be 'auto', 'gather' or 'scatter', got {self.force_mode!r}")
         if self.schedule not in ("async", "lockstep"):
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
         if self.max_replicas is not None:
@@ -360,7 +366,8 @@ class QuasistaticTier:
         t0 = time.perf_counter()
         sub = self.subdivisions if self.subdivisions is not None else request.subdivisions
         mesh = mesh_for_diameter(request.diameter_um, sub)
-        fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable)
+        fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable,
+                            force_mode=self.force_mode)
         gas = IdealGas(p0=self.gas_p0)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,

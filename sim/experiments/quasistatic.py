@@ -145,7 +145,10 @@ class FireSettings:
     :func:`bubblecal.sim.minimize.fire_minimize` (dimensionless).
     ``stop_at_max_steps``: a replica whose FIRE reaches ``max_steps`` at a point ends its curve there
     ('not_converged', that point and the later ones NaN, the converged prefix kept) instead of going on to the
-    last point; such curves are not trained on past their prefix, and they make most of a pool's tail."""
+    last point; such curves are not trained on past their prefix, and they make most of a pool's tail.
+    ``force_mode``: how the device backend evaluates the shell forces (:class:`ShellForceField` ``force_mode``:
+    ``"auto"`` = per-vertex gather on a GPU, per-element scatter with atomics on the CPU); the same forces up to
+    the summation order."""
 
     ftol: float = 0.05
     max_steps: int = 20_000
@@ -158,6 +161,11 @@ class FireSettings:
     f_dec: float = 0.5
     alpha0: float = 0.1
     f_alpha: float = 0.99
+    force_mode: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.force_mode not in ("auto", "gather", "scatter"):
+            raise ValueError(f"FireSettings.force_mode must be 'auto', 'gather' or 'scatter', got {self.force_mode!r}")
 
     def constants(self) -> dict:
         """Keyword arguments of the FIRE minimisers (time step, move cap and the FIRE 2.0 constants)."""
@@ -349,7 +357,7 @@ class _DeviceChain:
         self.wp = wp
         T = wp.float64 if dtype is None else dtype
         self.R, self.nv = R, nv = len(params), mesh.n_vertices
-        self.ff = ShellForceField(mesh, params, device=device, dtype=T)
+        self.ff = ShellForceField(mesh, params, device=device, dtype=T, force_mode=fire.force_mode)
         self.dtype, self.vec3, dev = T, self.ff.vec3, self.ff.device
         self.device = dev
         npf = np.float64 if T is wp.float64 else np.float32
@@ -383,10 +391,16 @@ class _DeviceChain:
         self.gas = wp.array(g.astype(npf), dtype=T, device=dev)
         self.vol = wp.zeros(R, dtype=T, device=dev)
         self.vol_meas = wp.zeros(R, dtype=T, device=dev)
+        if self.gas_on:  # the gas force rides on the shell's own triangle pass (ShellForceField.set_gas)
+            self.ff.set_gas(self.gas, self.vol)
         self.load_on = unit is not None
         self.load = wp.zeros(R, dtype=T, device=dev)
         u = np.zeros((nv, 3)) if unit is None else np.asarray(unit, dtype=np.float64)
         self.unit = wp.array(np.tile(u, (R, 1)).astype(npf), dtype=self.vec3, device=dev)
+        loaded = np.nonzero(np.any(u != 0.0, axis=1))[0]
+        self.load_on = self.load_on and len(loaded) > 0
+        self.loaded = wp.array(loaded.astype(np.int32) if len(loaded) else np.zeros(1, np.int32), dtype=wp.int32,
+                               device=dev)
         tg = np.zeros(nv, dtype=np.int32) if tag is None else np.asarray(tag, dtype=np.int32)
         self.n_top = max(1, int(np.sum(tg == 1)))
         self.n_bottom = max(1, int(np.sum(tg == -1)))
@@ -415,16 +429,19 @@ class _DeviceChain:
     # ----- forces (graph-capturable: all varying inputs live in device arrays) -----
     def _forces(self, x, f) -> None:
         wp, k, dev = self.wp, self.k, self.device
-        self.ff.accumulate_forces(x, f)
-        if self.gas_on:
+        if self.gas_on:  # the volume first: the shell pass adds the gas force (set_gas)
             self.vol.zero_()
             wp.launch(k["volume_kernel"], dim=self.R * self.nthr,
                       inputs=[x, self.tri, self.row_start, self.fire.status, 0, self.nthr, self.vol], device=dev)
-        if self.gas_on or self.load_on or self.plate_on:
+        self.ff.accumulate_forces(x, f)
+        if self.load_on:
+            wp.launch(k["pole_load_kernel"], dim=self.R * self.loaded.shape[0],
+                      inputs=[f, self.row_start, self.fire.status, self.loaded, self.load, self.unit], device=dev)
+        if self.plate_on:
             wp.launch(k["load_force_kernel"], dim=self.R * self.nthr,
                       inputs=[x, f, self.row_start, self.fire.status, self.nthr, self.tri, self.vt_start,
-                              self.vt_tri, self.vol, self.gas, int(self.gas_on), self.load, self.unit,
-                              int(self.load_on), self.plates, int(self.plate_on), *self.pc, *self.tc], device=dev)
+                              self.vt_tri, self.vol, self.gas, 0, self.load, self.unit,
+                              0, self.plates, 1, *self.pc, *self.tc], device=dev)
 
     def _sigmas(self, params) -> np.ndarray:
         """rms normal fluctuation of each shell for the thermal contact (ones when athermal: unused)."""

@@ -63,14 +63,19 @@ def _kernels(dtype):
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f
     V4 = wp.vec4d if T is wp.float64 else wp.vec4f
+    V2 = wp.vec2d if T is wp.float64 else wp.vec2f
     module = f"bubblecal_shell_{'f64' if T is wp.float64 else 'f32'}"
     kern = functools.partial(wp.kernel, enable_backward=False, module=module)
     clamp_a = T(AREA_CLAMP)
 
     @wp.func
     def lim_triangle(x: wp.array(dtype=V), idx: wp.vec3i, rf: V4, params: wp.array2d(dtype=T), r: wp.int32,
-                     avr: wp.array2d(dtype=T), use_global: wp.int32):
-        """Lim (+ global area/volume, back pressure) forces on the 3 corners of one triangle, and W."""
+                     avr: wp.array2d(dtype=T), use_global: wp.int32, pex: T):
+        """Lim (+ global area/volume, back pressure) forces on the 3 corners of one triangle, and W.
+
+        ``pex``: a pressure inside the shell (DPD pressure, e.g. the quasi-static tier's ideal gas minus
+        the ambient one) acting as -pex dV/dx, added here because dV/dx is this triangle's normal / 6.
+        """
         x0 = x[idx[0]]
         x12 = x[idx[1]] - x0
         x13 = x[idx[2]] - x0
@@ -112,6 +117,7 @@ def _kernels(dtype):
             v0t = params[r, P_V0]
             coef_a = coef_a + params[r, P_KATOT] * (a_tot - a0t) / a0t
             coef_v = params[r, P_KVTOT] * (v_tot - v0t) / v0t - params[r, P_PB]
+        coef_v = coef_v - pex
         nhat = n / wp.max(nn, T(1.0e-30))
         x23 = x13 - x12
         ga0 = half * wp.cross(nhat, x23)
@@ -128,17 +134,26 @@ def _kernels(dtype):
                   + mu * (beta + b1 * alpha * beta + b2 * beta * beta))
         return f0, f1, f2, w
 
+    @wp.func
+    def gas_pressure(gas: wp.array2d(dtype=T), gvol: wp.array(dtype=T), gas_on: wp.int32, r: wp.int32):
+        """Inside pressure of replica r: p0 V0 / V - p_ambient (``gas[r] = (p0 V0, p_ambient)``), or 0."""
+        p = T(0.0)
+        if gas_on != 0:
+            p = gas[r, 0] / gvol[r] - gas[r, 1]
+        return p
+
     @kern
     def lim_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), tri: wp.array(dtype=wp.vec3i),
                    ref: wp.array(dtype=V4), tri_rep: wp.array(dtype=wp.int32),
                    params: wp.array2d(dtype=T), avr: wp.array2d(dtype=T), use_global: wp.int32,
-                   energy: wp.array2d(dtype=T), want_energy: wp.int32, skip: wp.array(dtype=wp.int32)):
+                   energy: wp.array2d(dtype=T), want_energy: wp.int32, skip: wp.array(dtype=wp.int32),
+                   gas: wp.array2d(dtype=T), gvol: wp.array(dtype=T), gas_on: wp.int32):
         t = wp.tid()
         r = tri_rep[t]
         if skip[r] != 0:
             return
         idx = tri[t]
-        f0, f1, f2, w = lim_triangle(x, idx, ref[t], params, r, avr, use_global)
+        f0, f1, f2, w = lim_triangle(x, idx, ref[t], params, r, avr, use_global, gas_pressure(gas, gvol, gas_on, r))
         wp.atomic_add(f, idx[0], f0)
         wp.atomic_add(f, idx[1], f1)
         wp.atomic_add(f, idx[2], f2)
@@ -165,9 +180,41 @@ def _kernels(dtype):
         gb = -sc * gc - sd * gd
         return theta, ga, gb, gc, gd
 
+    @wp.func
+    def kantor_edge(xa: V, xb: V, xc: V, xd: V, cs0: V2):
+        """sin(theta - theta0), cos(theta - theta0) and the gradients of theta (a, b, c, d) of one edge.
+
+        ``cs0 = (cos theta0, sin theta0)``.  Same theta as :func:`dihedral` without atan2 / sin / cos:
+        (sin, cos) theta come from the two normals directly (the transcendental functions were most of
+        the gather kernel's float64 time on the GPU).
+        """
+        e = xb - xa
+        n1 = wp.cross(e, xc - xa)
+        n2 = wp.cross(xd - xb, e)
+        el2 = wp.dot(e, e)
+        el = wp.sqrt(el2)
+        n1sq = wp.max(wp.dot(n1, n1), T(1.0e-30))
+        n2sq = wp.max(wp.dot(n2, n2), T(1.0e-30))
+        ys = wp.dot(wp.cross(n1, n2), e) / el
+        xc_ = wp.dot(n1, n2)
+        h = wp.sqrt(ys * ys + xc_ * xc_)
+        st = T(0.0)
+        ct = T(1.0)  # atan2(0, 0) = 0
+        if h > T(0.0):
+            st = ys / h
+            ct = xc_ / h
+        gc = -(el / n1sq) * n1
+        gd = -(el / n2sq) * n2
+        sc = wp.dot(xc - xa, e) / el2
+        sd = wp.dot(xd - xa, e) / el2
+        one = T(1.0)
+        ga = -(one - sc) * gc - (one - sd) * gd
+        gb = -sc * gc - sd * gd
+        return st * cs0[0] - ct * cs0[1], ct * cs0[0] + st * cs0[1], ga, gb, gc, gd
+
     @kern
     def kantor_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), dih: wp.array(dtype=wp.vec4i),
-                      theta0: wp.array(dtype=T), edge_rep: wp.array(dtype=wp.int32),
+                      cs0: wp.array(dtype=V2), edge_rep: wp.array(dtype=wp.int32),
                       params: wp.array2d(dtype=T), energy: wp.array2d(dtype=T), want_energy: wp.int32,
                       skip: wp.array(dtype=wp.int32)):
         e = wp.tid()
@@ -176,26 +223,26 @@ def _kernels(dtype):
         if kb == T(0.0) or skip[r] != 0:
             return
         q = dih[e]
-        theta, ga, gb, gc, gd = dihedral(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
-        dt = theta - theta0[e]
-        coef = -kb * wp.sin(dt)
+        sd, cd, ga, gb, gc, gd = kantor_edge(x[q[0]], x[q[1]], x[q[2]], x[q[3]], cs0[e])
+        coef = -kb * sd
         wp.atomic_add(f, q[0], coef * ga)
         wp.atomic_add(f, q[1], coef * gb)
         wp.atomic_add(f, q[2], coef * gc)
         wp.atomic_add(f, q[3], coef * gd)
         if want_energy != 0:
-            wp.atomic_add(energy, r, E_BEND, kb * (T(1.0) - wp.cos(dt)))
+            wp.atomic_add(energy, r, E_BEND, kb * (T(1.0) - cd))
 
     @kern
     def vertex_gather_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), gidx: wp.array(dtype=wp.int32),
                              vrep: wp.array(dtype=wp.int32), tri: wp.array(dtype=wp.vec3i),
                              ref: wp.array(dtype=V4), tri_start: wp.array(dtype=wp.int32),
                              tri_slot: wp.array(dtype=wp.int32), dih: wp.array(dtype=wp.vec4i),
-                             theta0: wp.array(dtype=T), dih_start: wp.array(dtype=wp.int32),
+                             cs0: wp.array(dtype=V2), dih_start: wp.array(dtype=wp.int32),
                              dih_slot: wp.array(dtype=wp.int32), params: wp.array2d(dtype=T),
                              avr: wp.array2d(dtype=T), use_global: wp.int32, do_kantor: wp.int32,
-                             skip: wp.array(dtype=wp.int32)):
-        """Lim (+ constraints) and Kantor forces gathered per vertex: no atomics, one write per vertex.
+                             skip: wp.array(dtype=wp.int32), gas: wp.array2d(dtype=T), gvol: wp.array(dtype=T),
+                             gas_on: wp.int32):
+        """Lim (+ constraints, inside gas) and Kantor forces gathered per vertex: no atomics, one write per vertex.
 
         ``tri_slot`` / ``dih_slot`` encode (element id) * 4 + (the vertex's corner / role).
         """
@@ -203,12 +250,13 @@ def _kernels(dtype):
         r = vrep[s]
         if skip[r] != 0:
             return
+        pex = gas_pressure(gas, gvol, gas_on, r)
         fi = V()
         for k in range(tri_start[s], tri_start[s + 1]):
             code = tri_slot[k]
             t = code >> 2
             corner = code & 3
-            f0, f1, f2, w = lim_triangle(x, tri[t], ref[t], params, r, avr, use_global)
+            f0, f1, f2, w = lim_triangle(x, tri[t], ref[t], params, r, avr, use_global, pex)
             if corner == 0:
                 fi = fi + f0
             elif corner == 1:
@@ -222,8 +270,8 @@ def _kernels(dtype):
                 e = code >> 2
                 role = code & 3
                 q = dih[e]
-                theta, ga, gb, gc, gd = dihedral(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
-                coef = -kb * wp.sin(theta - theta0[e])
+                sdt, cdt, ga, gb, gc, gd = kantor_edge(x[q[0]], x[q[1]], x[q[2]], x[q[3]], cs0[e])
+                coef = -kb * sdt
                 if role == 0:
                     fi = fi + coef * ga
                 elif role == 1:
@@ -537,6 +585,9 @@ class ShellForceField:
         self._coff = wp.array(coff.astype(np.int32), dtype=wp.int32, device=dev)
         self._ref = wp.array(ref, dtype=wp.vec4d if dtype is wp.float64 else wp.vec4f, device=dev)
         self._theta0 = wp.array(theta0, dtype=dtype, device=dev)
+        # (cos, sin) theta0: the Kantor kernels need no atan2 / sin (kantor_edge)
+        self._cs0 = wp.array(np.stack([np.cos(theta0), np.sin(theta0)], axis=1),
+                             dtype=wp.vec2d if dtype is wp.float64 else wp.vec2f, device=dev)
         self._params = wp.array(table, dtype=dtype, device=dev)
         self._avr = wp.zeros((R, 2), dtype=dtype, device=dev)
         self._health = wp.zeros((R, 3), dtype=dtype, device=dev)
@@ -544,6 +595,9 @@ class ShellForceField:
         self._dummy_energy = wp.zeros((1, len(ENERGY_TERMS)), dtype=dtype, device=dev)
         self._no_skip = wp.zeros(R, dtype=wp.int32, device=dev)
         self._skip = self._no_skip
+        self._gas = wp.zeros((1, 2), dtype=dtype, device=dev)
+        self._gas_vol = wp.ones(1, dtype=dtype, device=dev)
+        self._gas_on = 0
         n_shell = int(nv.sum())
         self.n_shell_vertices = n_shell
         self._msum = wp.zeros(n_shell, dtype=dtype, device=dev)
@@ -663,9 +717,10 @@ class ShellForceField:
         if a.shape[0] < self.n_rows_min:
             raise ValueError(f"{name} has {a.shape[0]} rows, the shells need {self.n_rows_min}")
 
-    def _launch_forces(self, x, f, v, energy, want_energy: int, skip=None) -> None:
+    def _launch_forces(self, x, f, v, energy, want_energy: int, skip=None, with_gas: bool = False) -> None:
         k, dev = self._k, self.device
         skip = self._no_skip if skip is None else skip
+        gas = [self._gas, self._gas_vol, int(self._gas_on and with_gas)]
         if self.use_constraints_av:
             self._avr.zero_()
             wp.launch(k["area_volume_kernel"], dim=self.n_triangles,
@@ -673,15 +728,15 @@ class ShellForceField:
         if self.force_mode == "gather" and not want_energy:
             wp.launch(k["vertex_gather_kernel"], dim=self.n_shell_vertices,
                       inputs=[x, f, self._gidx, self._vrep, self._tri, self._ref, self._tri_start, self._tri_slot,
-                              self._dih, self._theta0, self._dih_start, self._dih_slot, self._params, self._avr,
-                              int(self.use_global), int(self.use_kantor), skip], device=dev)
+                              self._dih, self._cs0, self._dih_start, self._dih_slot, self._params, self._avr,
+                              int(self.use_global), int(self.use_kantor), skip, *gas], device=dev)
         else:
             wp.launch(k["lim_kernel"], dim=self.n_triangles,
                       inputs=[x, f, self._tri, self._ref, self._tri_rep, self._params, self._avr,
-                              int(self.use_global), energy, want_energy, skip], device=dev)
+                              int(self.use_global), energy, want_energy, skip, *gas], device=dev)
             if self.use_kantor:
                 wp.launch(k["kantor_kernel"], dim=self.n_edges,
-                          inputs=[x, f, self._dih, self._theta0, self._edge_rep, self._params, energy,
+                          inputs=[x, f, self._dih, self._cs0, self._edge_rep, self._params, energy,
                                   want_energy, skip], device=dev)
         if self.use_juelicher:
             self._msum.zero_()
@@ -718,7 +773,7 @@ class ShellForceField:
         self._check_array(f, "f")
         if v is not None:
             self._check_array(v, "v")
-        self._launch_forces(x, f, v, self._dummy_energy, 0, self._skip)
+        self._launch_forces(x, f, v, self._dummy_energy, 0, self._skip, with_gas=True)
 
     def set_skip(self, skip: wp.array | None) -> None:
         """Bind a per-replica int32 device array [R]: :meth:`accumulate_forces` adds no Lim, Kantor or
@@ -732,6 +787,23 @@ class ShellForceField:
         if skip.dtype != wp.int32 or skip.shape != (self.n_replicas,) or skip.device != self.device:
             raise ValueError(f"skip must be an int32 array of shape ({self.n_replicas},) on {self.device}")
         self._skip = skip
+
+    def set_gas(self, gas: wp.array | None, volume: wp.array | None = None) -> None:
+        """Bind an inside gas to :meth:`accumulate_forces`: replica r's shell also feels the pressure
+        ``gas[r, 0] / volume[r] - gas[r, 1]`` (DPD pressure; ``gas`` [R, 2] holds p0 V0 and the ambient
+        pressure, ``volume`` [R] the enclosed volumes, DPD length^3, which the caller updates before each call:
+        read at launch time, so CUDA graphs see the updates).  Why here: the force is that pressure times
+        dV/dx = (sum of the incident triangles' normals) / 6, which the Lim pass already computes.  None unbinds;
+        energies never include it."""
+        if gas is None:
+            self._gas_on = 0
+            return
+        R = self.n_replicas
+        if gas.dtype != self.dtype or gas.shape != (R, 2) or gas.device != self.device:
+            raise ValueError(f"gas must be a {self.dtype.__name__} array of shape ({R}, 2) on {self.device}")
+        if volume is None or volume.dtype != self.dtype or volume.shape != (R,) or volume.device != self.device:
+            raise ValueError(f"volume must be a {self.dtype.__name__} array of shape ({R},) on {self.device}")
+        self._gas, self._gas_vol, self._gas_on = gas, volume, 1
 
     def areas_volumes(self, x: wp.array) -> tuple[np.ndarray, np.ndarray]:
         """Total area A[R] and enclosed volume V[R] of every replica's shell (synchronises)."""

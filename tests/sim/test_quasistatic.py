@@ -442,3 +442,26 @@ def test_schedule_validated(mesh):
         quasistatic_indentation([_p()], mesh, [0.0], schedule="eager")
     with pytest.raises(ValueError, match="async"):
         quasistatic_indentation([_p()], mesh, [0.0], minimizer="numpy", schedule="async")
+
+
+def test_force_mode_gather_and_scatter_give_the_same_curve():
+    """The device chain's shell forces per vertex (gather, the GPU default) or per element (scatter, the CPU
+    default) are the same forces up to the summation order: the same indentation curve to FIRE's tolerance."""
+    from bubblecal.sim.experiments.quasistatic import FireSettings, quasistatic_indentation
+    from bubblecal.sim.mesh import icosphere
+
+    mesh = icosphere(3.0, 2)
+    p = ShellParams(ka=400.0, kb=20.0, self_avoid=False)
+    curves = {}
+    for mode in ("scatter", "gather"):
+        res = quasistatic_indentation([p], mesh, [0.0, 20.0, 40.0], device="cpu",
+                                      fire=FireSettings(ftol=1e-4, max_steps=20_000, force_mode=mode))
+        assert res.status == ["ok"]
+        curves[mode] = res.displacement[0]
+    np.testing.assert_allclose(curves["gather"], curves["scatter"], rtol=1e-5, atol=1e-8)
+    with pytest.raises(ValueError, match="force_mode"):
+        FireSettings(force_mode="fused")
+    from bubblecal.sim.tiers import QuasistaticTier
+
+    with pytest.raises(ValueError, match="force_mode"):
+        QuasistaticTier(force_mode="both")

@@ -264,3 +264,44 @@ def test_skip_binding_drops_only_flagged_replicas(mode):
     ff.set_skip(None)
     with pytest.raises(ValueError, match="skip must be an int32"):
         ff.set_skip(wp.zeros(3, dtype=wp.int32, device="cpu"))
+
+
+@pytest.mark.parametrize("mode", ["scatter", "gather"])
+def test_gas_binding_adds_minus_p_dv_dx(mode):
+    """set_gas: the inside gas acts as -(p0 V0 / V - p_amb) dV/dx; checked against the volume's finite-difference
+    gradient (float64, two replicas with their own gas), and only through accumulate_forces."""
+    m, _, x, offsets = two_replicas(wp.float64)
+    ff = ShellForceField([m, m.translated([10.0, 0.0, 0.0])], [P_KANTOR, P_JUL], device="cpu", dtype=wp.float64,
+                         offsets=offsets, force_mode=mode)
+    xa = wp.array(x, dtype=ff.vec3, device="cpu")
+    plain = wp.zeros_like(xa)
+    ff.accumulate_forces(xa, plain)
+    _, vols = ff.areas_volumes(xa)
+    gas = wp.array(np.array([[3.0 * 30.0, 1.0], [2.0 * 40.0, 0.5]]), dtype=wp.float64, device="cpu")
+    vol = wp.array(vols, dtype=wp.float64, device="cpu")
+    ff.set_gas(gas, vol)
+    with_gas = wp.zeros_like(xa)
+    ff.accumulate_forces(xa, with_gas)
+    g = gas.numpy()
+    n, h = m.n_vertices, 1e-6
+    for r, o in enumerate(offsets):
+        p = g[r, 0] / vols[r] - g[r, 1]
+        xr = x[o:o + n]
+        dvdx = np.zeros_like(xr)
+        for i in range(n):
+            for k in range(3):
+                xp, xm = xr.copy(), xr.copy()
+                xp[i, k] += h
+                xm[i, k] -= h
+                dvdx[i, k] = (m.volume(xp) - m.volume(xm)) / (2 * h)
+        added = with_gas.numpy()[o:o + n] - plain.numpy()[o:o + n]
+        assert np.abs(added - p * dvdx).max() < 1e-7 * np.abs(p * dvdx).max()
+    # energies never include it; unbinding restores the plain forces
+    ff.set_gas(None)
+    again = wp.zeros_like(xa)
+    ff.accumulate_forces(xa, again)
+    np.testing.assert_array_equal(again.numpy(), plain.numpy())
+    with pytest.raises(ValueError, match="gas must be"):
+        ff.set_gas(wp.zeros((3, 2), dtype=wp.float64, device="cpu"), vol)
+    with pytest.raises(ValueError, match="volume must be"):
+        ff.set_gas(gas, None)
