@@ -204,8 +204,10 @@ def _check_tier_settings(path: Path, tier: str, protocol: str, settings: dict) -
         raise CampaignFileError(path, f"[tier].{named[0]}" if named else "[tier]", str(exc)) from None
 
 
-def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = None) -> CampaignFile:
-    """Read and validate a campaign TOML (path or shipped name); ``store`` overrides ``[campaign].store``."""
+def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = None,
+                       tier_overrides: dict | None = None) -> CampaignFile:
+    """Read and validate a campaign TOML (path or shipped name); ``store`` overrides ``[campaign].store``;
+    ``tier_overrides`` set ``[tier]`` keys on top of the file's (validated like them; a different design)."""
     path = campaign_path(name_or_path)
     try:
         with open(path, "rb") as fh:
@@ -236,6 +238,8 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
     tier_settings = raw.get("tier", {})
     if not isinstance(tier_settings, dict):
         raise CampaignFileError(path, "[tier]", "must be a table of setting = value")
+    if tier_overrides:
+        tier_settings = {**tier_settings, **tier_overrides}
     dask = raw.get("dask", {})
     if not isinstance(dask, dict):
         raise CampaignFileError(path, "[dask]", "must be a table (scheduler_address, n_workers)")

@@ -131,6 +131,9 @@ def campaign(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar with ETA."),
     diameter: list[float] = typer.Option(None, "--diameter", help="Run only this diameter [um] of a "
                                                                   "multi-diameter design (repeatable)."),
+    tier_setting: list[str] = typer.Option(None, "--tier-setting", help="KEY=VALUE (TOML value) on top of the "
+                                           "file's [tier], e.g. first_load_ramp=6 (repeatable). Changes the design: "
+                                           "give a fresh --store."),
 ) -> None:
     """Run a training-data campaign: a seeded design over a prior box, simulated on Dask, appended to a
     resumable store (one record per sample). Re-running continues where it stopped; a killed worker is
@@ -146,12 +149,14 @@ def campaign(
     )
     from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file
 
+    overrides = _parse_tier_settings(tier_setting or [])
     try:
-        cf = load_campaign_file(config, store=store)
+        cf = load_campaign_file(config, store=store, tier_overrides=overrides)
         if device is not None:
             cf = dataclasses.replace(cf, config=dataclasses.replace(cf.config, device=device))
     except CampaignFileError as exc:
-        raise fail(str(exc)) from None
+        given = [k for k in overrides if exc.key in (f"[tier].{k}", "[tier]")]
+        raise fail(str(exc) + (f" (given with --tier-setting {given[0]}=...)" if given else "")) from None
     except CampaignConfigError as exc:
         raise fail(f"--device: {exc.detail}") from None
     c = cf.config
@@ -202,6 +207,23 @@ def campaign(
     for err in summary.task_errors[:5]:
         console.print(f"[yellow]task error[/]: {err}", markup=True, highlight=False)
     console.print(json.dumps(summary.as_dict()), markup=False, highlight=False, soft_wrap=True)
+
+
+def _parse_tier_settings(items: list[str]) -> dict:
+    """``KEY=VALUE`` strings -> {key: value}, each value read as a TOML value (bare words as strings)."""
+    import tomllib
+
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key.isidentifier():
+            raise fail(f"--tier-setting {item!r}: expected KEY=VALUE, e.g. first_load_ramp=6")
+        try:
+            out[key] = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key] = value.strip()  # a bare word such as mirheo
+    return out
 
 
 @app.command("campaign-status")

@@ -223,3 +223,26 @@ def test_cli_errors_exit_1(tmp_path):
     assert res.exit_code == 1 and "no such campaign store" in res.output
     res = runner.invoke(app, ["sim", "campaign", "--help"])
     assert res.exit_code == 0 and "SLURMCluster" in plain(res.output)
+
+
+def test_cli_tier_setting_overrides_the_file_and_is_validated(tmp_path):
+    """--tier-setting KEY=VALUE (a TOML value) sets a [tier] key on top of the file's: a new design (the store of the
+    file's design refuses it), validated like the file's keys with the offending one named."""
+    path = write(tmp_path)
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--limit", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    store = tmp_path / "stores" / "tiny"
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--no-progress", "--tier-setting", "ftol=0.01"])
+    assert res.exit_code == 1 and "another design" in plain(res.output)
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--no-progress", "--tier-setting", "ftol=0.01",
+                              "--store", str(tmp_path / "tight")])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output.strip().splitlines()[-1])["counts"]["ok"] == 2
+    settings = json.loads((tmp_path / "tight" / "store.json").read_text())["meta"]["campaign"]["tier_settings"]
+    assert settings["ftol"] == 0.01
+    assert store.exists()
+    bad = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run", "--tier-setting", "schedule=sideways"])
+    out = plain(bad.output)
+    assert bad.exit_code == 1 and "[tier].schedule" in out and "--tier-setting schedule" in out and "c.toml" in out
+    res = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run", "--tier-setting", "ftol"])
+    assert res.exit_code == 1 and "expected KEY=VALUE" in plain(res.output)
