@@ -161,33 +161,9 @@ def _kernels(dtype):
             wp.atomic_add(energy, r, E_LIM, w)
 
     @wp.func
-    def dihedral(xa: V, xb: V, xc: V, xd: V):
-        """theta and its gradients with respect to a, b, c, d (mesh.py convention)."""
-        e = xb - xa
-        n1 = wp.cross(e, xc - xa)
-        n2 = wp.cross(xd - xb, e)
-        el2 = wp.dot(e, e)
-        el = wp.sqrt(el2)
-        n1sq = wp.max(wp.dot(n1, n1), T(1.0e-30))
-        n2sq = wp.max(wp.dot(n2, n2), T(1.0e-30))
-        theta = wp.atan2(wp.dot(wp.cross(n1, n2), e) / el, wp.dot(n1, n2))
-        gc = -(el / n1sq) * n1
-        gd = -(el / n2sq) * n2
-        sc = wp.dot(xc - xa, e) / el2
-        sd = wp.dot(xd - xa, e) / el2
-        one = T(1.0)
-        ga = -(one - sc) * gc - (one - sd) * gd
-        gb = -sc * gc - sd * gd
-        return theta, ga, gb, gc, gd
-
-    @wp.func
-    def kantor_edge(xa: V, xb: V, xc: V, xd: V, cs0: V2):
-        """sin(theta - theta0), cos(theta - theta0) and the gradients of theta (a, b, c, d) of one edge.
-
-        ``cs0 = (cos theta0, sin theta0)``.  Same theta as :func:`dihedral` without atan2 / sin / cos:
-        (sin, cos) theta come from the two normals directly (the transcendental functions were most of
-        the gather kernel's float64 time on the GPU).
-        """
+    def dihedral_terms(xa: V, xb: V, xc: V, xd: V):
+        """(y, x) with theta = atan2(y, x), and the gradients of theta with respect to a, b, c, d (mesh.py
+        convention): y = ((n1 x n2) . e) / |e|, x = n1 . n2, so sin / cos theta need no atan2."""
         e = xb - xa
         n1 = wp.cross(e, xc - xa)
         n2 = wp.cross(xd - xb, e)
@@ -196,13 +172,7 @@ def _kernels(dtype):
         n1sq = wp.max(wp.dot(n1, n1), T(1.0e-30))
         n2sq = wp.max(wp.dot(n2, n2), T(1.0e-30))
         ys = wp.dot(wp.cross(n1, n2), e) / el
-        xc_ = wp.dot(n1, n2)
-        h = wp.sqrt(ys * ys + xc_ * xc_)
-        st = T(0.0)
-        ct = T(1.0)  # atan2(0, 0) = 0
-        if h > T(0.0):
-            st = ys / h
-            ct = xc_ / h
+        xs = wp.dot(n1, n2)
         gc = -(el / n1sq) * n1
         gd = -(el / n2sq) * n2
         sc = wp.dot(xc - xa, e) / el2
@@ -210,6 +180,29 @@ def _kernels(dtype):
         one = T(1.0)
         ga = -(one - sc) * gc - (one - sd) * gd
         gb = -sc * gc - sd * gd
+        return ys, xs, ga, gb, gc, gd
+
+    @wp.func
+    def dihedral(xa: V, xb: V, xc: V, xd: V):
+        """theta and its gradients with respect to a, b, c, d (mesh.py convention)."""
+        ys, xs, ga, gb, gc, gd = dihedral_terms(xa, xb, xc, xd)
+        return wp.atan2(ys, xs), ga, gb, gc, gd
+
+    @wp.func
+    def kantor_edge(xa: V, xb: V, xc: V, xd: V, cs0: V2):
+        """sin(theta - theta0), cos(theta - theta0) and the gradients of theta (a, b, c, d) of one edge.
+
+        ``cs0 = (cos theta0, sin theta0)``.  Same theta as :func:`dihedral` without atan2 / sin / cos:
+        (sin, cos) theta come from the two normals directly (the transcendental functions were most of
+        the gather kernel's float64 time on the CPU).
+        """
+        ys, xs, ga, gb, gc, gd = dihedral_terms(xa, xb, xc, xd)
+        h = wp.sqrt(ys * ys + xs * xs)
+        st = T(0.0)
+        ct = T(1.0)  # atan2(0, 0) = 0
+        if h > T(0.0):
+            st = ys / h
+            ct = xs / h
         return st * cs0[0] - ct * cs0[1], ct * cs0[0] + st * cs0[1], ga, gb, gc, gd
 
     @kern
