@@ -377,12 +377,6 @@ class _DeviceChain:
         self.row_rep = wp.array(np.repeat(np.arange(R), nv).astype(np.int32), dtype=wp.int32, device=dev)
         faces = mesh.faces.astype(np.int64)
         self.tri = wp.array(faces.astype(np.int32), dtype=wp.vec3i, device=dev)
-        vert = faces.reshape(-1)
-        order = np.argsort(vert, kind="stable")
-        start = np.zeros(nv + 1, dtype=np.int64)
-        np.cumsum(np.bincount(vert, minlength=nv), out=start[1:])
-        self.vt_start = wp.array(start.astype(np.int32), dtype=wp.int32, device=dev)
-        self.vt_tri = wp.array((order // 3).astype(np.int32), dtype=wp.int32, device=dev)
         self.gas_on = gas is not None
         v0 = mesh.volume()
         g = np.zeros((R, 2))
@@ -438,10 +432,9 @@ class _DeviceChain:
             wp.launch(k["pole_load_kernel"], dim=self.R * self.loaded.shape[0],
                       inputs=[f, self.row_start, self.fire.status, self.loaded, self.load, self.unit], device=dev)
         if self.plate_on:
-            wp.launch(k["load_force_kernel"], dim=self.R * self.nthr,
-                      inputs=[x, f, self.row_start, self.fire.status, self.nthr, self.tri, self.vt_start,
-                              self.vt_tri, self.vol, self.gas, 0, self.load, self.unit,
-                              0, self.plates, 1, *self.pc, *self.tc], device=dev)
+            wp.launch(k["plate_force_kernel"], dim=self.R * self.nthr,
+                      inputs=[x, f, self.row_start, self.fire.status, self.nthr, self.plates, *self.pc, *self.tc],
+                      device=dev)
 
     def _sigmas(self, params) -> np.ndarray:
         """rms normal fluctuation of each shell for the thermal contact (ones when athermal: unused)."""

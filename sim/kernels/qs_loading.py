@@ -6,14 +6,10 @@ replica r sits at row ``row_start[r] + v``.  DPD units throughout.
 
 * ``volume_kernel``: enclosed volume per replica (sum over triangles of x0.(x1 x x2)/6, relative to
   the replica's first vertex), atomic per thread chunk.
-* ``pole_load_kernel``: adds the pole loads on the loaded rows only (the chain's indentation path).
-* ``load_force_kernel``: adds, per row, the ideal-gas force (p0 V0 / V - p_ambient) dV/dx (dV/dx_v =
-  sum over the incident triangles of n_t / 6, n_t = (x1 - x0) x (x2 - x0), gathered through a CSR),
-  a per-replica scalar load times a per-row vector (pole loads), and the capped WCA force of two
-  analytic plates z = top_r (pushing down) and z = bottom_r (pushing up), or their thermal mean force
-  (:mod:`bubblecal.sim.experiments.thermal_contact`).  The chain now uses it for the plates only: the gas
-  rides on the shell's triangle pass (``ShellForceField.set_gas``, no second gather over the incident
-  triangles) and the pole loads on ``pole_load_kernel`` (the two had cost 15 % of a FIRE iteration on an H100).
+* ``pole_load_kernel``: adds the pole loads on the loaded rows only.
+* ``plate_force_kernel``: adds, per row, the capped WCA force of two analytic plates z = top_r (pushing down)
+  and z = bottom_r (pushing up), or their thermal mean force (:mod:`bubblecal.sim.experiments.thermal_contact`).
+  The ideal-gas force rides on the shell's own triangle pass (``ShellForceField.set_gas``).
 * Observables: plate reactions and contacts, axial extent and loaded-patch heights, non-finite rows,
   and the reset of failed replicas to their reference rows.
 * ``extrapolate_kernel`` / ``extrapolate_rows_kernel``: linear predictor of the next load point's state from
@@ -132,53 +128,28 @@ def qs_kernels(dtype):
         f[i] = f[i] + load[r] * unit[i]
 
     @kern
-    def load_force_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), row_start: wp.array(dtype=wp.int32),
-                          status: wp.array(dtype=wp.int32), nthr: wp.int32, tri: wp.array(dtype=wp.vec3i),
-                          vt_start: wp.array(dtype=wp.int32), vt_tri: wp.array(dtype=wp.int32),
-                          vol: wp.array(dtype=T), gas: wp.array2d(dtype=T), gas_on: wp.int32,
-                          load: wp.array(dtype=T), unit: wp.array(dtype=V), load_on: wp.int32,
-                          plates: wp.array2d(dtype=T), plate_on: wp.int32, eps: T, sig: T, rc: T, hcap: T, cap: T,
-                          tsig: wp.array(dtype=T), thermal: wp.int32, hw: T, kT: T, p0: T, dp0: T):
-        """f += gas + pole load + plate forces for the rows of active replicas.
+    def plate_force_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), row_start: wp.array(dtype=wp.int32),
+                           status: wp.array(dtype=wp.int32), nthr: wp.int32, plates: wp.array2d(dtype=T),
+                           eps: T, sig: T, rc: T, hcap: T, cap: T,
+                           tsig: wp.array(dtype=T), thermal: wp.int32, hw: T, kT: T, p0: T, dp0: T):
+        """f += plate forces for the rows of active replicas.
 
-        Shared mesh: ``tri`` local vertex indices, ``vt_start`` / ``vt_tri`` the local vertex ->
-        triangle CSR; ``gas[r] = (p0 V0, p_ambient)``; ``plates[r] = (z_top, z_bottom)``; ``thermal`` != 0:
-        the plates act through the thermal mean force (rms fluctuation ``tsig[r]``, hard wall at ``hw``).
+        ``plates[r] = (z_top, z_bottom)``; ``thermal`` != 0: the plates act through the thermal mean force
+        (rms fluctuation ``tsig[r]``, hard wall at ``hw``).
         """
         tid = wp.tid()
         r = tid // nthr
         t = tid - r * nthr
         if status[r] != ACTIVE:
             return
-        dp = T(0.0)
-        if gas_on != 0:
-            dp = gas[r, 0] / vol[r] - gas[r, 1]
-        ld = T(0.0)
-        if load_on != 0:
-            ld = load[r]
         ztop = plates[r, 0]
         zbot = plates[r, 1]
         s_r = tsig[r]
-        sixth = T(1.0) / T(6.0)
-        o = row_start[r]
-        for i in range(o + t, row_start[r + 1], nthr):
-            fi = f[i]
-            if gas_on != 0:
-                li = i - o
-                g = V()
-                for k in range(vt_start[li], vt_start[li + 1]):
-                    q = tri[vt_tri[k]]
-                    x0 = x[q[0] + o]
-                    g = g + wp.cross(x[q[1] + o] - x0, x[q[2] + o] - x0)
-                fi = fi + (dp * sixth) * g
-            if load_on != 0:
-                fi = fi + ld * unit[i]
-            if plate_on != 0:
-                z = x[i][2]
-                fz = (plate_push(z - zbot, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap)
-                      - plate_push(ztop - z, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap))
-                fi = fi + V(T(0.0), T(0.0), fz)
-            f[i] = fi
+        for i in range(row_start[r] + t, row_start[r + 1], nthr):
+            z = x[i][2]
+            fz = (plate_push(z - zbot, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap)
+                  - plate_push(ztop - z, thermal, s_r, hw, kT, p0, dp0, eps, sig, rc, hcap, cap))
+            f[i] = f[i] + V(T(0.0), T(0.0), fz)
 
     @kern
     def plate_obs_kernel(x: wp.array(dtype=V), row_rep: wp.array(dtype=wp.int32), plates: wp.array2d(dtype=T),
