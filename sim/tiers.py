@@ -329,8 +329,10 @@ class QuasistaticTier:
         r = self.first_load_ramp
         if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 20:
             raise ValueError(f"quasistatic tier: first_load_ramp must be an integer in [0, 20], got {r!r}")
-        if self.force_mode not in ("auto", "gather", "scatter"):
-            raise ValueError(f"quasistatic tier: force_mode must be 'auto', 'gather' or 'scatter', got {self.force_mode!r}")
+        from bubblecal.sim.kernels.shell_params import FORCE_MODES
+
+        if self.force_mode not in FORCE_MODES:
+            raise ValueError(f"quasistatic tier: force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
         if self.schedule not in ("async", "lockstep"):
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
         if self.max_replicas is not None:

@@ -63,7 +63,7 @@ from bubblecal.sim.experiments.thermal_contact import (
     shell_fluctuation_sigma,
     thermal_plate_force,
 )
-from bubblecal.sim.kernels.shell_params import ShellParams
+from bubblecal.sim.kernels.shell_params import FORCE_MODES, ShellParams
 from bubblecal.sim.mesh import ShellMesh, pole_patches
 
 __all__ = [
@@ -164,8 +164,8 @@ class FireSettings:
     force_mode: str = "auto"
 
     def __post_init__(self) -> None:
-        if self.force_mode not in ("auto", "gather", "scatter"):
-            raise ValueError(f"FireSettings.force_mode must be 'auto', 'gather' or 'scatter', got {self.force_mode!r}")
+        if self.force_mode not in FORCE_MODES:
+            raise ValueError(f"FireSettings.force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
 
     def constants(self) -> dict:
         """Keyword arguments of the FIRE minimisers (time step, move cap and the FIRE 2.0 constants)."""

@@ -37,7 +37,7 @@ from collections.abc import Sequence
 import numpy as np
 import warp as wp
 
-from bubblecal.sim.kernels.shell_params import BENDING_MODELS, ShellParams
+from bubblecal.sim.kernels.shell_params import BENDING_MODELS, FORCE_MODES, ShellParams
 from bubblecal.sim.mesh import ShellMesh
 
 __all__ = ["ShellParams", "ShellForceField", "ENERGY_TERMS", "BENDING_MODELS", "AREA_CLAMP"]
@@ -508,8 +508,8 @@ class ShellForceField:
     def __init__(self, meshes_or_mesh: ShellMesh | Sequence[ShellMesh],
                  params_per_replica: ShellParams | Sequence[ShellParams], device: str | None = "cpu",
                  dtype=wp.float32, offsets: Sequence[int] | None = None, force_mode: str = "auto"):
-        if force_mode not in ("auto", "gather", "scatter"):
-            raise ValueError(f"force_mode must be 'auto', 'gather' or 'scatter', got {force_mode!r}")
+        if force_mode not in FORCE_MODES:
+            raise ValueError(f"force_mode must be one of {FORCE_MODES}, got {force_mode!r}")
         if dtype not in (wp.float32, wp.float64):
             raise ValueError(f"dtype must be wp.float32 or wp.float64, got {dtype!r}")
         n_rep = len(params_per_replica) if isinstance(params_per_replica, (list, tuple)) else (

@@ -8,9 +8,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-__all__ = ["ShellParams", "BENDING_MODELS", "shell_params_from_arrays"]
+__all__ = ["ShellParams", "BENDING_MODELS", "FORCE_MODES", "shell_params_from_arrays"]
 
 BENDING_MODELS = ("kantor", "juelicher")
+#: how ShellForceField sums the Lim / Kantor forces: auto (gather on a GPU, scatter on the CPU), per vertex, per element
+FORCE_MODES = ("auto", "gather", "scatter")
 
 
 def _check(name: str, value, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
