@@ -204,6 +204,22 @@ def _check_tier_settings(path: Path, tier: str, protocol: str, settings: dict) -
         raise CampaignFileError(path, f"[tier].{named[0]}" if named else "[tier]", str(exc)) from None
 
 
+def parse_tier_settings(items: list[str]) -> dict:
+    """``KEY=VALUE`` strings (command-line ``--tier-setting``) -> {key: value}, each value read as a TOML value
+    (bare words as strings); ValueError names the malformed item."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key.isidentifier():
+            raise ValueError(f"--tier-setting {item!r}: expected KEY=VALUE, e.g. first_load_ramp=6")
+        try:
+            out[key] = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key] = value.strip()  # a bare word such as mirheo
+    return out
+
+
 def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = None,
                        tier_overrides: dict | None = None) -> CampaignFile:
     """Read and validate a campaign TOML (path or shipped name); ``store`` overrides ``[campaign].store``;

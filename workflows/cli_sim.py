@@ -147,9 +147,12 @@ def campaign(
         pending_indices,
         run_campaign,
     )
-    from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file
+    from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file, parse_tier_settings
 
-    overrides = _parse_tier_settings(tier_setting or [])
+    try:
+        overrides = parse_tier_settings(tier_setting or [])
+    except ValueError as exc:
+        raise fail(str(exc)) from None
     try:
         cf = load_campaign_file(config, store=store, tier_overrides=overrides)
         if device is not None:
@@ -207,23 +210,6 @@ def campaign(
     for err in summary.task_errors[:5]:
         console.print(f"[yellow]task error[/]: {err}", markup=True, highlight=False)
     console.print(json.dumps(summary.as_dict()), markup=False, highlight=False, soft_wrap=True)
-
-
-def _parse_tier_settings(items: list[str]) -> dict:
-    """``KEY=VALUE`` strings -> {key: value}, each value read as a TOML value (bare words as strings)."""
-    import tomllib
-
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        key = key.strip()
-        if not sep or not key.isidentifier():
-            raise fail(f"--tier-setting {item!r}: expected KEY=VALUE, e.g. first_load_ramp=6")
-        try:
-            out[key] = tomllib.loads(f"v = {value.strip()}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[key] = value.strip()  # a bare word such as mirheo
-    return out
 
 
 @app.command("campaign-status")

@@ -32,21 +32,14 @@ def main(argv=None) -> int:
                     help="override one [tier] setting (a measurement: changes the design, so use a fresh store)")
     args = ap.parse_args(argv)
     from bubblecal.sim.campaign import run_campaign
-    from bubblecal.workflows.campaign import load_campaign_file
+    from bubblecal.workflows.campaign import load_campaign_file, parse_tier_settings
 
-    cf = load_campaign_file(args.name, store=args.store)
+    overrides = {} if args.max_replicas is None else {"max_replicas": args.max_replicas}
+    overrides.update(parse_tier_settings(args.tier_setting))
+    cf = load_campaign_file(args.name, store=args.store, tier_overrides=overrides)
     config = dataclasses.replace(cf.config, device=args.device)
     if args.replicas_per_task is not None:
         config = dataclasses.replace(config, replicas_per_task=args.replicas_per_task)
-    if args.max_replicas is not None:
-        config = dataclasses.replace(config, tier_settings={**config.tier_settings, "max_replicas": args.max_replicas})
-    for kv in args.tier_setting:
-        key, _, value = kv.partition("=")
-        try:
-            value = json.loads(value)
-        except json.JSONDecodeError:
-            pass  # a plain string such as bubblecal-v1
-        config = dataclasses.replace(config, tier_settings={**config.tier_settings, key: value})
     summary = run_campaign(config, scheduler_address="inline" if args.workers is None else "local",
                            n_workers=args.workers, progress=True, limit=args.limit, diameters=args.diameter)
     print(json.dumps(dataclasses.asdict(summary) if dataclasses.is_dataclass(summary) else vars(summary),
