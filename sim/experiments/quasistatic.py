@@ -387,12 +387,11 @@ class _DeviceChain:
         self.vol_meas = wp.zeros(R, dtype=T, device=dev)
         if self.gas_on:  # the gas force rides on the shell's own triangle pass (ShellForceField.set_gas)
             self.ff.set_gas(self.gas, self.vol)
-        self.load_on = unit is not None
         self.load = wp.zeros(R, dtype=T, device=dev)
         u = np.zeros((nv, 3)) if unit is None else np.asarray(unit, dtype=np.float64)
         self.unit = wp.array(np.tile(u, (R, 1)).astype(npf), dtype=self.vec3, device=dev)
-        loaded = np.nonzero(np.any(u != 0.0, axis=1))[0]
-        self.load_on = self.load_on and len(loaded) > 0
+        loaded = np.nonzero(np.any(u != 0.0, axis=1))[0]  # the pole patches (none without a unit load)
+        self.load_on = len(loaded) > 0
         self.loaded = wp.array(loaded.astype(np.int32) if len(loaded) else np.zeros(1, np.int32), dtype=wp.int32,
                                device=dev)
         tg = np.zeros(nv, dtype=np.int32) if tag is None else np.asarray(tag, dtype=np.int32)
