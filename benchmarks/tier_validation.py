@@ -126,6 +126,9 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
         ts, params=np.vstack([ts.params, p_new]), radius_dpd=np.r_[ts.radius_dpd, np.full(n, ts.radius_dpd[0])],
         x=np.vstack([ts.x, np.tile(ts.x[0], (n, 1))]), y=np.vstack([ts.y, np.full((n, m), np.nan)]),
         curve_id=np.r_[ts.curve_id, [f"lhs{i + 1}" for i in range(n)]],
+        # per-row extras of the published rows (e.g. yt_pa) do not exist for LHS rows
+        extra={k: np.r_[v, np.full(n, np.nan if np.issubdtype(np.asarray(v).dtype, np.floating) else -1)]
+               for k, v in ts.extra.items()},
         status=None if ts.status is None else np.r_[ts.status, ["ok"] * n])
 
 
@@ -146,6 +149,19 @@ def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
                           y=np.full((1, grid.size), np.nan), curve_id=np.array(["grid"]), source=f"lhs:{names[0]}")
     out = with_lhs_rows(carrier, protocol, diameter, n, seed)
     return out.subset(np.arange(1, out.n_curves))  # drop the grid-carrier row
+
+
+def lhs_slice(ts, n_lhs: int, spec: str):
+    """``ts`` (published rows, then ``n_lhs`` LHS rows last) with only LHS rows ``A..B-1`` of ``spec`` = "A:B" kept;
+    the published rows stay and the kept rows keep their ``lhs<i>`` ids, so curves match the full run's rows."""
+    try:
+        a, b = (int(v) for v in spec.split(":"))
+    except ValueError:
+        raise SystemExit(f"--lhs-slice {spec!r}: expected A:B with integers 0 <= A < B <= --lhs ({n_lhs})") from None
+    if not 0 <= a < b <= n_lhs:
+        raise SystemExit(f"--lhs-slice {spec!r}: expected 0 <= A < B <= --lhs ({n_lhs})")
+    n_pub = ts.n_curves - n_lhs
+    return ts.subset(np.r_[np.arange(n_pub), n_pub + np.arange(a, b)])
 
 
 def rel_l2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -248,6 +264,9 @@ def main(argv=None) -> int:
     ap.add_argument("--lhs", type=int, default=0,
                     help="add N Latin-hypercube parameter sets from the diameter's shipped campaign prior box "
                          "(tier-vs-tier rows: no published curve; the <= 3 %% gate needs >= 20 per diameter)")
+    ap.add_argument("--lhs-slice", default=None, metavar="A:B",
+                    help="keep only LHS rows A..B-1 (0-based) of the --lhs design: a long run of part of an earlier "
+                         "run's rows (same --lhs / --seed), e.g. the published protocol length on the gate's rows")
     ap.add_argument("--qs-subdivisions", default="",
                     help="comma list of extra mesh levels for the quasi-static tier (e.g. 3): reported as "
                          "quasistatic_s<level> beside the tier at the common mesh")
@@ -325,6 +344,8 @@ def main(argv=None) -> int:
             continue
         elif args.lhs > 0:
             ts = with_lhs_rows(ts, protocol, d, args.lhs, args.seed)
+        if args.lhs > 0 and args.lhs_slice:
+            ts = lhs_slice(ts, args.lhs, args.lhs_slice)
         dia = diameter_um_from_radius(float(np.median(ts.radius_dpd)))
         mesh = mesh_for_diameter(dia, args.subdivisions)
         n_steps = steps_per_curve(steps, ts.x[0])

@@ -391,7 +391,10 @@ class QuasistaticTier:
             if on_curve is not None:
                 def row_cb(i, row):
                     on_curve(i, row["displacement"], _QS_STATUS[row["status"]],
-                             {**static, "fire_steps": int(np.sum(row["fire_steps"])), "settings": row["settings"]})
+                             {**static, "fire_steps": int(np.sum(row["fire_steps"])),
+                              # per chain point (ramp sub-points included): what a max_steps choice would cut
+                              "fire_steps_chain": [int(v) for v in row["fire_steps_chain"]],
+                              "settings": row["settings"]})
 
             res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,
                                           first_load_ramp=self.first_load_ramp, **common)

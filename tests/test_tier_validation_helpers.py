@@ -35,3 +35,17 @@ def test_explicit_curves_from_an_earlier_run(tv, tmp_path):
     (tmp_path / "d.csv").write_text("row,point,x,published\n1,1,0.0,0.0\n")
     with pytest.raises(SystemExit, match="no 'explicit' column"):
         tv.explicit_from_csv(str(tmp_path / "d.csv"), SimpleNamespace(x=x))
+
+
+def test_lhs_slice_keeps_the_published_rows_and_the_chosen_lhs_rows(tv):
+    from bubblecal.surrogates.dataset import TrainingSet
+
+    ts = tv.lhs_only_rows("indentation", 3.2, 6, seed=3)  # 6 LHS rows of the shipped 3.2 um box
+    both = tv.with_lhs_rows(ts.subset(np.arange(2)), "indentation", 3.2, 4, seed=3)  # 2 "published" + 4 LHS
+    assert isinstance(both, TrainingSet) and both.n_curves == 6
+    cut = tv.lhs_slice(both, 4, "1:3")
+    assert cut.curve_id.tolist() == [both.curve_id[0], both.curve_id[1], "lhs2", "lhs3"]
+    np.testing.assert_array_equal(cut.params, both.params[[0, 1, 3, 4]])  # same sets as the full run's rows
+    for bad in ("3:1", "0:5", "a:b", "2"):
+        with pytest.raises(SystemExit, match="--lhs-slice"):
+            tv.lhs_slice(both, 4, bad)

@@ -997,8 +997,9 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
             finished curve.
         on_curve: optional ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (the async
             device schedule), ``row`` = {"displacement" [P] (DPD length), "status", "point_status",
-            "fire_steps" [P], "settings" (the result's, less the batch total ``fire_evaluations``)}: the same
-            numbers as the returned rows.
+            "fire_steps" [P], "fire_steps_chain" (FIRE updates per chain point, the ramp's sub-points included),
+            "settings" (the result's, less the batch total ``fire_evaluations``)}: the same numbers as the
+            returned rows.
 
     Returns: :class:`IndentationResult`; displacement in DPD length.
     """
@@ -1054,7 +1055,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                     h = row["obs"].get("H", np.full(len(chain_forces), np.nan))[keep]
                     on_curve(i, {"displacement": h0 - h, "status": row["status"],
                                  "point_status": [row["point_status"][j] for j in keep],
-                                 "fire_steps": _sum_substeps(row["fire_steps"], keep), "settings": static_settings})
+                                 "fire_steps": _sum_substeps(row["fire_steps"], keep),
+                                 "fire_steps_chain": np.asarray(row["fire_steps"]).copy(), "settings": static_settings})
 
             out = _run_device_async(make_chain, params, len(chain_forces), rupture_strain,
                                     lambda dc: (lambda jj: dc.set_load_rows(chain_forces[jj])), max_replicas,

@@ -386,6 +386,8 @@ def test_inline_indentation_streams_finished_curves_and_a_killed_task_keeps_them
         assert (r["status"], r["seed"], r["params"], r["x"]) == (want["status"], want["seed"], want["params"], want["x"])
         np.testing.assert_array_equal(r["y"], want["y"])  # the same FIRE iterates: identical curves
         assert r["provenance"]["info"]["fire_steps"] == want["provenance"]["info"]["fire_steps"]
+        chain = r["provenance"]["info"]["fire_steps_chain"]  # per chain point: sums to the curve's FIRE updates
+        assert len(chain) == 3 and sum(chain) == r["provenance"]["info"]["fire_steps"]
         settings = r["provenance"]["info"]["settings"]  # a streamed record keeps the run's settings
         assert settings["fire"]["max_steps"] == 20000 and settings["k_loaded_per_pole"] == 1
         assert settings["pole_patch"] == {"fraction": 0.01} and "fire_evaluations" not in settings
