@@ -2,9 +2,10 @@
 #   usage (after setup.sh, /tmp/ref holding ../shared/reference):
 #     LANE_AFTER_0="bash benchmarks/device/throughput_lanes.sh 0" LANE_AFTER_1="bash benchmarks/device/throughput_lanes.sh 1" \
 #       bash benchmarks/device/sweep_pipeline.sh "-/-"      # then poll: OUT=$OUT bash benchmarks/device/sweep_status.sh
-#   lane 0: the per-vertex gather with one corner / one dihedral role per element (lim_corner, kantor_role): the FIRE
-#           iteration profile, then the 5.8 and 3.2 um campaigns at the fastest validated settings (records carry
-#           fire_steps_chain: FIRE updates per chain point, for the max_steps study)
+#   lane 0: the FIRE iteration profile (per-vertex gather), then the 5.8 and 3.2 um campaigns at the fastest validated
+#           settings; records carry fire_steps_chain (FIRE updates per chain point) for benchmarks/max_steps_study.py
+#           (session 14 ran this lane with a gather computing one corner / dihedral role per element: 1.96 vs 1.90 ms
+#           per 1,000-replica iteration, no gain, reverted)
 #   lane 1: the implicit tier at a saturating batch (3.2 um, 256 LHS rows, scale 0.1); the explicit tier at the
 #           published protocol length (scale 1) on the 2.9 um gate's rows (4 published + LHS rows 1-4 of --lhs 20
 #           --seed 3), against the gate's scale-0.25 curves and Mirheo (3.2 um: session 14, x32s1)

@@ -69,10 +69,9 @@ def _kernels(dtype):
     clamp_a = T(AREA_CLAMP)
 
     @wp.func
-    def lim_coefs(x: wp.array(dtype=V), idx: wp.vec3i, rf: V4, params: wp.array2d(dtype=T), r: wp.int32,
-                  avr: wp.array2d(dtype=T), use_global: wp.int32, pex: T):
-        """What the three corner forces of one triangle share: edges x12, x13, normal n (|n| = 2 area), unit
-        normal, the coefficients of dA/dx, dbeta-numerator/dx and n in the force, and the Lim energy W.
+    def lim_triangle(x: wp.array(dtype=V), idx: wp.vec3i, rf: V4, params: wp.array2d(dtype=T), r: wp.int32,
+                     avr: wp.array2d(dtype=T), use_global: wp.int32, pex: T):
+        """Lim (+ global area/volume, back pressure) forces on the 3 corners of one triangle, and W.
 
         ``pex``: a pressure inside the shell (DPD pressure, e.g. the quasi-static tier's ideal gas minus
         the ambient one) acting as -pex dV/dx, added here because dV/dx is this triangle's normal / 6.
@@ -120,55 +119,20 @@ def _kernels(dtype):
             coef_v = params[r, P_KVTOT] * (v_tot - v0t) / v0t - params[r, P_PB]
         coef_v = coef_v - pex
         nhat = n / wp.max(nn, T(1.0e-30))
-        cb = dw_db * inv8
-        cv = coef_v / T(6.0)
-        w = a0 * (half * ka * (alpha2 + a3 * alpha2 * alpha + a4 * alpha2 * alpha2)
-                  + mu * (beta + b1 * alpha * beta + b2 * beta * beta))
-        return x12, x13, n, nhat, coef_a, cb, cv, w
-
-    @wp.func
-    def lim_triangle(x: wp.array(dtype=V), idx: wp.vec3i, rf: V4, params: wp.array2d(dtype=T), r: wp.int32,
-                     avr: wp.array2d(dtype=T), use_global: wp.int32, pex: T):
-        """Lim (+ global area/volume, back pressure, inside pressure ``pex``) forces on the 3 corners of one
-        triangle, and W (see :func:`lim_coefs`)."""
-        x12, x13, n, nhat, coef_a, cb, cv, w = lim_coefs(x, idx, rf, params, r, avr, use_global, pex)
-        half = T(0.5)
-        two = T(2.0)
-        l1sq = rf[0]
-        l2sq = rf[1]
-        d0 = rf[2]
         x23 = x13 - x12
         ga0 = half * wp.cross(nhat, x23)
         ga1 = -half * wp.cross(nhat, x13)
         ga2 = half * wp.cross(nhat, x12)
         gn1 = two * l2sq * x12 - two * d0 * x13
         gn2 = two * l1sq * x13 - two * d0 * x12
+        cb = dw_db * inv8
+        cv = coef_v / T(6.0)
         f1 = -(coef_a * ga1 + cb * gn1 + cv * n)
         f2 = -(coef_a * ga2 + cb * gn2 + cv * n)
         f0 = -(coef_a * ga0 - cb * (gn1 + gn2) + cv * n)
+        w = a0 * (half * ka * (alpha2 + a3 * alpha2 * alpha + a4 * alpha2 * alpha2)
+                  + mu * (beta + b1 * alpha * beta + b2 * beta * beta))
         return f0, f1, f2, w
-
-    @wp.func
-    def lim_corner(x: wp.array(dtype=V), idx: wp.vec3i, corner: wp.int32, rf: V4, params: wp.array2d(dtype=T),
-                   r: wp.int32, avr: wp.array2d(dtype=T), use_global: wp.int32, pex: T):
-        """The force on one corner (0, 1, 2) of :func:`lim_triangle`, with the same operations (bit-identical):
-        the per-vertex gather needs one corner of each of its triangles, not three."""
-        x12, x13, n, nhat, coef_a, cb, cv, w = lim_coefs(x, idx, rf, params, r, avr, use_global, pex)
-        half = T(0.5)
-        two = T(2.0)
-        l1sq = rf[0]
-        l2sq = rf[1]
-        d0 = rf[2]
-        fc = V()
-        if corner == 1:
-            fc = -(coef_a * (-half * wp.cross(nhat, x13)) + cb * (two * l2sq * x12 - two * d0 * x13) + cv * n)
-        elif corner == 2:
-            fc = -(coef_a * (half * wp.cross(nhat, x12)) + cb * (two * l1sq * x13 - two * d0 * x12) + cv * n)
-        else:
-            gn1 = two * l2sq * x12 - two * d0 * x13
-            gn2 = two * l1sq * x13 - two * d0 * x12
-            fc = -(coef_a * (half * wp.cross(nhat, x13 - x12)) - cb * (gn1 + gn2) + cv * n)
-        return fc
 
     @wp.func
     def gas_pressure(gas: wp.array2d(dtype=T), gvol: wp.array(dtype=T), gas_on: wp.int32, r: wp.int32):
@@ -197,9 +161,9 @@ def _kernels(dtype):
             wp.atomic_add(energy, r, E_LIM, w)
 
     @wp.func
-    def dihedral_core(xa: V, xb: V, xc: V, xd: V):
-        """Shared part of a dihedral (mesh.py convention): the edge e = b - a, the two face normals n1, n2 (not
-        normalised), |e|^2, |e|, |n1|^2, |n2|^2, and (y, x) with theta = atan2(y, x)."""
+    def dihedral_terms(xa: V, xb: V, xc: V, xd: V):
+        """(y, x) with theta = atan2(y, x), and the gradients of theta with respect to a, b, c, d (mesh.py
+        convention): y = ((n1 x n2) . e) / |e|, x = n1 . n2, so sin / cos theta need no atan2."""
         e = xb - xa
         n1 = wp.cross(e, xc - xa)
         n2 = wp.cross(xd - xb, e)
@@ -209,13 +173,6 @@ def _kernels(dtype):
         n2sq = wp.max(wp.dot(n2, n2), T(1.0e-30))
         ys = wp.dot(wp.cross(n1, n2), e) / el
         xs = wp.dot(n1, n2)
-        return e, n1, n2, el2, el, n1sq, n2sq, ys, xs
-
-    @wp.func
-    def dihedral_terms(xa: V, xb: V, xc: V, xd: V):
-        """(y, x) with theta = atan2(y, x), and the gradients of theta with respect to a, b, c, d (mesh.py
-        convention): y = ((n1 x n2) . e) / |e|, x = n1 . n2, so sin / cos theta need no atan2."""
-        e, n1, n2, el2, el, n1sq, n2sq, ys, xs = dihedral_core(xa, xb, xc, xd)
         gc = -(el / n1sq) * n1
         gd = -(el / n2sq) * n2
         sc = wp.dot(xc - xa, e) / el2
@@ -224,17 +181,6 @@ def _kernels(dtype):
         ga = -(one - sc) * gc - (one - sd) * gd
         gb = -sc * gc - sd * gd
         return ys, xs, ga, gb, gc, gd
-
-    @wp.func
-    def sincos_shift(ys: T, xs: T, cs0: V2):
-        """sin and cos of (theta - theta0) from theta = atan2(ys, xs) and ``cs0 = (cos theta0, sin theta0)``."""
-        h = wp.sqrt(ys * ys + xs * xs)
-        st = T(0.0)
-        ct = T(1.0)  # atan2(0, 0) = 0
-        if h > T(0.0):
-            st = ys / h
-            ct = xs / h
-        return st * cs0[0] - ct * cs0[1], ct * cs0[0] + st * cs0[1]
 
     @wp.func
     def dihedral(xa: V, xb: V, xc: V, xd: V):
@@ -251,32 +197,13 @@ def _kernels(dtype):
         the gather kernel's float64 time on the CPU).
         """
         ys, xs, ga, gb, gc, gd = dihedral_terms(xa, xb, xc, xd)
-        sdt, cdt = sincos_shift(ys, xs, cs0)
-        return sdt, cdt, ga, gb, gc, gd
-
-    @wp.func
-    def kantor_role(xa: V, xb: V, xc: V, xd: V, cs0: V2, role: wp.int32):
-        """sin(theta - theta0) and the gradient of theta with respect to vertex ``role`` (0..3 = a, b, c, d) of
-        :func:`kantor_edge`, with the same operations (bit-identical): a wing vertex (c, d) needs one normal's
-        term, not the edge projections."""
-        e, n1, n2, el2, el, n1sq, n2sq, ys, xs = dihedral_core(xa, xb, xc, xd)
-        g = V()
-        if role == 2:
-            g = -(el / n1sq) * n1
-        elif role == 3:
-            g = -(el / n2sq) * n2
-        else:
-            gc = -(el / n1sq) * n1
-            gd = -(el / n2sq) * n2
-            sc = wp.dot(xc - xa, e) / el2
-            sd = wp.dot(xd - xa, e) / el2
-            one = T(1.0)
-            if role == 0:
-                g = -(one - sc) * gc - (one - sd) * gd
-            else:
-                g = -sc * gc - sd * gd
-        sdt, cdt = sincos_shift(ys, xs, cs0)
-        return sdt, g
+        h = wp.sqrt(ys * ys + xs * xs)
+        st = T(0.0)
+        ct = T(1.0)  # atan2(0, 0) = 0
+        if h > T(0.0):
+            st = ys / h
+            ct = xs / h
+        return st * cs0[0] - ct * cs0[1], ct * cs0[0] + st * cs0[1], ga, gb, gc, gd
 
     @kern
     def kantor_kernel(x: wp.array(dtype=V), f: wp.array(dtype=V), dih: wp.array(dtype=wp.vec4i),
@@ -322,7 +249,13 @@ def _kernels(dtype):
             code = tri_slot[k]
             t = code >> 2
             corner = code & 3
-            fi = fi + lim_corner(x, tri[t], corner, ref[t], params, r, avr, use_global, pex)
+            f0, f1, f2, w = lim_triangle(x, tri[t], ref[t], params, r, avr, use_global, pex)
+            if corner == 0:
+                fi = fi + f0
+            elif corner == 1:
+                fi = fi + f1
+            else:
+                fi = fi + f2
         kb = params[r, P_KB_KANTOR]
         if do_kantor != 0 and kb != T(0.0):
             for k in range(dih_start[s], dih_start[s + 1]):
@@ -330,8 +263,16 @@ def _kernels(dtype):
                 e = code >> 2
                 role = code & 3
                 q = dih[e]
-                sdt, gr = kantor_role(x[q[0]], x[q[1]], x[q[2]], x[q[3]], cs0[e], role)
-                fi = fi + (-kb * sdt) * gr
+                sdt, cdt, ga, gb, gc, gd = kantor_edge(x[q[0]], x[q[1]], x[q[2]], x[q[3]], cs0[e])
+                coef = -kb * sdt
+                if role == 0:
+                    fi = fi + coef * ga
+                elif role == 1:
+                    fi = fi + coef * gb
+                elif role == 2:
+                    fi = fi + coef * gc
+                else:
+                    fi = fi + coef * gd
         g = gidx[s]
         f[g] = f[g] + fi
 
