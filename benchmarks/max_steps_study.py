@@ -29,35 +29,48 @@ def read_records(path: str) -> list[dict]:
     return CampaignStore(path).read(warn=False)
 
 
+def cap_curves(chains: list[np.ndarray], ok: np.ndarray, cap: int) -> tuple[np.ndarray, np.ndarray]:
+    """FIRE work of each curve (updates) and whether it stays 'ok' under a per-point cap ``cap``: the first point
+    past the cap ends its curve after ``cap`` updates there (``stop_unstable``); a curve stays 'ok' when it was 'ok'
+    and every point converged within the cap."""
+    work = np.empty(len(chains))
+    kept = np.zeros(len(chains), dtype=bool)
+    for i, c in enumerate(chains):
+        over = np.nonzero(c > cap)[0]
+        if over.size:
+            work[i] = c[:over[0]].sum() + cap
+        else:
+            work[i] = c.sum()
+            kept[i] = ok[i]
+    return work, kept
+
+
+def chains_of(records: list[dict]) -> list[np.ndarray]:
+    """Per record, its FIRE updates per chain point (``provenance.info.fire_steps_chain``); SystemExit if absent."""
+    if not records or any("fire_steps_chain" not in r.get("provenance", {}).get("info", {}) for r in records):
+        raise SystemExit("a record lacks provenance.info.fire_steps_chain (the per-point FIRE updates that "
+                         "quasi-static records streamed by an async slot-refill run hold)")
+    return [np.asarray(r["provenance"]["info"]["fire_steps_chain"], dtype=np.int64) for r in records]
+
+
 def study(records: list[dict], caps: list[int]) -> dict:
     """Per cap (FIRE updates per chain point): ok kept / lost, lost curves' k_b (range, median) and k_a range (DPD
     units), FIRE work relative to
     the records' own, and the largest / 99.9th-percentile per-curve work (FIRE updates)."""
     rows = [r for r in records if "fire_steps_chain" in r.get("provenance", {}).get("info", {})]
-    if not rows:
-        raise SystemExit("no record carries provenance.info.fire_steps_chain (the per-point FIRE updates that "
-                         "quasi-static records streamed by an async slot-refill run hold)")
+    chains = chains_of(rows)
     settings = rows[0]["provenance"]["info"].get("settings", {})
     run_cap = int(settings.get("fire", {}).get("max_steps", 0)) or None
     if run_cap is not None and any(c > run_cap for c in caps):
         raise SystemExit(f"caps {caps} exceed the run's own max_steps ({run_cap}): the records cannot say what a "
                          "larger cap would do")
-    chains = [np.asarray(r["provenance"]["info"]["fire_steps_chain"], dtype=np.int64) for r in rows]
     ok = np.array([r["status"] == "ok" for r in rows])
     kb = np.array([r["params"]["kb"] for r in rows], dtype=np.float64)
     ka = np.array([r["params"]["ka"] for r in rows], dtype=np.float64)
     base = float(sum(int(c.sum()) for c in chains))
     out = {"n_records": len(rows), "ok": int(ok.sum()), "run_max_steps": run_cap, "caps": []}
     for cap in caps:
-        work = np.empty(len(rows))
-        kept = np.zeros(len(rows), dtype=bool)
-        for i, c in enumerate(chains):
-            over = np.nonzero(c > cap)[0]
-            if over.size:  # the first point past the cap ends the curve after `cap` updates there
-                work[i] = c[:over[0]].sum() + cap
-            else:
-                work[i] = c.sum()
-                kept[i] = ok[i]
+        work, kept = cap_curves(chains, ok, cap)
         lost = ok & ~kept
         out["caps"].append({
             "max_steps": int(cap), "ok": int(kept.sum()), "lost": int(lost.sum()),

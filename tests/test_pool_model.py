@@ -45,3 +45,36 @@ def test_cost_table_and_interpolation(pm):
     assert cost(10, 10) == pytest.approx(1.0) and cost(10, 1) == pytest.approx(0.2)
     assert cost(5, 5) == pytest.approx(0.1 + 0.9 * 4 / 9)  # all relaxing, between the measured sizes
     assert cost(20, 20) == pytest.approx(2.0)  # beyond the largest size: proportional
+
+
+def test_cost_lines_match_on_kernels_text_too(pm):
+    lines = [{"kernels": "kantor_edge, gas on the shell pass", "rows": [
+        {"graph": True, "replicas": 4, "active": 4, "ms_per_iteration": 0.4}]}]
+    assert pm.cost_table(lines, "kantor_edge") == {4: (0.4, 0.4)}
+    assert pm.cost_table(lines, "64 threads") == {}
+
+
+def test_max_steps_models_the_capped_work_and_the_kept_curves(pm, tmp_path, capsys):
+    import json
+
+    from bubblecal.data.store import CampaignStore, make_record
+
+    store = CampaignStore.create(tmp_path / "s.store")
+    full = {"ka": 1.0, "kb": 1.0, "b1": 0.0, "b2": 0.0, "a3": 0.0, "a4": 0.0}
+    # two curves: 10 + 20 updates (ok), 5 + 60 (ok; a cap of 30 cuts it after 5 + 30)
+    for i, chain in enumerate(([10, 20], [5, 60])):
+        store.append(make_record(sample_id=f"s{i}", setup="indentation", params={**full, "ka": float(i + 1)},
+                                 radius_dpd=6.4, x=[0.0, 1.0], y=[0.0, 0.1], status="ok", seed=i,
+                                 tier="quasistatic", provenance={"info": {
+                                     "fire_steps": sum(chain), "fire_steps_chain": chain,
+                                     "settings": {"fire": {"max_steps": 100}}}}))
+    costs = tmp_path / "c.jsonl"
+    costs.write_text(json.dumps({"threads_per_replica": "t", "rows": [
+        {"graph": True, "replicas": 2, "active": 2, "ms_per_iteration": 1.0},
+        {"graph": True, "replicas": 2, "active": 1, "ms_per_iteration": 1.0}]}) + "\n")
+    assert pm.main([str(tmp_path / "s.store"), "--costs", str(costs), "--slots", "2", "--max-steps", "30"]) == 0
+    rows = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["rows"]
+    by = {r["max_steps"]: r for r in rows}
+    # 2 slots at 1 ms per batch iteration: the pool lasts as long as its longest curve
+    assert by[None]["model_s"] == pytest.approx(0.065) and by[None]["ok"] == 2
+    assert by[30]["model_s"] == pytest.approx(0.035) and by[30]["ok"] == 1

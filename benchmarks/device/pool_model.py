@@ -1,14 +1,17 @@
 """Model of a quasi-static slot-refill pool's wall time from its curves' FIRE work and measured iteration costs.
 
     python3 benchmarks/device/pool_model.py STORE [STORE ...] --costs benchmarks/figures/qs_iteration_cost_h100.jsonl
-        [--slots 500,1000] [--threads-tag TEXT ...]
+        [--slots 500,1000] [--threads-tag TEXT ...] [--max-steps 40000,30000]
 
 Replays the schedule of ``quasistatic_*(..., max_replicas=R)`` (softest k_a first; a finished slot takes the next
 curve; once the pool is empty and at most 1/8 of the slots relax, they move to a batch of their own size while
 that batch has more than 8 slots) with each curve's total FIRE iterations from the store, and charges each batch
 iteration the measured ms of ``benchmarks/qs_iteration_cost.py`` for its size and relaxing count (linear in the
 relaxing count between one and all, linear in between measured sizes).  Host work (point measurements, refills)
-is not modelled: against the measured session-11 pools the model was 8-11 % short.  Prints a table and a JSON line.
+is not modelled: against the measured session-11 pools the model was 8-11 % short.  ``--max-steps``: also model
+smaller per-point FIRE caps from the records' ``fire_steps_chain`` (``benchmarks/max_steps_study.py``: a cut curve
+costs its steps up to the cut plus the cap, and counts as 'ok' only if every point converged within the cap).  A
+``--threads-tag`` matches a cost line's ``threads_per_replica`` or ``kernels`` text.  Prints a table and a JSON line.
 """
 
 from __future__ import annotations
@@ -24,6 +27,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fire_work import load_work  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from max_steps_study import cap_curves, chains_of  # noqa: E402
+
 COMPACT_BELOW, COMPACT_MIN = 0.125, 8  # as bubblecal.sim.experiments.quasistatic
 
 
@@ -32,7 +38,7 @@ def cost_table(lines: Sequence[dict], tag: str | None = None) -> dict[int, tuple
     (CUDA-graph rows; ``tag``: only lines whose ``threads_per_replica`` contains it; later lines win)."""
     table: dict[int, list] = {}
     for d in lines:
-        if tag is not None and tag not in str(d.get("threads_per_replica", "")):
+        if tag is not None and tag not in f"{d.get('threads_per_replica', '')} {d.get('kernels', '')}":
             continue
         for r in d["rows"]:
             if not r["graph"]:
@@ -83,22 +89,33 @@ def main(argv=None) -> int:
     ap.add_argument("--slots", default="500,1000")
     ap.add_argument("--threads-tag", action="append", default=None,
                     help="cost lines whose threads_per_replica contains this (repeat: one table each)")
+    ap.add_argument("--max-steps", default="", help="comma list of per-point FIRE caps to model (records need "
+                    "fire_steps_chain); the run's own cap is always modelled")
     args = ap.parse_args(argv)
+    caps = [int(v) for v in args.max_steps.split(",") if v.strip()]
     lines = [json.loads(s) for s in Path(args.costs).read_text().splitlines() if s.strip()]
     tags = args.threads_tag or sorted({str(d.get("threads_per_replica")) for d in lines})
     base = cost_table(lines, tags[0])
     out = []
     for path in args.stores:
-        _, steps, status, ka = load_work(path)
-        ok = int(np.sum(status == "ok"))
+        recs, steps, status, ka = load_work(path)
         fin = np.isfinite(steps)
+        variants = [(None, steps[fin], int(np.sum(status == "ok")))]
+        if caps:
+            chains = chains_of([r for r, f in zip(recs, fin, strict=True) if f])
+            for cap in caps:
+                work, kept = cap_curves(chains, status[fin] == "ok", cap)
+                variants.append((cap, work, int(kept.sum())))
         for tag in tags:
             table = {**base, **cost_table(lines, tag)}  # sizes measured only before keep those costs
             for R in (int(s) for s in args.slots.split(",")):
-                t = pool_seconds(steps[fin], ka[fin], R, iteration_cost(table))
-                out.append({"store": path, "threads": tag, "slots": R, "model_s": t, "ok": ok,
-                            "ok_per_gpu_hour": ok / t * 3600.0})
-                print(f"{Path(path).name:<48} {tag[:40]:<40} R={R:<5d} {t:7.0f} s  {ok / t * 3600:9,.0f} ok/GPU-h")
+                for cap, work, ok in variants:
+                    t = pool_seconds(work, ka[fin], R, iteration_cost(table))
+                    out.append({"store": path, "threads": tag, "slots": R, "max_steps": cap, "model_s": t, "ok": ok,
+                                "ok_per_gpu_hour": ok / t * 3600.0})
+                    cap_s = "run's" if cap is None else str(cap)
+                    print(f"{Path(path).name:<32} {tag[:40]:<40} R={R:<5d} max_steps {cap_s:>6} {t:7.0f} s  "
+                          f"{ok / t * 3600:9,.0f} ok/GPU-h")
     print(json.dumps({"benchmark": "pool_model", "rows": out}))
     return 0
 
