@@ -7,10 +7,10 @@ the cap, with the same iterates (the same curve), and a cut curve costs its step
 This prints, per cap: ok curves kept and lost, where the lost ones sit in k_b and k_a, the pool's FIRE work relative
 to the run's, and the largest per-curve work (the pool's tail is set by its longest curves).
 
-    python benchmarks/max_steps_study.py STORE_OR_JSONL [--caps 100000,50000,40000,30000,20000]
+    python benchmarks/max_steps_study.py STORE [--caps 100000,50000,40000,30000,20000]
 
-Input: a campaign store folder, or a ``.jsonl`` / ``.jsonl.gz`` of records, made with ``stop_unstable = true`` and
-a cap at least as large as every cap asked for.  Last stdout line: one JSON summary.
+Input: a campaign store folder or its ``.jsonl.gz`` export, made with ``stop_unstable = true`` and a cap at least as
+large as every cap asked for.  Last stdout line: one JSON summary.
 """
 
 from __future__ import annotations
@@ -55,8 +55,8 @@ def chains_of(records: list[dict]) -> list[np.ndarray]:
 
 def study(records: list[dict], caps: list[int]) -> dict:
     """Per cap (FIRE updates per chain point): ok kept / lost, lost curves' k_b (range, median) and k_a range (DPD
-    units), FIRE work relative to
-    the records' own, and the largest / 99.9th-percentile per-curve work (FIRE updates)."""
+    units), FIRE work relative to the records' own, and the largest / 99.9th-percentile per-curve work (FIRE
+    updates).  Records without ``fire_steps_chain`` are left out."""
     rows = [r for r in records if "fire_steps_chain" in r.get("provenance", {}).get("info", {})]
     chains = chains_of(rows)
     settings = rows[0]["provenance"]["info"].get("settings", {})
@@ -84,7 +84,7 @@ def study(records: list[dict], caps: list[int]) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("records", help="campaign store folder or .jsonl(.gz) of quasi-static records")
+    ap.add_argument("records", help="campaign store folder or its .jsonl.gz export (quasi-static records)")
     ap.add_argument("--caps", default="100000,50000,40000,30000,20000", help="comma list of max_steps values")
     args = ap.parse_args(argv)
     try:

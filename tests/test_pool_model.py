@@ -78,3 +78,6 @@ def test_max_steps_models_the_capped_work_and_the_kept_curves(pm, tmp_path, caps
     # 2 slots at 1 ms per batch iteration: the pool lasts as long as its longest curve
     assert by[None]["model_s"] == pytest.approx(0.065) and by[None]["ok"] == 2
     assert by[30]["model_s"] == pytest.approx(0.035) and by[30]["ok"] == 1
+    for bad in ("x", "0"):
+        with pytest.raises(SystemExit, match="--max-steps .*integers >= 1"):
+            pm.main([str(tmp_path / "s.store"), "--costs", str(costs), "--max-steps", bad])

@@ -35,7 +35,8 @@ COMPACT_BELOW, COMPACT_MIN = 0.125, 8  # as bubblecal.sim.experiments.quasistati
 
 def cost_table(lines: Sequence[dict], tag: str | None = None) -> dict[int, tuple[float, float]]:
     """Batch size -> (ms per iteration with all relaxing, with one relaxing) from qs_iteration_cost JSON lines
-    (CUDA-graph rows; ``tag``: only lines whose ``threads_per_replica`` contains it; later lines win)."""
+    (CUDA-graph rows; ``tag``: only lines whose ``threads_per_replica`` or ``kernels`` text contains it; later
+    lines win)."""
     table: dict[int, list] = {}
     for d in lines:
         if tag is not None and tag not in f"{d.get('threads_per_replica', '')} {d.get('kernels', '')}":
@@ -88,11 +89,16 @@ def main(argv=None) -> int:
     ap.add_argument("--costs", required=True, help="JSON lines of benchmarks/qs_iteration_cost.py")
     ap.add_argument("--slots", default="500,1000")
     ap.add_argument("--threads-tag", action="append", default=None,
-                    help="cost lines whose threads_per_replica contains this (repeat: one table each)")
+                    help="cost lines whose threads_per_replica or kernels text contains this (repeat: one table each)")
     ap.add_argument("--max-steps", default="", help="comma list of per-point FIRE caps to model (records need "
                     "fire_steps_chain); the run's own cap is always modelled")
     args = ap.parse_args(argv)
-    caps = [int(v) for v in args.max_steps.split(",") if v.strip()]
+    try:
+        caps = [int(v) for v in args.max_steps.split(",") if v.strip()]
+    except ValueError:
+        raise SystemExit(f"--max-steps {args.max_steps!r}: expected a comma list of integers >= 1") from None
+    if any(c < 1 for c in caps):
+        raise SystemExit(f"--max-steps {args.max_steps!r}: expected a comma list of integers >= 1")
     lines = [json.loads(s) for s in Path(args.costs).read_text().splitlines() if s.strip()]
     tags = args.threads_tag or sorted({str(d.get("threads_per_replica")) for d in lines})
     base = cost_table(lines, tags[0])
