@@ -144,15 +144,16 @@ def compliance_exponents(y: np.ndarray, x: np.ndarray, ka: np.ndarray, kb: np.nd
 
 
 def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
+    from bubblecal.data.names import SHELL_PARAMETERS
     from bubblecal.sim.mesh import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
-    from bubblecal.surrogates.dataset import PARAM_NAMES, diameter_um_from_radius
+    from bubblecal.surrogates.dataset import diameter_um_from_radius
 
     dia = diameter if spec.get("nominal_radius") else diameter_um_from_radius(float(np.median(ts.radius_dpd)))
     sub = int(spec.get("subdivisions", args.subdivisions))
     tier = get_tier("quasistatic", subdivisions=sub, dtype=args.dtype, gas_p0=float(spec.get("gas_p0", 3.0)),
                     indentation_convention=spec.get("convention", "bubblecal-v1"))
-    params = {k: ts.params[:, j].copy() for j, k in enumerate(PARAM_NAMES)}
+    params = {k: ts.params[:, j].copy() for j, k in enumerate(SHELL_PARAMETERS)}
     params["ka"] *= float(spec.get("ka", 1.0))
     params["kb"] *= float(spec.get("kb", 1.0))
     req = CurveRequest(protocol="indentation", diameter_um=dia, grid=tuple(ts.x[0]), params=params,

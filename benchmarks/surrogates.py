@@ -58,7 +58,8 @@ def cmd_throughput(args) -> dict:
     import jax.numpy as jnp
     import numpy as np
 
-    from bubblecal.surrogates.bundle import PARAM_NAMES, Surrogate, load
+    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.surrogates.bundle import Surrogate, load
     from bubblecal.surrogates.mlp import flops_per_point, matmul_floor_forward, xavier_uniform_weights
 
     if args.weights:
@@ -67,8 +68,8 @@ def cmd_throughput(args) -> dict:
         hidden = _parse_hidden(args.hidden)
         sizes = [7, *hidden, 1]
         w, b = xavier_uniform_weights(sizes, seed=0)
-        md = {"setup": "compression", "diameter_um": 2.1, "radius_dpd": 4.2, "param_names": list(PARAM_NAMES),
-              "input_names": [*PARAM_NAMES, "displacement"], "param_ranges": {k: [0.0, 1.0] for k in PARAM_NAMES},
+        md = {"setup": "compression", "diameter_um": 2.1, "radius_dpd": 4.2, "param_names": list(SHELL_PARAMETERS),
+              "input_names": [*SHELL_PARAMETERS, "displacement"], "param_ranges": {k: [0.0, 1.0] for k in SHELL_PARAMETERS},
               "x_range": [0.0, 1.0], "holdout_score": float("nan"), "data_hash": "random-weights",
               "architecture": {"hidden": list(hidden), "activation": "tanh"}}
         sur = Surrogate(w, b, np.zeros(7), np.ones(7), np.zeros(1), np.ones(1), md)

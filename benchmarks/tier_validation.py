@@ -111,8 +111,8 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
     same grid and radius; their published curve is NaN (tier-vs-tier comparison only)."""
     import dataclasses
 
+    from bubblecal.data.names import SHELL_PARAMETERS
     from bubblecal.sim.campaign import lhs_design
-    from bubblecal.surrogates.dataset import PARAM_NAMES
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
     names = [c for c in available_campaigns() if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
@@ -120,7 +120,7 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     cfg = load_campaign_file(names[0]).config
     des = lhs_design(dataclasses.replace(cfg, n_samples=n, seed=cfg.seed + 7919 * seed))
-    p_new = np.stack([np.asarray(des[k], dtype=np.float64) for k in PARAM_NAMES], axis=1)
+    p_new = np.stack([np.asarray(des[k], dtype=np.float64) for k in SHELL_PARAMETERS], axis=1)
     m = ts.x.shape[1]
     return dataclasses.replace(
         ts, params=np.vstack([ts.params, p_new]), radius_dpd=np.r_[ts.radius_dpd, np.full(n, ts.radius_dpd[0])],
@@ -135,8 +135,9 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
 def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
     """A diameter without published rows (e.g. 3.4 um): ``n`` LHS rows of the shipped campaign's box on its
     grid and radius (tier-vs-tier comparison only)."""
+    from bubblecal.data.names import SHELL_PARAMETERS
     from bubblecal.data.units import radius_dpd_from_diameter_um
-    from bubblecal.surrogates.dataset import PARAM_NAMES, TrainingSet
+    from bubblecal.surrogates.dataset import TrainingSet
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
     names = [c for c in available_campaigns() if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
@@ -144,7 +145,7 @@ def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     grid = np.asarray(load_campaign_file(names[0]).config.grid_for(diameter), dtype=np.float64)
     # one carrier row holds the grid and radius that with_lhs_rows copies; it is dropped afterwards
-    carrier = TrainingSet(setup=protocol, params=np.zeros((1, len(PARAM_NAMES))),
+    carrier = TrainingSet(setup=protocol, params=np.zeros((1, len(SHELL_PARAMETERS))),
                           radius_dpd=np.array([radius_dpd_from_diameter_um(diameter)]), x=grid[None, :],
                           y=np.full((1, grid.size), np.nan), curve_id=np.array(["grid"]), source=f"lhs:{names[0]}")
     out = with_lhs_rows(carrier, protocol, diameter, n, seed)
@@ -288,10 +289,11 @@ def main(argv=None) -> int:
     import warp as wp
 
     wp.config.quiet = True
+    from bubblecal.data.names import SHELL_PARAMETERS
     from bubblecal.sim.experiments.md_loading import ProtocolSteps, steps_per_curve
     from bubblecal.sim.mesh import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
-    from bubblecal.surrogates.dataset import PARAM_NAMES, diameter_um_from_radius
+    from bubblecal.surrogates.dataset import diameter_um_from_radius
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -404,7 +406,7 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             for b0 in range(0, ts.n_curves, rep):
                 idx = np.arange(b0, min(ts.n_curves, b0 + rep))
-                params = {name: ts.params[idx, j] for j, name in enumerate(PARAM_NAMES)}
+                params = {name: ts.params[idx, j] for j, name in enumerate(SHELL_PARAMETERS)}
                 req = CurveRequest(protocol=protocol, diameter_um=dia, grid=tuple(ts.x[idx[0]]), params=params,
                                    seeds=tuple(args.seed + 1000 * k + int(i) for i in idx),
                                    subdivisions=settings["subdivisions"])

@@ -2,7 +2,7 @@
 
 In the hierarchy each acoustic dataset has its own latent shell parameters: Definity's 14
 bubbles (Goertz et al. 2006) form one dataset, SonoVue's 3 bubbles (van der Meer et al. 2004)
-three datasets (``shared/docs/inference.md`` section 3).
+three datasets (docs/inference.md, section 3).
 """
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data.curves import DataError
+from bubblecal.data.names import AGENTS
 
 __all__ = ["AcousticObservation", "AcousticDataset", "acoustic_observations", "acoustic_datasets",
            "load_acoustic_table"]
 
 _COLUMNS = ("agent", "source", "source_figure", "diameter_um", "resonance_frequency_MHz")
-_AGENTS = ("definity", "sonovue")
 
 
 @dataclass(frozen=True)
@@ -72,8 +72,8 @@ def load_acoustic_table(path: str | Path) -> list[AcousticObservation]:
     out = []
     for k, row in enumerate(rows, start=1):
         agent = (row["agent"] or "").strip().lower()
-        if agent not in _AGENTS:
-            problems.append(f"row {k}, column 'agent': {row['agent']!r} not one of {', '.join(_AGENTS)}")
+        if agent not in AGENTS:
+            problems.append(f"row {k}, column 'agent': {row['agent']!r} not one of {', '.join(AGENTS)}")
         values = {}
         for col in ("diameter_um", "resonance_frequency_MHz"):
             try:
@@ -85,7 +85,7 @@ def load_acoustic_table(path: str | Path) -> list[AcousticObservation]:
                 problems.append(f"row {k}, column {col!r}: {value} must be finite and > 0")
                 continue
             values[col] = value
-        if len(values) == 2 and agent in _AGENTS:
+        if len(values) == 2 and agent in AGENTS:
             out.append(AcousticObservation(agent, values["diameter_um"], values["resonance_frequency_MHz"],
                                            row["source"].strip(), row["source_figure"].strip()))
     if problems:
@@ -99,8 +99,8 @@ def acoustic_observations(agent: str | None = None) -> list[AcousticObservation]
     rows = load_acoustic_table(path)
     if agent is None:
         return rows
-    if agent.lower() not in _AGENTS:
-        raise DataError(path, [f"unknown agent {agent!r}; allowed: {', '.join(_AGENTS)}"])
+    if agent.lower() not in AGENTS:
+        raise DataError(path, [f"unknown agent {agent!r}; allowed: {', '.join(AGENTS)}"])
     return [r for r in rows if r.agent == agent.lower()]
 
 

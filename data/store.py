@@ -1,7 +1,7 @@
 """Campaign store: the append-only record of finished simulation samples (writer + reader).
 
-Issue 6 (simulation campaigns, :mod:`bubblecal.sim.campaign`) writes it; :mod:`bubblecal.surrogates.dataset`
-reads it for training.  It lives in the data layer so that both ``sim`` and ``surrogates`` may import
+Simulation campaigns (:mod:`bubblecal.campaigns`) write it; the surrogate training sets
+(:mod:`bubblecal.surrogates.training`) read it.  It lives in the data layer so that both ``sim`` and ``surrogates`` may import
 it.  Format version 1 (``'invalid'`` status and ``'ringdown'`` setup added backwards-compatibly: every
 older store still reads):
 
@@ -69,17 +69,15 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from bubblecal.data.files import atomic_write
+from bubblecal.data.names import PROTOCOLS, RECORD_STATUSES, SHELL_PARAMETERS
+from bubblecal.data.names import code_version as running_code_version
 
-__all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "STATUSES", "SETUPS", "PARAM_NAMES",
-           "StoreError", "CampaignStore", "make_record", "validate_record", "export_compressed"]
+__all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "StoreError", "CampaignStore", "make_record",
+           "validate_record", "export_compressed"]
 
 STORE_FORMAT = "bubblecal-campaign-store"
 STORE_FORMAT_VERSION = 1
 RECORD_VERSION = 1
-#: Record statuses: the tiers' vocabulary (bubblecal.sim.tiers.STATUSES) plus 'invalid' (non-finite curve).
-STATUSES = ("ok", "ruptured", "failed", "unstable", "timeout", "invalid")
-PARAM_NAMES = ("ka", "kb", "b1", "b2", "a3", "a4")
-SETUPS = ("compression", "indentation", "ringdown")
 REQUIRED = ("v", "sample_id", "curve_id", "setup", "params", "radius_dpd", "x", "y", "status", "seed",
             "tier", "code_version", "provenance", "written_utc")
 
@@ -103,15 +101,6 @@ def _checksummed_line(rec: Mapping) -> str:
     return _canonical(rec) + "\n"
 
 
-def _code_version() -> str:
-    try:
-        from bubblecal import __version__
-
-        return str(__version__)
-    except Exception:  # pragma: no cover
-        return "unknown"
-
-
 def make_record(*, sample_id: str, setup: str, params: Mapping[str, float], radius_dpd: float,
                 x: Iterable[float], y: Iterable[float], status: str, seed: int, tier: str,
                 curve_id: str | None = None, provenance: Mapping | None = None, message: str | None = None,
@@ -120,10 +109,10 @@ def make_record(*, sample_id: str, setup: str, params: Mapping[str, float], radi
     rec = {
         "v": RECORD_VERSION, "sample_id": str(sample_id),
         "curve_id": str(curve_id if curve_id is not None else sample_id), "setup": setup,
-        "params": {k: float(params[k]) for k in PARAM_NAMES} if all(k in params for k in PARAM_NAMES) else dict(params),
+        "params": {k: float(params[k]) for k in SHELL_PARAMETERS} if all(k in params for k in SHELL_PARAMETERS) else dict(params),
         "radius_dpd": float(radius_dpd), "x": [float(v) for v in x], "y": [float(v) for v in y],
         "status": status, "seed": int(seed), "tier": str(tier),
-        "code_version": code_version or _code_version(), "provenance": dict(provenance or {}),
+        "code_version": code_version or running_code_version(), "provenance": dict(provenance or {}),
         "written_utc": _utc_now(),
     }
     if message is not None:
@@ -139,20 +128,20 @@ def validate_record(rec: Mapping, where: str = "record") -> None:
             raise StoreError(f"{where}: missing field '{key}'")
     if rec["v"] != RECORD_VERSION:
         raise StoreError(f"{where}: field 'v' is {rec['v']!r}, this code reads record version {RECORD_VERSION}")
-    if rec["setup"] not in SETUPS:
-        raise StoreError(f"{where}: field 'setup' must be one of {SETUPS}, got {rec['setup']!r}")
-    if rec["status"] not in STATUSES:
-        raise StoreError(f"{where}: field 'status' must be one of {STATUSES}, got {rec['status']!r}")
+    if rec["setup"] not in PROTOCOLS:
+        raise StoreError(f"{where}: field 'setup' must be one of {PROTOCOLS}, got {rec['setup']!r}")
+    if rec["status"] not in RECORD_STATUSES:
+        raise StoreError(f"{where}: field 'status' must be one of {RECORD_STATUSES}, got {rec['status']!r}")
     params = rec["params"]
     if not isinstance(params, Mapping):
         raise StoreError(f"{where}: field 'params' must be an object")
-    for k in PARAM_NAMES:
+    for k in SHELL_PARAMETERS:
         if k not in params:
             raise StoreError(f"{where}: field 'params' lacks '{k}'")
     if len(rec["x"]) != len(rec["y"]):
         raise StoreError(f"{where}: fields 'x' and 'y' differ in length ({len(rec['x'])} vs {len(rec['y'])})")
     if rec["status"] == "ok":
-        vals = list(rec["x"]) + list(rec["y"]) + [params[k] for k in PARAM_NAMES] + [rec["radius_dpd"]]
+        vals = list(rec["x"]) + list(rec["y"]) + [params[k] for k in SHELL_PARAMETERS] + [rec["radius_dpd"]]
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
             raise StoreError(f"{where}: status 'ok' but non-finite numbers in params/radius_dpd/x/y")
         if len(rec["x"]) == 0:
@@ -192,7 +181,7 @@ class CampaignStore:
             return store
         store.path.mkdir(parents=True, exist_ok=True)
         header = {"format": STORE_FORMAT, "format_version": STORE_FORMAT_VERSION, "created_utc": _utc_now(),
-                  "description": description, "meta": dict(meta or {}), "code_version": _code_version()}
+                  "description": description, "meta": dict(meta or {}), "code_version": running_code_version()}
         atomic_write(store.header_path, lambda tmp: tmp.write_text(json.dumps(header, indent=2)))
         store.records_path.touch()
         return store
@@ -314,7 +303,7 @@ class CampaignStore:
 
     def counts(self) -> dict[str, int]:
         """Number of samples per status (latest record per sample)."""
-        out = dict.fromkeys(STATUSES, 0)
+        out = dict.fromkeys(RECORD_STATUSES, 0)
         for r in self.read(warn=False):
             out[r["status"]] = out.get(r["status"], 0) + 1
         return out

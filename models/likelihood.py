@@ -41,7 +41,6 @@ from jax.scipy.special import log_ndtr, logsumexp, ndtr, ndtri
 __all__ = [
     "SD_FLOOR_REL",
     "TAU_FLOOR_REL",
-    "SURROGATE_PARAMETERS",
     "sd_floor_for",
     "noise_sd",
     "normal_logpdf",
@@ -62,8 +61,6 @@ __all__ = [
 SD_FLOOR_REL = 1e-4
 #: Floor of the population spread τ, relative to the width of the prior range.
 TAU_FLOOR_REL = 1e-12
-#: Surrogate input order of the shell parameters (the last axis of ``params``).
-SURROGATE_PARAMETERS = ("ka", "kb", "b1", "b2", "a3", "a4")
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
@@ -100,7 +97,7 @@ def relative_normal_loglik(y, yhat, sigma, sd_floor):
 def predict_mechanical(surrogate: Callable, setup: str, params, d0, x):
     """Predicted curve ŷ at the loading coordinates ``x`` (DPD units; ``inference.md`` §2).
 
-    ``params`` (..., 6) in :data:`SURROGATE_PARAMETERS` order and ``d0`` (...) broadcast against ``x``
+    ``params`` (..., 6) in :data:`SHELL_PARAMETERS` order and ``d0`` (...) broadcast against ``x``
     following the surrogate's convention (leading shape of ``params`` broadcasts with ``x``).
 
     - compression (x = displacement, y = force): x̃ = max(0, x − d0), ŷ = max(0, S(Θ; x̃));

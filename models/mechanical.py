@@ -49,16 +49,16 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
+from bubblecal.data.names import MODEL_PARAMETERS, NONLINEAR_PARAMETERS, SHELL_PARAMETERS
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
-    SURROGATE_PARAMETERS,
     noise_sd,
     population_predictive_log_density,
     predict_mechanical,
     sd_floor_for,
 )
-from bubblecal.priors.spec import NONLINEAR_PARAMETERS, SHELL_PARAMETERS, PriorSpec
+from bubblecal.priors.spec import PriorSpec
 from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
 
 __all__ = [
@@ -157,10 +157,10 @@ def shell_params(values: Mapping, spec: PriorSpec):
 
     ``values`` maps free parameter names to arrays of a common batch shape (scalars for one Θ).
     """
-    free = [values[k] for k in SHELL_PARAMETERS if k in values]
+    free = [values[k] for k in MODEL_PARAMETERS if k in values]
     like = jnp.asarray(free[0]) if free else jnp.zeros(())
     cols = []
-    for k in SURROGATE_PARAMETERS:
+    for k in SHELL_PARAMETERS:
         v = values[k] if k in values else spec.fixed[k]
         cols.append(jnp.broadcast_to(jnp.asarray(v, dtype=like.dtype), like.shape))
     d0 = values["d0"] if "d0" in values else spec.fixed["d0"]

@@ -1,9 +1,6 @@
 """bubblecal.priors: user-editable prior/hyperprior TOML files (one per workflow) and their loader."""
 
 from bubblecal.priors.spec import (
-    NOISE_PARAMETERS,
-    NONLINEAR_PARAMETERS,
-    SHELL_PARAMETERS,
     Bounds,
     NoisePrior,
     ParameterPrior,
@@ -17,7 +14,7 @@ from bubblecal.priors.spec import (
 )
 
 __all__ = [
-    "SHELL_PARAMETERS", "NONLINEAR_PARAMETERS", "NOISE_PARAMETERS", "Bounds", "ParameterPrior", "NoisePrior",
+    "Bounds", "ParameterPrior", "NoisePrior",
     "PriorSpec", "PriorError", "available_priors", "check_priors", "load_priors", "prior_path",
     "workflow_file_name",
 ]

@@ -18,11 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.data.names import (
+    AGENTS,
+    LOADING_PROTOCOLS,
+    MODEL_PARAMETERS,
+    NOISE_PARAMETERS,
+    NONLINEAR_PARAMETERS,
+    PARAMETER_UNITS,
+    POSITIVE_PARAMETERS,
+)
+
 __all__ = [
-    "SHELL_PARAMETERS",
-    "NONLINEAR_PARAMETERS",
-    "NOISE_PARAMETERS",
-    "PARAMETER_UNITS",
     "Bounds",
     "ParameterPrior",
     "NoisePrior",
@@ -35,21 +41,6 @@ __all__ = [
     "workflow_file_name",
 ]
 
-#: Shell parameters in surrogate input order, followed by the offset d0.
-SHELL_PARAMETERS = ("ka", "kb", "b1", "b2", "a3", "a4", "d0")
-#: Parameters a reduced shell fixes to zero.
-NONLINEAR_PARAMETERS = ("b1", "b2", "a3", "a4")
-#: Noise amplitudes a file may declare.
-NOISE_PARAMETERS = ("sigma", "sigma_mech", "sigma_ac")
-#: Unit of each parameter (DPD).
-PARAMETER_UNITS = {
-    "ka": "DPD 2-D modulus", "kb": "DPD energy (k_BT)", "b1": "-", "b2": "-", "a3": "-", "a4": "-",
-    "d0": "DPD length", "sigma": "-", "sigma_mech": "-", "sigma_ac": "-",
-}
-#: Parameters whose prior must be strictly positive (moduli).
-_POSITIVE = ("ka", "kb")
-_AGENTS = ("definity", "sonovue")
-_SETUPS = ("compression", "indentation")
 _SHELLS = ("full", "reduced")
 _WORKFLOW_KEYS = {"agent", "setup", "shell", "acoustic", "description"}
 _PARAM_KEYS = {"prior", "hyper_m", "hyper_tau"}
@@ -120,7 +111,7 @@ class NoisePrior:
 class PriorSpec:
     """A validated workflow specification: free/fixed shell parameters, noise, hyperpriors.
 
-    ``parameters`` holds the free shell parameters in :data:`SHELL_PARAMETERS` order, ``fixed`` the
+    ``parameters`` holds the free shell parameters in :data:`MODEL_PARAMETERS` order, ``fixed`` the
     constant ones, ``noise`` the noise amplitudes; ``setup`` is 'compression' or 'indentation'.
     """
 
@@ -230,7 +221,7 @@ def _validate(raw: dict, problems: list[str]):
         for key in wf:
             if key not in _WORKFLOW_KEYS:
                 problems.append(f"workflow.{key}: unknown key (allowed: {', '.join(sorted(_WORKFLOW_KEYS))})")
-        for key, allowed in (("agent", _AGENTS), ("setup", _SETUPS), ("shell", _SHELLS)):
+        for key, allowed in (("agent", AGENTS), ("setup", LOADING_PROTOCOLS), ("shell", _SHELLS)):
             value = wf.get(key)
             if value not in allowed:
                 problems.append(f"workflow.{key}: {value!r} is not one of {', '.join(allowed)}")
@@ -254,8 +245,8 @@ def _validate(raw: dict, problems: list[str]):
     parameters: dict[str, ParameterPrior] = {}
     for name, entry in params_raw.items():
         key = f"parameters.{name}"
-        if name not in SHELL_PARAMETERS:
-            problems.append(f"{key}: unknown parameter (allowed: {', '.join(SHELL_PARAMETERS)})")
+        if name not in MODEL_PARAMETERS:
+            problems.append(f"{key}: unknown parameter (allowed: {', '.join(MODEL_PARAMETERS)})")
             continue
         if not isinstance(entry, dict):
             problems.append(f"{key}: must be a table with prior = [lo, hi]")
@@ -267,7 +258,7 @@ def _validate(raw: dict, problems: list[str]):
             problems.append(f"{key}.prior: missing")
             continue
         prior = _bounds(entry["prior"], f"{key}.prior", problems)
-        if prior is not None and name in _POSITIVE and prior.lo <= 0:
+        if prior is not None and name in POSITIVE_PARAMETERS and prior.lo <= 0:
             problems.append(f"{key}.prior: lower bound {prior.lo:g} must be > 0 ({name} is a modulus)")
         hyper_m = hyper_tau = None
         if ("hyper_m" in entry) != ("hyper_tau" in entry):
@@ -286,15 +277,15 @@ def _validate(raw: dict, problems: list[str]):
     fixed: dict[str, float] = {}
     for name, value in fixed_raw.items():
         key = f"fixed.{name}"
-        if name not in SHELL_PARAMETERS:
-            problems.append(f"{key}: unknown parameter (allowed: {', '.join(SHELL_PARAMETERS)})")
+        if name not in MODEL_PARAMETERS:
+            problems.append(f"{key}: unknown parameter (allowed: {', '.join(MODEL_PARAMETERS)})")
         elif not _is_number(value) or not math.isfinite(value):
             problems.append(f"{key}: must be a finite number, got {value!r}")
         elif name in params_raw:
             problems.append(f"{key}: also listed under [parameters.{name}]; a parameter is free or fixed, not both")
         else:
             fixed[name] = float(value)
-    for name in SHELL_PARAMETERS:
+    for name in MODEL_PARAMETERS:
         if name not in params_raw and name not in fixed_raw:
             problems.append(f"parameters.{name}: missing (list it under [parameters.{name}] or [fixed])")
     if shell == "reduced":
@@ -331,7 +322,7 @@ def _validate(raw: dict, problems: list[str]):
             problems.append(f"noise.{name}: not used when workflow.acoustic = {str(acoustic).lower()} "
                             f"(expected: {', '.join(required)})")
 
-    ordered = {n: parameters[n] for n in SHELL_PARAMETERS if n in parameters}
+    ordered = {n: parameters[n] for n in MODEL_PARAMETERS if n in parameters}
     return agent, setup, shell, acoustic, description, ordered, fixed, noise
 
 

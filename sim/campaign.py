@@ -65,7 +65,6 @@ import math
 import os
 import re
 import socket
-import subprocess
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -74,16 +73,19 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data.files import jsonable
-from bubblecal.data.store import STATUSES as STORE_STATUSES
+from bubblecal.data.names import (
+    PROTOCOLS,
+    RECORD_STATUSES,
+    RETRY_STATUSES,
+    SHELL_PARAMETERS,
+    code_version,
+)
 from bubblecal.data.store import CampaignStore, make_record
 from bubblecal.data.units import radius_dpd_from_diameter_um
-from bubblecal.sim.tiers import SHELL_PARAM_NAMES, TIER_NAMES
+from bubblecal.sim.tiers import TIER_NAMES
 
 __all__ = [
-    "PROTOCOLS",
     "DESIGNS",
-    "PARAM_UNITS",
-    "RETRY_STATUSES",
     "CampaignError",
     "CampaignConfigError",
     "CampaignConfig",
@@ -104,12 +106,7 @@ __all__ = [
     "store_status",
 ]
 
-PROTOCOLS = ("compression", "indentation", "ringdown")
 DESIGNS = ("lhs", "grid")
-#: Unit of every sampled parameter (DPD; mu = ka / 3 always).
-PARAM_UNITS = {"ka": "DPD 2-D modulus", "kb": "DPD energy (k_BT)", "b1": "-", "b2": "-", "a3": "-", "a4": "-"}
-#: Statuses re-run by a restarted campaign (transient outcomes); every other status is final.
-RETRY_STATUSES = ("failed", "timeout")
 _DIAMETER_RANGE_UM = (0.5, 20.0)
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 #: Fields that define the design (and the meaning of the records): a store refuses a config that changes them.
@@ -206,13 +203,13 @@ class CampaignConfig:
         set_(self, "diameter_um", tuple(float(v) for v in values) if many and len(values) > 1 else float(values[0]))
         # ranges
         if not isinstance(self.ranges, Mapping):
-            raise CampaignConfigError("ranges", f"must map {', '.join(SHELL_PARAM_NAMES)} to (lo, hi)")
-        unknown = [k for k in self.ranges if k not in SHELL_PARAM_NAMES]
+            raise CampaignConfigError("ranges", f"must map {', '.join(SHELL_PARAMETERS)} to (lo, hi)")
+        unknown = [k for k in self.ranges if k not in SHELL_PARAMETERS]
         if unknown:
             raise CampaignConfigError(f"ranges.{unknown[0]}", f"unknown parameter (allowed: "
-                                                              f"{', '.join(SHELL_PARAM_NAMES)})")
+                                                              f"{', '.join(SHELL_PARAMETERS)})")
         ranges = {}
-        for k in SHELL_PARAM_NAMES:
+        for k in SHELL_PARAMETERS:
             if k not in self.ranges:
                 raise CampaignConfigError(f"ranges.{k}", "missing; give (lo, hi) in DPD units (lo == hi fixes it)")
             b = self.ranges[k]
@@ -291,10 +288,10 @@ class CampaignConfig:
                     raise CampaignConfigError("loading_grid", f"no published grid for {self.protocol} at {dia:g} um "
                                                               f"({exc}); give loading_grid explicitly") from None
         rs = tuple(self.retry_statuses)
-        bad = [s for s in rs if s not in STORE_STATUSES or s == "ok"]
+        bad = [s for s in rs if s not in RECORD_STATUSES or s == "ok"]
         if bad:
             raise CampaignConfigError("retry_statuses", f"{bad} not allowed; choose from "
-                                                        f"{[s for s in STORE_STATUSES if s != 'ok']}")
+                                                        f"{[s for s in RECORD_STATUSES if s != 'ok']}")
         set_(self, "retry_statuses", rs)
         if not isinstance(self.store, (str, Path)) or not str(self.store):
             raise CampaignConfigError("store", f"must be a directory path, got {self.store!r}")
@@ -308,8 +305,8 @@ class CampaignConfig:
 
     @property
     def free_names(self) -> tuple[str, ...]:
-        """Parameters that vary (lo < hi), in :data:`SHELL_PARAM_NAMES` order."""
-        return tuple(k for k in SHELL_PARAM_NAMES if self.ranges[k][1] > self.ranges[k][0])
+        """Parameters that vary (lo < hi), in :data:`SHELL_PARAMETERS` order."""
+        return tuple(k for k in SHELL_PARAMETERS if self.ranges[k][1] > self.ranges[k][0])
 
     @property
     def fixed(self) -> dict[str, float]:
@@ -406,7 +403,7 @@ def lhs_design(config: CampaignConfig) -> dict[str, np.ndarray]:
 
     free = config.free_names
     n = config.n_samples
-    out = {k: np.full(n, config.ranges[k][0]) for k in SHELL_PARAM_NAMES}
+    out = {k: np.full(n, config.ranges[k][0]) for k in SHELL_PARAMETERS}
     if free:
         unit = qmc.LatinHypercube(len(free), seed=config.seed).random(n)
         lo = np.array([config.ranges[k][0] for k in free])
@@ -426,7 +423,7 @@ def grid_design(config: CampaignConfig) -> dict[str, np.ndarray]:
         lo, hi = config.ranges["ka"]
         ka = np.linspace(lo, hi, config.n_samples) if config.n_samples > 1 else np.array([lo])
     nd = len(config.diameters)
-    out = {k: np.full(ka.size * nd, config.ranges[k][0]) for k in SHELL_PARAM_NAMES}
+    out = {k: np.full(ka.size * nd, config.ranges[k][0]) for k in SHELL_PARAMETERS}
     out["ka"] = np.tile(ka, nd)
     out["diameter_um"] = np.repeat(np.asarray(config.diameters, dtype=np.float64), ka.size)
     return out
@@ -479,7 +476,7 @@ class TaskResult:
 
     ``x``: [P] or [R, P] loading coordinate (compression DPD length, indentation DPD force, ringdown
     DPD time); ``y``: [R, P] response (DPD force / DPD length / radius in DPD length); ``status``: R values
-    from :data:`bubblecal.data.store.STATUSES`; ``info``: JSON-able extras (a list of length R is split
+    from :data:`bubblecal.data.names.RECORD_STATUSES`; ``info``: JSON-able extras (a list of length R is split
     per replica); ``messages``: optional per-replica reasons.  ``compute_seconds``, ``host``, ``pid`` are
     filled in by the executor (inside the task).
     """
@@ -500,7 +497,7 @@ def pending_indices(config: CampaignConfig, store: CampaignStore | None = None) 
     done: set[str] = set()
     if (store.header_path is None and store.records_path.exists()) or (
             store.header_path is not None and store.header_path.exists()):
-        final = [s for s in STORE_STATUSES if s not in config.retry_statuses]
+        final = [s for s in RECORD_STATUSES if s not in config.retry_statuses]
         done = store.finished_ids(statuses=final)
         if "unstable" in config.retry_statuses:
             budget = _fire_budget(config)
@@ -546,7 +543,7 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
                 index=len(tasks), campaign=config.name, protocol=config.protocol, diameter_um=dia, tier=config.tier,
                 tier_settings=settings, grid=config.grid_for(dia), device=config.device,
                 subdivisions=config.subdivisions, indices=tuple(chunk), sample_ids=tuple(ids[i] for i in chunk),
-                params={k: np.asarray(design[k][chunk], dtype=np.float64) for k in SHELL_PARAM_NAMES},
+                params={k: np.asarray(design[k][chunk], dtype=np.float64) for k in SHELL_PARAMETERS},
                 seeds=tuple(int(design["seed"][i]) for i in chunk)))
     return tasks
 
@@ -670,7 +667,7 @@ def _records_for(config: CampaignConfig, task: CampaignTask, res: TaskResult | N
                 status = str(res.status[r])
                 if res.messages is not None and res.messages[r]:
                     message = str(res.messages[r])
-                if status not in STORE_STATUSES:
+                if status not in RECORD_STATUSES:
                     message, status = f"unknown status {status!r} from the simulation", "failed"
                 elif status == "ok" and not (np.all(np.isfinite(x2[r])) and np.all(np.isfinite(y[r]))):
                     status, message = "invalid", "simulation reported ok but the curve holds non-finite values"
@@ -678,36 +675,10 @@ def _records_for(config: CampaignConfig, task: CampaignTask, res: TaskResult | N
             prov.update(provenance)
         recs.append(make_record(
             sample_id=task.sample_ids[r], setup=config.protocol,
-            params={k: float(task.params[k][r]) for k in SHELL_PARAM_NAMES}, radius_dpd=radius, x=xs, y=ys,
+            params={k: float(task.params[k][r]) for k in SHELL_PARAMETERS}, radius_dpd=radius, x=xs, y=ys,
             status=status, seed=task.seeds[r], tier=task.tier, curve_id=f"{config.name}/{task.sample_ids[r]}",
             provenance=prov, message=message, code_version=code_version))
     return recs
-
-
-_CODE_VERSION: str | None = None
-
-
-def code_version() -> str:
-    """bubblecal version plus ``+g<commit>`` (and ``.dirty``) when the package is a git checkout."""
-    global _CODE_VERSION
-    if _CODE_VERSION is None:
-        from bubblecal import __version__
-
-        v = str(__version__)
-        root = Path(__file__).resolve().parents[1]
-        try:
-            commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                    text=True, timeout=5)
-            if commit.returncode == 0 and commit.stdout.strip():
-                v += f"+g{commit.stdout.strip()}"
-                dirty = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--"],
-                                       capture_output=True, timeout=10)
-                if dirty.returncode == 1:
-                    v += ".dirty"
-        except (OSError, subprocess.SubprocessError):
-            pass
-        _CODE_VERSION = v
-    return _CODE_VERSION
 
 
 # ------------------------------------------------------------------------------------------------
@@ -852,7 +823,7 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     n_pending = len(pending)
     todo = pending[:limit] if limit is not None else pending
     tasks = make_tasks(config, todo, design)
-    counts = dict.fromkeys(STORE_STATUSES, 0)
+    counts = dict.fromkeys(RECORD_STATUSES, 0)
     written: set[str] = set()
     task_seconds: list[float] = []
     task_errors: list[str] = []

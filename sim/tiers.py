@@ -49,11 +49,10 @@ from typing import Protocol
 
 import numpy as np
 
+from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS, STATUSES
+
 __all__ = [
     "TIER_NAMES",
-    "PROTOCOLS",
-    "STATUSES",
-    "SHELL_PARAM_NAMES",
     "DISPLACEMENT_CONVENTION",
     "KB_KERNEL_SCALE",
     "IndentationConvention",
@@ -69,11 +68,6 @@ __all__ = [
 ]
 
 TIER_NAMES = ("explicit", "implicit", "quasistatic")
-PROTOCOLS = ("compression", "indentation")
-#: Per-replica outcome; the same vocabulary as the campaign store.
-STATUSES = ("ok", "ruptured", "failed", "unstable", "timeout")
-#: Shell parameters a campaign samples (DPD units; mu = ka / 3 always).
-SHELL_PARAM_NAMES = ("ka", "kb", "b1", "b2", "a3", "a4")
 #: See the module docstring: grid d = total displacement; F = sum of the forces on both plates.
 DISPLACEMENT_CONVENTION = "total_displacement_both_plates_force"
 #: Published kb -> our Kantor kernel's kb, per protocol (module docstring), under the default indentation
@@ -137,7 +131,7 @@ class CurveRequest:
 
     ``protocol``: 'compression' (grid = total displacements d, DPD length) or 'indentation'
     (grid = total force per pole, DPD force).  ``diameter_um``: bubble diameter (um; radius_dpd
-    from :mod:`bubblecal.data.units`).  ``params``: each of :data:`SHELL_PARAM_NAMES` -> array [R]
+    from :mod:`bubblecal.data.units`).  ``params``: each of :data:`SHELL_PARAMETERS` -> array [R]
     (ka DPD modulus, kb DPD energy, b1..a4 dimensionless).  ``seeds``: one int per replica.
     ``subdivisions``: icosphere level (None = the mesh's default for the diameter).
     """
@@ -150,8 +144,8 @@ class CurveRequest:
     subdivisions: int | None = None
 
     def __post_init__(self) -> None:
-        if self.protocol not in PROTOCOLS:
-            raise ValueError(f"CurveRequest.protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
+        if self.protocol not in LOADING_PROTOCOLS:
+            raise ValueError(f"CurveRequest.protocol must be one of {LOADING_PROTOCOLS}, got {self.protocol!r}")
         d = self.diameter_um
         if isinstance(d, bool) or not isinstance(d, (int, float)) or not (math.isfinite(d) and 0.5 <= d <= 20.0):
             raise ValueError(f"CurveRequest.diameter_um must lie in [0.5, 20] um, got {d!r}")
@@ -161,10 +155,10 @@ class CurveRequest:
             raise ValueError(f"CurveRequest.grid must be >= 2 finite, non-negative, strictly increasing values, "
                              f"got {self.grid!r}")
         object.__setattr__(self, "grid", tuple(float(v) for v in grid))
-        missing = [k for k in SHELL_PARAM_NAMES if k not in self.params]
+        missing = [k for k in SHELL_PARAMETERS if k not in self.params]
         if missing:
-            raise ValueError(f"CurveRequest.params is missing {missing} (needs {list(SHELL_PARAM_NAMES)})")
-        arrays = {k: np.atleast_1d(np.asarray(self.params[k], dtype=np.float64)) for k in SHELL_PARAM_NAMES}
+            raise ValueError(f"CurveRequest.params is missing {missing} (needs {list(SHELL_PARAMETERS)})")
+        arrays = {k: np.atleast_1d(np.asarray(self.params[k], dtype=np.float64)) for k in SHELL_PARAMETERS}
         sizes = {a.shape for a in arrays.values()}
         if len(sizes) != 1 or len(next(iter(sizes))) != 1:
             raise ValueError(f"CurveRequest.params arrays must all have shape [R], got "

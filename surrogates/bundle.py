@@ -63,10 +63,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from bubblecal.data.files import atomic_write
+from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS, code_version
 from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
 
 __all__ = [
-    "FORMAT", "FORMAT_VERSION", "BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "PARAM_NAMES",
+    "FORMAT", "FORMAT_VERSION", "BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION",
     "SurrogateFormatError", "OutOfDomainError", "SurrogateDomainWarning", "Surrogate", "Bundle",
     "save_surrogate", "load", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError",
 ]
@@ -75,8 +76,6 @@ FORMAT = "bubblecal-mlp-surrogate"
 FORMAT_VERSION = 1
 BUNDLE_FORMAT = "bubblecal-surrogate-bundle"
 BUNDLE_FORMAT_VERSION = 1
-PARAM_NAMES: tuple[str, ...] = ("ka", "kb", "b1", "b2", "a3", "a4")
-SETUPS = ("compression", "indentation")
 
 REQUIRED_METADATA = (
     "setup", "diameter_um", "radius_dpd", "param_names", "input_names", "input_units", "output_name",
@@ -95,15 +94,6 @@ class OutOfDomainError(ValueError):
 
 class SurrogateDomainWarning(UserWarning):
     """Evaluation outside the training box (see :meth:`Surrogate.check_domain`)."""
-
-
-def _code_version() -> str:
-    try:
-        from bubblecal import __version__
-
-        return str(__version__)
-    except Exception:  # pragma: no cover - partial source trees
-        return "unknown"
 
 
 def _utc_now() -> str:
@@ -239,7 +229,7 @@ def save_surrogate(path: str | Path, weights: Iterable, biases: Iterable, in_mea
     """Write a surrogate ``.npz`` atomically; validates the metadata keys. Returns the path."""
     path = Path(path)
     md = dict(metadata)
-    md.setdefault("code_version", _code_version())
+    md.setdefault("code_version", code_version())
     md.setdefault("created_utc", _utc_now())
     missing = [k for k in REQUIRED_METADATA if k not in md]
     if missing:
@@ -298,12 +288,12 @@ def _check_arrays(path: Path, arrays: Mapping[str, np.ndarray], md: Mapping) -> 
     if fan_in != arrays["out_mean"].shape[0]:
         raise SurrogateFormatError(f"{path}: last layer width {fan_in} != out_mean length "
                                    f"{arrays['out_mean'].shape[0]}")
-    if md["setup"] not in SETUPS:
-        raise SurrogateFormatError(f"{path}: metadata field 'setup' must be one of {SETUPS}, got {md['setup']!r}")
-    if tuple(md["param_names"]) != PARAM_NAMES:
-        raise SurrogateFormatError(f"{path}: metadata field 'param_names' must be {list(PARAM_NAMES)}, "
+    if md["setup"] not in LOADING_PROTOCOLS:
+        raise SurrogateFormatError(f"{path}: metadata field 'setup' must be one of {LOADING_PROTOCOLS}, got {md['setup']!r}")
+    if tuple(md["param_names"]) != SHELL_PARAMETERS:
+        raise SurrogateFormatError(f"{path}: metadata field 'param_names' must be {list(SHELL_PARAMETERS)}, "
                                    f"got {md['param_names']}")
-    for name in PARAM_NAMES:
+    for name in SHELL_PARAMETERS:
         if name not in md["param_ranges"]:
             raise SurrogateFormatError(f"{path}: metadata field 'param_ranges' lacks '{name}'")
 
@@ -461,7 +451,7 @@ def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
             shutil.copyfile(f, dest)
         acoustic_entries.append({"file": f.name, "name": name})
     manifest = {"format": BUNDLE_FORMAT, "format_version": BUNDLE_FORMAT_VERSION, "created_utc": _utc_now(),
-                "code_version": _code_version(), "surrogates": entries, "acoustic": acoustic_entries,
+                "code_version": code_version(), "surrogates": entries, "acoustic": acoustic_entries,
                 "notes": notes}
     mpath = path / "manifest.json"
     _atomic_write_bytes(mpath, lambda fh: fh.write(json.dumps(manifest, indent=2).encode()))

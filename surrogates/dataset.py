@@ -40,16 +40,15 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS
 from bubblecal.data.units import DEFAULT_UNITS
 
 __all__ = [
-    "PARAM_NAMES", "SETUPS", "DatasetError", "TrainingSet", "FilterReport", "read_published",
+    "DatasetError", "TrainingSet", "FilterReport", "read_published",
     "write_published", "read_store_dataset", "read_dataset", "filter_curves", "diameter_um_from_radius",
     "X_INFO", "Y_INFO", "PREFIX_STATUSES", "leading_finite",
 ]
 
-PARAM_NAMES: tuple[str, ...] = ("ka", "kb", "b1", "b2", "a3", "a4")
-SETUPS = ("compression", "indentation")
 N_META = 8  # Yt_Pa, ka, kb, b1, b2, a3, a4, radius_dpd
 PUBLISHED_POINTS = 15
 
@@ -101,9 +100,9 @@ class TrainingSet:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.setup not in SETUPS:
-            raise DatasetError(f"{self.source}: setup must be one of {SETUPS}, got {self.setup!r}")
-        self.params = np.asarray(self.params, dtype=float).reshape(-1, len(PARAM_NAMES))
+        if self.setup not in LOADING_PROTOCOLS:
+            raise DatasetError(f"{self.source}: setup must be one of {LOADING_PROTOCOLS}, got {self.setup!r}")
+        self.params = np.asarray(self.params, dtype=float).reshape(-1, len(SHELL_PARAMETERS))
         n = self.params.shape[0]
         self.radius_dpd = np.asarray(self.radius_dpd, dtype=float).reshape(n)
         self.x = np.asarray(self.x, dtype=float).reshape(n, -1)
@@ -191,7 +190,7 @@ class TrainingSet:
 
     def param_ranges(self) -> dict[str, tuple[float, float]]:
         return {k: (float(self.params[:, j].min()), float(self.params[:, j].max()))
-                for j, k in enumerate(PARAM_NAMES)}
+                for j, k in enumerate(SHELL_PARAMETERS)}
 
     def x_range(self) -> tuple[float, float]:
         """(min, max) of the loading coordinate over the usable points (NaN when there are none)."""
@@ -225,7 +224,7 @@ class TrainingSet:
             i = int(np.flatnonzero(x_bad.any(axis=1))[0])
             raise DatasetError(f"{src}: field 'x' ({self.x_name}) of curve {self.curve_id[i]!r} holds non-finite "
                                "values where the response is finite (run filter_curves first)")
-        for j, name in enumerate(PARAM_NAMES):
+        for j, name in enumerate(SHELL_PARAMETERS):
             col = self.params[:, j]
             if np.ptp(col) == 0:
                 raise DatasetError(f"{src}: parameter '{name}' has zero variance (every value {col[0]:g}); "
@@ -364,8 +363,8 @@ def read_published(path: str | Path, setup: str | None = None, n_points: int | s
         except ValueError as exc:
             raise DatasetError(f"{path}: line {lineno}: not a number ({exc})") from exc
     setup = setup or _infer_setup(header, path)
-    if setup not in SETUPS:
-        raise DatasetError(f"{path}: setup must be one of {SETUPS}, got {setup!r}")
+    if setup not in LOADING_PROTOCOLS:
+        raise DatasetError(f"{path}: setup must be one of {LOADING_PROTOCOLS}, got {setup!r}")
     params = data[:, 1:7]
     radius = data[:, 7]
     first, second = data[:, N_META:N_META + m], data[:, N_META + m:]
@@ -445,7 +444,7 @@ def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSe
             a[:] = v
         return a
 
-    params = np.array([[r["params"][k] for k in PARAM_NAMES] for r in records], dtype=float)
+    params = np.array([[r["params"][k] for k in SHELL_PARAMETERS] for r in records], dtype=float)
     return TrainingSet(
         setup=setups.pop(), params=params, radius_dpd=[r["radius_dpd"] for r in records],
         x=np.array([_arr(r["x"]) for r in records]), y=np.array([_arr(r["y"]) for r in records]),

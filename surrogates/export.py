@@ -11,14 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.surrogates.bundle import PARAM_NAMES, save_surrogate
+from bubblecal.data.names import PARAMETER_UNITS, SHELL_PARAMETERS
+from bubblecal.surrogates.bundle import save_surrogate
 from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
 from bubblecal.surrogates.train import TrainedMLP
 
 __all__ = ["surrogate_metadata", "export_npz", "export_sweep", "export_onnx"]
 
-PARAM_UNITS = {"ka": "DPD 2-D modulus (k_BT/r_c^2, fscale applied)", "kb": "DPD energy (k_BT, fscale applied)",
-               "b1": "1", "b2": "1", "a3": "1", "a4": "1"}
 HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
 
 
@@ -43,9 +42,9 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
         "diameter_um": float(train_set.diameter_um),
         "nominal_diameter_um": float(train_set.diameter_um if nominal_diameter_um is None else nominal_diameter_um),
         "radius_dpd": float(np.median(train_set.radius_dpd)),
-        "param_names": list(PARAM_NAMES),
-        "input_names": [*PARAM_NAMES, X_INFO[setup][0]],
-        "input_units": [PARAM_UNITS[k] for k in PARAM_NAMES] + [X_INFO[setup][1]],
+        "param_names": list(SHELL_PARAMETERS),
+        "input_names": [*SHELL_PARAMETERS, X_INFO[setup][0]],
+        "input_units": [PARAMETER_UNITS[k] for k in SHELL_PARAMETERS] + [X_INFO[setup][1]],
         "output_name": Y_INFO[setup][0],
         "output_units": Y_INFO[setup][1],
         "param_ranges": {k: list(v) for k, v in train_set.param_ranges().items()},

@@ -25,7 +25,8 @@ import math
 
 import numpy as np
 
-from bubblecal.surrogates.dataset import PARAM_NAMES, TrainingSet
+from bubblecal.data.names import SHELL_PARAMETERS
+from bubblecal.surrogates.dataset import TrainingSet
 
 __all__ = ["DEFAULT_RANGES", "DEFAULT_X", "compression_force", "indentation_displacement", "truth", "make_synthetic",
            "noise_floor", "relative_l2"]
@@ -97,8 +98,8 @@ def make_synthetic(n_curves: int, setup: str = "compression", radius_dpd: float 
     x = np.asarray(DEFAULT_X[setup] if x is None else x, dtype=float)
     # Latin hypercube: one stratum per curve and dimension, shuffled per dimension
     u = (rng.permuted(np.tile(np.arange(n_curves), (6, 1)), axis=1).T + rng.random((n_curves, 6))) / n_curves
-    lo = np.array([ranges[k][0] for k in PARAM_NAMES])
-    hi = np.array([ranges[k][1] for k in PARAM_NAMES])
+    lo = np.array([ranges[k][0] for k in SHELL_PARAMETERS])
+    hi = np.array([ranges[k][1] for k in SHELL_PARAMETERS])
     params = lo + u * (hi - lo)
     xx = np.tile(x, (n_curves, 1))
     y_true = truth(setup, params, x, radius_dpd)

@@ -44,9 +44,10 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data.curves import REFERENCE_CURVES, load_reference
+from bubblecal.data.names import SHELL_PARAMETERS
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 from bubblecal.surrogates.acoustic import AcousticSurrogate
-from bubblecal.surrogates.bundle import PARAM_NAMES, save_surrogate, write_bundle
+from bubblecal.surrogates.bundle import save_surrogate, write_bundle
 from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
 from bubblecal.surrogates.synthetic import truth
 
@@ -97,7 +98,7 @@ def _lhs(rng: np.random.Generator, n: int, box: dict[str, tuple[float, float]]) 
     """(n, 6) Latin-hypercube parameter sets in ``box`` (log-uniform strata for :data:`LOG_PARAMETERS`)."""
     u = (rng.permuted(np.tile(np.arange(n), (6, 1)), axis=1).T + rng.random((n, 6))) / n
     cols = []
-    for j, name in enumerate(PARAM_NAMES):
+    for j, name in enumerate(SHELL_PARAMETERS):
         lo, hi = box[name]
         if name in LOG_PARAMETERS:
             cols.append(np.exp(np.log(lo) + u[:, j] * (np.log(hi) - np.log(lo))))
@@ -105,7 +106,7 @@ def _lhs(rng: np.random.Generator, n: int, box: dict[str, tuple[float, float]]) 
             cols.append(lo + u[:, j] * (hi - lo))
     params = np.stack(cols, axis=1)
     # pin the box corners of every parameter onto the first curves so that the training box is exact
-    for j, name in enumerate(PARAM_NAMES):
+    for j, name in enumerate(SHELL_PARAMETERS):
         params[2 * j % n, j], params[(2 * j + 1) % n, j] = box[name]
     return params
 
@@ -240,7 +241,7 @@ def _mechanical(folder: Path, agent: str, setup: str, nominal: float, measured: 
     yname, yunits = Y_INFO[setup]
     md = {
         "setup": setup, "diameter_um": float(ts.diameter_um), "nominal_diameter_um": nominal, "radius_dpd": radius,
-        "param_names": list(PARAM_NAMES), "input_names": [*PARAM_NAMES, xname],
+        "param_names": list(SHELL_PARAMETERS), "input_names": [*SHELL_PARAMETERS, xname],
         "input_units": ["DPD 2-D modulus", "DPD energy", "1", "1", "1", "1", xunits],
         "output_name": yname, "output_units": yunits,
         "param_ranges": {k: list(v) for k, v in ts.param_ranges().items()}, "x_range": list(ts.x_range()),

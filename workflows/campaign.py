@@ -38,8 +38,9 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from bubblecal.sim.campaign import DESIGNS, PROTOCOLS, CampaignConfig, CampaignConfigError
-from bubblecal.sim.tiers import SHELL_PARAM_NAMES, TIER_NAMES
+from bubblecal.data.names import PROTOCOLS, SHELL_PARAMETERS
+from bubblecal.sim.campaign import DESIGNS, CampaignConfig, CampaignConfigError
+from bubblecal.sim.tiers import TIER_NAMES
 
 __all__ = ["CampaignFileError", "CampaignFile", "available_campaigns", "campaign_path", "load_campaign_file",
            "load_campaign_config"]
@@ -129,7 +130,7 @@ def _prior_box(path: Path, priors: str) -> dict[str, tuple[float, float]]:
         raise CampaignFileError(path, "[ranges].priors", f"{priors!r}: {exc} (shipped workflows: "
                                                          f"{', '.join(available_priors())})") from None
     box = {}
-    for k in SHELL_PARAM_NAMES:
+    for k in SHELL_PARAMETERS:
         if k in spec.parameters:
             box[k] = spec.parameters[k].prior.as_tuple()
         elif k in spec.fixed:
@@ -141,7 +142,7 @@ def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
     """The [ranges] table -> {param: (lo, hi)} (priors box, then explicit overrides)."""
     if not isinstance(raw, dict):
         raise CampaignFileError(path, "[ranges]", "must be a table")
-    allowed = ("priors",) + SHELL_PARAM_NAMES
+    allowed = ("priors",) + SHELL_PARAMETERS
     for key in raw:
         if key not in allowed:
             raise CampaignFileError(path, f"[ranges].{key}", f"unknown key (allowed: {', '.join(allowed)})")
@@ -160,7 +161,7 @@ def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
             for k, (lo, hi) in _prior_box(path, name).items():
                 ranges[k] = (min(lo, ranges[k][0]), max(hi, ranges[k][1])) if k in ranges else (lo, hi)
         priors = ", ".join(names)
-    for k in SHELL_PARAM_NAMES:
+    for k in SHELL_PARAMETERS:
         if k not in raw:
             continue
         v = raw[k]
@@ -172,7 +173,7 @@ def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
         else:
             raise CampaignFileError(path, f"[ranges].{k}", f"must be [lo, hi] (lo <= hi) or one number (fixed), "
                                                            f"DPD units; got {v!r}")
-    missing = [k for k in SHELL_PARAM_NAMES if k not in ranges]
+    missing = [k for k in SHELL_PARAMETERS if k not in ranges]
     if missing:
         raise CampaignFileError(path, f"[ranges].{missing[0]}", "missing: give priors = '<workflow>' or "
                                                                 f"{missing[0]} = [lo, hi] / a fixed number")

@@ -33,11 +33,11 @@ def _prior_box_domain_warnings(surrogate, spec, x) -> list[str]:
 
     import numpy as np
 
-    from bubblecal.models.likelihood import SURROGATE_PARAMETERS
+    from bubblecal.data.names import SHELL_PARAMETERS
     from bubblecal.surrogates import SurrogateDomainWarning
 
     axes = [spec.parameters[k].prior.as_tuple() if k in spec.parameters else (spec.fixed[k],)
-            for k in SURROGATE_PARAMETERS]
+            for k in SHELL_PARAMETERS]
     corners = np.array(list(itertools.product(*axes)), dtype=float)
     x = np.asarray(x, dtype=float)
     if spec.setup == "compression":

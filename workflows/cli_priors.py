@@ -8,8 +8,8 @@ import typer
 from rich.table import Table
 
 from bubblecal.data import DEFAULT_UNITS
+from bubblecal.data.names import PARAMETER_UNITS
 from bubblecal.priors import PriorError, available_priors, load_priors
-from bubblecal.priors.spec import PARAMETER_UNITS
 from bubblecal.workflows.console import console, fail, make_table
 
 app = typer.Typer(help="Prior and hyperprior ranges (user-editable TOML files).", no_args_is_help=True)

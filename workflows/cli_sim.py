@@ -59,7 +59,7 @@ def _fmt(v: float) -> str:
 
 def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: str) -> None:
     """Print the campaign summary and the ranges table (units in the headers)."""
-    from bubblecal.sim.campaign import PARAM_UNITS
+    from bubblecal.data.names import PARAMETER_UNITS
     from bubblecal.workflows.cli_priors import _physical
 
     c = cf.config
@@ -85,7 +85,7 @@ def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: st
     table = make_table("parameter ranges", ("parameter", "unit [DPD]", "lo [DPD]", "hi [DPD]", "sampled",
                                             "range [E MPa | κ k_BT]"))
     for name, (lo, hi) in c.ranges.items():
-        table.add_row(name, PARAM_UNITS[name], _fmt(lo), _fmt(hi), "yes" if hi > lo else "fixed",
+        table.add_row(name, PARAMETER_UNITS[name], _fmt(lo), _fmt(hi), "yes" if hi > lo else "fixed",
                       _physical(name, lo, hi))
     console.print(table)
 

@@ -70,7 +70,7 @@ def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", s
     import pandas as pd
 
     from bubblecal.data import reference_curves
-    from bubblecal.models.likelihood import SURROGATE_PARAMETERS
+    from bubblecal.data.names import SHELL_PARAMETERS
     from bubblecal.priors import load_priors
     from bubblecal.sim.tiers import CurveRequest, get_tier
     from bubblecal.surrogates import load_bundle
@@ -93,11 +93,11 @@ def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", s
         if theta is None:
             say(f"{curve.name}: no phase-3 result with log likelihoods in {run_dir}; skipped")
             continue
-        values = {k: theta.get(k, spec.fixed.get(k, 0.0)) for k in (*SURROGATE_PARAMETERS, "d0")}
+        values = {k: theta.get(k, spec.fixed.get(k, 0.0)) for k in (*SHELL_PARAMETERS, "d0")}
         sur = bundle.get(curve.kind, curve.diameter_um)
         x, y = np.asarray(curve.x, float), np.asarray(curve.y, float)
         d0 = values["d0"]
-        params = np.array([values[k] for k in SURROGATE_PARAMETERS])
+        params = np.array([values[k] for k in SHELL_PARAMETERS])
         if curve.kind == "compression":
             keep = x - d0 > 1e-6
             grid = x[keep] - d0
@@ -108,7 +108,7 @@ def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", s
             surrogate = np.maximum(0.0, np.asarray(sur(params, grid)) + d0)
         diameter = float(curve.bubble_diameter_um or curve.diameter_um)
         request = CurveRequest(protocol=curve.kind, diameter_um=diameter, grid=tuple(grid),
-                               params={k: np.array([values[k]]) for k in SURROGATE_PARAMETERS}, seeds=(0,),
+                               params={k: np.array([values[k]]) for k in SHELL_PARAMETERS}, seeds=(0,),
                                subdivisions=subdivisions)
         say(f"{curve.name}: {tier} tier at the MAP (ka = {values['ka']:.4g}, kb = {values['kb']:.4g}, d0 = {d0:.3g})")
         batch = sim.run(request, device=device)

@@ -14,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.data.names import SHELL_PARAMETERS
 from bubblecal.inference.sensitivity import SobolResult, sobol_along
 from bubblecal.priors.spec import PriorSpec
 
 __all__ = ["SensitivityRun", "surrogate_sensitivity", "plot_sensitivity", "write_sensitivity"]
 
 #: Surrogate inputs in order (d0 is an offset of the data, not a surrogate input).
-SURROGATE_INPUTS = ("ka", "kb", "b1", "b2", "a3", "a4")
 
 
 @dataclass(frozen=True)
@@ -61,27 +61,27 @@ def surrogate_sensitivity(surrogate, spec: PriorSpec, x_range: tuple[float, floa
     """
     if not 0 < N or N & (N - 1):
         raise ValueError(f"N must be a positive power of two (Saltelli/Sobol' design), got {N}")
-    free = [k for k in SURROGATE_INPUTS if k in spec.parameters]
+    free = [k for k in SHELL_PARAMETERS if k in spec.parameters]
     if not free:
-        raise ValueError(f"priors {spec.name!r} have no free surrogate input among {', '.join(SURROGATE_INPUTS)}")
+        raise ValueError(f"priors {spec.name!r} have no free surrogate input among {', '.join(SHELL_PARAMETERS)}")
     bounds = {k: spec.parameters[k].prior.as_tuple() for k in free}
-    fixed = {k: spec.fixed[k] for k in SURROGATE_INPUTS if k not in free}
+    fixed = {k: spec.fixed[k] for k in SHELL_PARAMETERS if k not in free}
     x_lo, x_hi = (float(v) for v in surrogate.x_range)
     lo, hi = float(x_range[0]), float(x_range[1])
     if not (x_lo <= lo < hi <= x_hi + 1e-9 * abs(x_hi)):
         raise ValueError(f"x_range [{lo:g}, {hi:g}] must lie inside the surrogate's loading range [{x_lo:g}, {x_hi:g}]")
     x = np.linspace(x_lo, x_hi, num_points)
     # one corner check of the box against the training box, reported as a fraction of design rows
-    box_lo = np.array([bounds[k][0] if k in bounds else fixed[k] for k in SURROGATE_INPUTS])
-    box_hi = np.array([bounds[k][1] if k in bounds else fixed[k] for k in SURROGATE_INPUTS])
+    box_lo = np.array([bounds[k][0] if k in bounds else fixed[k] for k in SHELL_PARAMETERS])
+    box_hi = np.array([bounds[k][1] if k in bounds else fixed[k] for k in SHELL_PARAMETERS])
     rng = np.random.default_rng(seed)
-    probe = box_lo + (box_hi - box_lo) * rng.random((4096, len(SURROGATE_INPUTS)))
+    probe = box_lo + (box_hi - box_lo) * rng.random((4096, len(SHELL_PARAMETERS)))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         inside = surrogate.check_domain(probe, x_lo, action="warn")
     for w in caught:
         warnings.warn(f"sensitivity over the prior box of {spec.name}: {w.message}", stacklevel=2)
-    result = sobol_along(surrogate, bounds, x, N=N, x_range=(lo, hi), seed=seed, order=SURROGATE_INPUTS,
+    result = sobol_along(surrogate, bounds, x, N=N, x_range=(lo, hi), seed=seed, order=SHELL_PARAMETERS,
                          fixed=fixed)
     return SensitivityRun(result=result, setup=surrogate.setup, bounds=bounds, fixed=fixed,
                           outside_training_fraction=float(1.0 - np.mean(inside)))

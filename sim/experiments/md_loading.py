@@ -28,7 +28,7 @@ Protocols (same grids and conventions as :class:`bubblecal.sim.tiers.Quasistatic
 * Status per replica: health checks after the equilibration and after every point
   (:mod:`bubblecal.sim.health` for the explicit tier: non-finite, escape, inversion, rupture by area
   strain, leaks; :meth:`ImplicitShellSystem.check_health` for the implicit tier) mapped to
-  :data:`bubblecal.sim.tiers.STATUSES` by :data:`STATUS_MAP`; a failed replica is frozen and its later
+  :data:`bubblecal.data.names.STATUSES` by :data:`STATUS_MAP`; a failed replica is frozen and its later
   observables are NaN.  ``max_seconds`` turns the replicas still running into 'timeout'.
 
 Defaults = the published protocol (40,000 ramp + 20,000 hold steps per point, samples every 400 steps,
@@ -63,7 +63,7 @@ from bubblecal.sim.tiers import (
 
 __all__ = ["ProtocolSteps", "ImplicitTier", "ExplicitTier", "STATUS_MAP", "run_md_protocol", "steps_per_curve"]
 
-#: health Status name -> tiers.STATUSES
+#: health Status name -> bubblecal.data.names.STATUSES
 STATUS_MAP = {"OK": "ok", "NAN": "failed", "ESCAPE": "unstable", "INVERSION": "unstable", "RUPTURE": "ruptured",
               "LEAK": "failed"}
 ANCHOR_BETA = 0.1

@@ -28,7 +28,7 @@ particle order is swapped, and nothing needs deleting; the price is a water dens
 law + back and ambient pressure + vertex thermostat; written by the tier module's author).  Only the
 vertices are scaled; the gas law follows the volume by construction.
 
-Status per replica is one of :data:`bubblecal.sim.tiers.STATUSES` (explicit: from
+Status per replica is one of :data:`bubblecal.data.names.STATUSES` (explicit: from
 :class:`bubblecal.sim.health.HealthMonitor`).
 """
 
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bubblecal.sim.tiers import STATUSES
+from bubblecal.data.names import STATUSES
 
 __all__ = [
     "RingdownBatch",
@@ -71,7 +71,7 @@ class RingdownBatch:
 
     ``t [T]``: DPD time since the perturbation (t = 0 is the first sample, taken right after it).
     ``radius [R, T]``: R(t) = (3 V / 4 pi)^(1/3) of each replica's mesh (DPD length).
-    ``status [R]``: from :data:`bubblecal.sim.tiers.STATUSES`.
+    ``status [R]``: from :data:`bubblecal.data.names.STATUSES`.
     ``params``: the shell parameters (DPD; mu = ka / 3) per replica, ``seeds``: one per replica.
     ``info``: settings (tier, dt, steps, mass factor, perturbation, ...), ``vertex_mass`` (DPD mass,
     mass factor included), ``n_vertices``, ``shell_mass`` (= n_vertices x vertex_mass),
@@ -293,7 +293,7 @@ def _record(system, volumes, frame, vertex_every: int, check, rec_steps: int, ev
 
 
 def _replica_status(health_names, radius: np.ndarray) -> list[str]:
-    """tiers.STATUSES per replica from the health verdicts; an 'ok' replica with a non-finite R(t) is 'failed'."""
+    """STATUSES per replica from the health verdicts; an 'ok' replica with a non-finite R(t) is 'failed'."""
     status = [_HEALTH_TO_STATUS.get(nm, "failed") for nm in health_names]
     return [("failed" if st == "ok" and not np.all(np.isfinite(radius[r])) else st) for r, st in enumerate(status)]
 

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from bubblecal.data.names import STATUSES
 from bubblecal.sim.experiments.md_loading import (
     STATUS_MAP,
     ExplicitTier,
@@ -10,7 +11,7 @@ from bubblecal.sim.experiments.md_loading import (
     ProtocolSteps,
     steps_per_curve,
 )
-from bubblecal.sim.tiers import STATUSES, CurveRequest, get_tier
+from bubblecal.sim.tiers import CurveRequest, get_tier
 
 
 def _params(kas):

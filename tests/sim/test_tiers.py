@@ -112,11 +112,11 @@ def test_mirheo_convention_reproduces_the_published_indentation_curves(shared_re
     with the ``mirheo`` convention both are 0.97-0.98 (measured; asserted in [0.95, 1.0]) and within 2 % of each
     other; the ``bubblecal-v1`` patch (25 vertices) gives 0.95 and 1.10, a ka / kb-dependent error (RESULTS.md)."""
     pytest.importorskip("warp")
-    from bubblecal.sim.tiers import SHELL_PARAM_NAMES, get_tier
-    from bubblecal.surrogates.dataset import PARAM_NAMES
+    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.sim.tiers import get_tier
 
     ts = _published_rows(shared_reference, [0, 2])
-    params = {k: ts.params[:, PARAM_NAMES.index(k)] for k in SHELL_PARAM_NAMES}
+    params = {k: ts.params[:, j] for j, k in enumerate(SHELL_PARAMETERS)}
     req = CurveRequest("indentation", 3.2, tuple(ts.x[0]), params, (0, 1), subdivisions=4)
     pts = slice(4, 15)
     ratio = {}
