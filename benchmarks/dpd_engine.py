@@ -28,8 +28,8 @@ import warp as wp
 
 wp.config.quiet = True
 
-from bubblecal.sim.particles import published_pair_table  # noqa: E402
-from bubblecal.sim.system import ParticleSystem, ReplicaSpec, bubble_spec  # noqa: E402
+from bubblecal.sim.engine.particles import published_pair_table  # noqa: E402
+from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec, bubble_spec  # noqa: E402
 
 
 def _free_mem(dev) -> int | None:

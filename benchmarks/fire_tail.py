@@ -62,10 +62,10 @@ def main(argv=None) -> int:
 
     wp.config.quiet = True
     from bubblecal.data.store import CampaignStore
-    from bubblecal.sim.experiments.quasistatic import FireSettings, IdealGas, quasistatic_indentation
-    from bubblecal.sim.mesh import mesh_for_diameter
-    from bubblecal.sim.system import resolve_dtype
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine.system import resolve_dtype
     from bubblecal.sim.tiers import CurveRequest, indentation_convention
+    from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas, quasistatic_indentation
 
     recs = [r for r in CampaignStore(args.store).read(warn=False) if r["setup"] == "indentation"]
     steps = np.array([r["provenance"].get("info", {}).get("fire_steps", 0) for r in recs])

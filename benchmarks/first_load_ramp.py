@@ -32,10 +32,10 @@ def main(argv=None) -> int:
 
     wp.config.quiet = True
     from bubblecal.data.store import CampaignStore
-    from bubblecal.sim.experiments.quasistatic import FireSettings, IdealGas, quasistatic_indentation
-    from bubblecal.sim.mesh import mesh_for_diameter
-    from bubblecal.sim.system import resolve_dtype
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine.system import resolve_dtype
     from bubblecal.sim.tiers import CurveRequest, indentation_convention
+    from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas, quasistatic_indentation
 
     recs = [r for r in CampaignStore(args.store).read(warn=False) if r["setup"] == "indentation"]
     pick = [recs[i] for i in np.random.default_rng(args.seed).choice(len(recs), args.n, replace=False)]

@@ -106,7 +106,7 @@ def parse_rows(spec: str) -> list[int]:
 @contextlib.contextmanager
 def loaded_fraction(fraction: float | None):
     """Temporarily make the tier's indentation use ``fraction_loaded=fraction`` (the tier does not expose it)."""
-    import bubblecal.sim.experiments.quasistatic as qs
+    import bubblecal.sim.tiers.quasistatic as qs
 
     if fraction is None:
         yield
@@ -145,7 +145,7 @@ def compliance_exponents(y: np.ndarray, x: np.ndarray, ka: np.ndarray, kb: np.nd
 
 def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
     from bubblecal.data.names import SHELL_PARAMETERS
-    from bubblecal.sim.mesh import mesh_for_diameter
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
     from bubblecal.surrogates.dataset import diameter_um_from_radius
 
@@ -163,7 +163,7 @@ def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
         batch = tier.run(req, device=args.device)
     wall = time.perf_counter() - t0
     mesh = mesh_for_diameter(dia, sub)
-    from bubblecal.sim.mesh import pole_patches
+    from bubblecal.sim.engine.mesh import pole_patches
     from bubblecal.sim.tiers import indentation_convention
 
     patch = ({"fraction": float(spec["fraction_loaded"])} if "fraction_loaded" in spec

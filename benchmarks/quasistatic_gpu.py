@@ -7,7 +7,7 @@
    ``compression:3.0:4`` = protocol:diameter_um:subdivision) and each R, R random parameter sets from
    the published rows' box (built-in box when the reference file is absent) run as one batch on the
    published 15-point grid with the tier's settings and the device-resident FIRE
-   (:mod:`bubblecal.sim.minimize_device`); reports curves per GPU-hour, the lockstep efficiency (mean
+   (:mod:`bubblecal.sim.engine.minimize_device`); reports curves per GPU-hour, the lockstep efficiency (mean
    FIRE updates per replica / FIRE iterations run) and prints progress + ETA per load point.  A run
    whose predicted time (linear in R x N_v from the previous run) exceeds ``--budget-s`` is skipped.
    OUT/quasistatic_throughput.json is rewritten after every run (partial results survive a timeout).
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from tier_validation import find_reference  # sibling script (benchmarks/ is on sys.path when run)
 
-from bubblecal.sim.system import resolve_dtype
+from bubblecal.sim.engine.system import resolve_dtype
 from bubblecal.sim.tiers import CurveRequest, get_tier
 from bubblecal.surrogates.dataset import filter_curves, read_published
 from bubblecal.surrogates.synthetic import relative_l2
@@ -74,18 +74,18 @@ def _box(ref: Path, setup: str, diameter: float):
 
 def throughput(args, out: Path, ref: Path, t_start: float) -> list:
     """Curves per GPU-hour of the tier (device FIRE) for each setup and batch size R."""
-    from bubblecal.sim.experiments.loading import (
+    from bubblecal.sim.engine.kernels.shell_params import ShellParams
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.protocols.loading import (
         published_compression_protocol,
         published_indentation_protocol,
     )
-    from bubblecal.sim.experiments.quasistatic import (
+    from bubblecal.sim.tiers.quasistatic import (
         FireSettings,
         IdealGas,
         quasistatic_compression,
         quasistatic_indentation,
     )
-    from bubblecal.sim.kernels.shell_params import ShellParams
-    from bubblecal.sim.mesh import mesh_for_diameter
 
     tier = get_tier("quasistatic")  # its settings (ftol, max_steps, gas, rupture) are the defaults used here
     fire = FireSettings(ftol=tier.ftol, max_steps=tier.max_steps)
@@ -167,14 +167,14 @@ def micro(args, out: Path) -> list:
     """Old (NumPy FIRE) vs new (device FIRE, float64 / float32) wall time and curve deviation."""
     import warp as wp
 
-    from bubblecal.sim.experiments.quasistatic import (
+    from bubblecal.sim.engine.kernels.shell_params import ShellParams
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.tiers.quasistatic import (
         FireSettings,
         IdealGas,
         quasistatic_compression,
         quasistatic_indentation,
     )
-    from bubblecal.sim.kernels.shell_params import ShellParams
-    from bubblecal.sim.mesh import mesh_for_diameter
 
     tier = get_tier("quasistatic")
     fire = FireSettings(ftol=tier.ftol, max_steps=tier.max_steps)

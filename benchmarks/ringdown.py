@@ -32,8 +32,8 @@ EXPLICIT_PARTICLE_STEPS_PER_S = {"cuda": 1.0e9, "cpu": 2.3e5}
 
 def estimate(agent: str, diameter: float, ka: np.ndarray, tier: str, device: str, kw: dict) -> dict:
     """Steps and a rough wall-time estimate of one sweep (see the module docstring)."""
-    from bubblecal.sim.experiments.ringdown import auto_schedule, breathing_mode_prediction
-    from bubblecal.sim.mesh import mesh_for_diameter
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.protocols.ringdown import auto_schedule, breathing_mode_prediction
 
     mesh = mesh_for_diameter(diameter, kw.get("subdivisions"))
     mv = mesh.vertex_mass(mass_factor=160.0)

@@ -1,4 +1,4 @@
-"""Shell force throughput on one GPU (bubblecal.sim.kernels.shell.ShellForceField).
+"""Shell force throughput on one GPU (bubblecal.sim.engine.kernels.shell.ShellForceField).
 
 R = 6 icosphere (subdivision 4, 2,562 vertices) per replica, published parameters (ka = 16,751,
 kb = 500, Kantor, self-avoidance on), float32.  All replicas share coordinates, as in the particle
@@ -15,8 +15,8 @@ import time
 import numpy as np
 import warp as wp
 
-from bubblecal.sim.kernels.shell import ShellForceField, ShellParams
-from bubblecal.sim.mesh import icosphere
+from bubblecal.sim.engine.kernels.shell import ShellForceField, ShellParams
+from bubblecal.sim.engine.mesh import icosphere
 
 
 def bench(reps: int, device: str, self_avoid: bool = True, mode: str = "auto", iters: int = 200) -> dict:

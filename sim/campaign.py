@@ -153,7 +153,7 @@ class CampaignConfig:
     ``tier_settings``: keyword arguments of the tier (or of ``ringdown_batch``).
     ``design``: 'lhs' | 'grid'.  ``ka_values``: explicit ka grid (DPD 2-D modulus) for 'grid'.
     ``loading_grid``: compression total displacements [DPD length] or indentation forces [DPD force];
-    None = the published grid (:mod:`bubblecal.sim.experiments.loading`); must be None for ringdown.
+    None = the published grid (:mod:`bubblecal.sim.protocols.loading`); must be None for ringdown.
     ``replicas_per_task``: replicas batched in one task (one GPU launch).  ``device``: 'cpu' | 'cuda[:N]'.
     ``subdivisions``: icosphere level (None = the mesh default for the diameter).
     ``store``: campaign store directory.  ``retry_statuses``: statuses a restart re-runs.
@@ -370,7 +370,7 @@ EXECUTION_ONLY_TIER_SETTINGS = ("schedule", "max_replicas")
 
 
 def _published_grid(protocol: str, diameter_um: float) -> tuple[float, ...]:
-    from bubblecal.sim.experiments.loading import (
+    from bubblecal.sim.protocols.loading import (
         published_compression_protocol,
         published_indentation_protocol,
     )
@@ -554,16 +554,16 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
 def simulate_task(task: CampaignTask,
                   on_curve: Callable[[int, np.ndarray, str, dict], None] | None = None) -> TaskResult:
     """The default task: ``get_tier(task.tier, **settings).run(CurveRequest, device)`` for compression /
-    indentation, ``bubblecal.sim.experiments.ringdown.ringdown_batch`` for ringdown.  ``on_curve(r, y [P],
+    indentation, ``bubblecal.sim.protocols.ringdown.ringdown_batch`` for ringdown.  ``on_curve(r, y [P],
     status, info)``: replica ``r``'s curve as soon as it is finished, where the tier reports them (quasi-static
     indentation, async schedule); the returned result holds every curve either way."""
     if task.protocol == "ringdown":
         try:
-            from bubblecal.sim.experiments.ringdown import ringdown_batch
+            from bubblecal.sim.protocols.ringdown import ringdown_batch
         except ModuleNotFoundError as exc:
-            if exc.name != "bubblecal.sim.experiments.ringdown":
+            if exc.name != "bubblecal.sim.protocols.ringdown":
                 raise
-            raise CampaignError("protocol 'ringdown' needs bubblecal.sim.experiments.ringdown.ringdown_batch, "
+            raise CampaignError("protocol 'ringdown' needs bubblecal.sim.protocols.ringdown.ringdown_batch, "
                                 "which is not in this installation yet (issue 6, ringdown protocol)") from None
         settings = dict(task.tier_settings)
         if task.subdivisions is not None:

@@ -5,7 +5,7 @@ Pipeline (issue 6 items 1 and 5-acoustic, physics.md section 5):
 1. :func:`ringdown_sweep` -- one diameter, ``n_ka`` k_a values (default 28, evenly spaced over the
    agent's acoustic prior range of k_a), mu = k_a / 3, k_b fixed (389.23 Definity, 7850.29 SonoVue),
    b1 = b2 = a3 = a4 = 0; the replicas are simulated in batches by
-   :func:`bubblecal.sim.experiments.ringdown.ringdown_batch` (all replicas of a batch in the same
+   :func:`bubblecal.sim.protocols.ringdown.ringdown_batch` (all replicas of a batch in the same
    launches), each R(t) is fitted with :func:`bubblecal.surrogates.acoustic.fit_ringdown` and the DPD
    frequencies are converted with ``f = f_dpd sqrt(mass_factor) / u_t`` through
    :meth:`bubblecal.data.units.UnitSystem.frequency_to_physical`.  The check-7 ratio
@@ -140,7 +140,7 @@ def sweeps_from_store(store, agent: str | None = None, t_start: float | None = N
     y = R(t) [DPD length]); the check-7 prediction is recomputed from each record's equilibrium radius,
     gas pressure and shell mass (the area ratio of its mesh)."""
     from bubblecal.data.store import CampaignStore
-    from bubblecal.sim.experiments.ringdown import breathing_mode_prediction
+    from bubblecal.sim.protocols.ringdown import breathing_mode_prediction
 
     st = store if isinstance(store, CampaignStore) else CampaignStore(store)
     recs = st.read(warn=False)
@@ -203,9 +203,9 @@ def ringdown_sweep(agent: str, diameter_um: float, ka_values: Sequence[float] | 
     multiplier, undone in the MHz conversion), ``seed`` (replica i gets seed + i), ``batch_size``
     (replicas per launch; default all), ``t_start`` (DPD time: samples before it are not fitted),
     ``progress`` (callable receiving one-line messages), ``ringdown_settings`` passed on to
-    :func:`bubblecal.sim.experiments.ringdown.ringdown_batch` (dt, subdivisions, step counts, tier settings).
+    :func:`bubblecal.sim.protocols.ringdown.ringdown_batch` (dt, subdivisions, step counts, tier settings).
     """
-    from bubblecal.sim.experiments.ringdown import ringdown_batch
+    from bubblecal.sim.protocols.ringdown import ringdown_batch
 
     agent = _agent(agent)
     ka = default_ka_values(agent, n_ka) if ka_values is None else np.asarray(ka_values, dtype=np.float64).ravel()

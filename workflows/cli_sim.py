@@ -47,7 +47,7 @@ def verify(
     import warp as wp
 
     wp.config.quiet = True
-    from bubblecal.sim.verify import main
+    from bubblecal.sim.validation.verify import main
 
     code = main(quick=quick, device=device, only=only or None)
     raise typer.Exit(code)

@@ -203,7 +203,7 @@ def test_ringdown_records_and_missing_module_message(tmp_path):
     c2 = cfg(tmp_path, name="r2", protocol="ringdown", design="grid", ranges=fixed, n_samples=2, subdivisions=1,
              tier="implicit", store=str(tmp_path / "r2.store"),
              tier_settings={"equilibration_steps": 200, "record_steps": 400, "record_every": 10})
-    if importlib.util.find_spec("bubblecal.sim.experiments.ringdown") is None:
+    if importlib.util.find_spec("bubblecal.sim.protocols.ringdown") is None:
         with pytest.raises(CampaignError, match="ringdown_batch"):
             run_campaign(c2, scheduler_address="inline", on_error="raise", progress=False)
     else:  # the real default task: a tiny implicit-solvent ringdown (~2 s)

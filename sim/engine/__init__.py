@@ -1,0 +1,1 @@
+"""bubblecal.sim.engine: the Warp DPD engine (mesh, particles, neighbours, system, kernels, minimisers)."""

@@ -1,0 +1,1 @@
+"""bubblecal.sim.engine.kernels."""

@@ -1,1 +1,0 @@
-"""bubblecal.sim.experiments: loading protocols (compression, indentation) and their fidelity tiers."""

@@ -1,1 +1,0 @@
-"""bubblecal.sim.kernels."""

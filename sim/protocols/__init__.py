@@ -1,0 +1,1 @@
+"""bubblecal.sim.protocols: loading grids, MD compression / indentation, ringdown and its PCA."""

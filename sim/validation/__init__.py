@@ -1,0 +1,1 @@
+"""bubblecal.sim.validation: physics checks, reference energies and ``bubblecal sim verify``."""
