@@ -104,7 +104,8 @@ def main(argv=None) -> dict:
             t_fig = time.perf_counter() - tf
         s = result.seconds
         rows.append({"agent": agent_plan.agent, "phase1_s": sum(v for k, v in s.items() if k.startswith("phase1")),
-                     "phase2_s": s.get("phase2", 0.0), "phase3_s": sum(v for k, v in s.items() if k.startswith("phase3")),
+                     "phase2_s": s.get("phase2", 0.0),
+                     "phase3_s": sum(v for k, v in s.items() if k.startswith("phase3")),
                      "summaries_s": s["summaries"], "figures_s": t_fig, "total_s": time.perf_counter() - t0,
                      "n_datasets": len(agent_plan.dataset_names)})
     total = time.perf_counter() - t_start

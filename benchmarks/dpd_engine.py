@@ -1,4 +1,4 @@
-"""Benchmark of the Warp DPD engine (issue 5, deliverable 7).
+"""Benchmark of the Warp DPD engine: particle-steps per second, kernel time split, memory per particle.
 
 Cases:
   (i)   pure DPD fluid, rho = 3, ~10^6 particles (published water (100, 3.5, 0.25));

@@ -130,7 +130,8 @@ def main(argv=None) -> int:
                "check7_ratio_median": s["check7_ratio_median"], "check7_ratio_range": s["check7_ratio_range"],
                "check7_ratio_mesh_median": s["check7_ratio_mesh_median"],
                "loo_median": None if fit is None else fit.loo_median, "loo_max": None if fit is None else fit.loo_max,
-               "f_res_MHz_range": [float(np.nanmin(res.column("f_res_MHz"))), float(np.nanmax(res.column("f_res_MHz")))],
+               "f_res_MHz_range": [float(np.nanmin(res.column("f_res_MHz"))),
+                                   float(np.nanmax(res.column("f_res_MHz")))],
                "r2_min": float(np.nanmin(res.column("r2"))), "mass_ratio_40_160": None}
         if a.mass_check:
             idx = np.linspace(0, ka.size - 1, a.mass_check).round().astype(int)

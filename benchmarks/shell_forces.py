@@ -2,8 +2,9 @@
 
 R = 6 icosphere (subdivision 4, 2,562 vertices) per replica, published parameters (ka = 16,751,
 kb = 500, Kantor, self-avoidance on), float32.  All replicas share coordinates, as in the particle
-system (each replica in its own box).  Prints per-evaluation time (eager and CUDA-graph replay) and the
-per-kernel split.  Usage: ``python benchmarks/shell_forces.py [--device cuda] [--out results.json]``.
+system (each replica in its own box).  Prints a table of the per-evaluation time (eager and CUDA-graph replay)
+and the per-kernel split, then one JSON line.
+Usage: ``python benchmarks/shell_forces.py [--device cuda] [--out results.json]``.
 """
 
 from __future__ import annotations
@@ -65,11 +66,15 @@ def main() -> None:
     wp.config.quiet = True
     wp.init()
     rows = []
+    print(f"{'replicas':>8} {'self_avoid':>10} {'mode':>8} {'eager us':>9} {'graph us':>9}  kernel us", flush=True)
     for reps, sa, mode in [(1, True, "auto"), (64, True, "auto"), (64, False, "gather"), (64, False, "scatter"),
                            (256, True, "auto"), (256, False, "gather")]:
         row = bench(reps, args.device, sa, mode)
         rows.append(row)
-        print(json.dumps(row), flush=True)
+        split = ", ".join(f"{k} {v:.1f}" for k, v in row.get("kernel_us", {}).items())
+        print(f"{row['replicas']:>8} {row['self_avoid']!s:>10} {row['mode']:>8} {row['eager_us']:>9.1f} "
+              f"{row.get('graph_us', float('nan')):>9.1f}  {split}", flush=True)
+    print(json.dumps({"benchmark": "shell_forces", "device": args.device, "rows": rows}), flush=True)
     if args.out:
         with open(args.out, "w") as fh:
             json.dump(rows, fh, indent=1)

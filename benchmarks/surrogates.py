@@ -4,14 +4,15 @@ Usage::
 
     # (1) full sweep (4 widths x 3 depths) on the synthetic known-answer set, or on a published table
     python benchmarks/surrogates.py sweep --setup compression --n-curves 400 --jobs 2 --out runs/bench_sweep
-    python benchmarks/surrogates.py sweep --dataset ../shared/reference/training_compression_2.1um.csv --jobs 2
+    python benchmarks/surrogates.py sweep --dataset REF/training_compression_2.1um.csv --jobs 2  # REF: published
 
     # (2) JAX throughput of one surrogate: 50,000 parameter sets x 24 points, vs the matmul floor
     python benchmarks/surrogates.py throughput --device cpu --n-sets 50000 --n-points 24 --hidden 128x3
     python benchmarks/surrogates.py throughput --device gpu --n-sets 50000 --n-points 24 --hidden 128x3
 
 The throughput part needs numpy + jax only (no torch) and runs from a bare checkout (the package
-is imported from the repository root when ``bubblecal`` is not installed).
+is imported from the repository root when ``bubblecal`` is not installed).  Both print their table (the sweep's
+per-architecture table; one throughput line) and, last, one JSON line.
 """
 
 from __future__ import annotations
@@ -69,7 +70,8 @@ def cmd_throughput(args) -> dict:
         sizes = [7, *hidden, 1]
         w, b = xavier_uniform_weights(sizes, seed=0)
         md = {"setup": "compression", "diameter_um": 2.1, "radius_dpd": 4.2, "param_names": list(SHELL_PARAMETERS),
-              "input_names": [*SHELL_PARAMETERS, "displacement"], "param_ranges": {k: [0.0, 1.0] for k in SHELL_PARAMETERS},
+              "input_names": [*SHELL_PARAMETERS, "displacement"],
+              "param_ranges": {k: [0.0, 1.0] for k in SHELL_PARAMETERS},
               "x_range": [0.0, 1.0], "holdout_score": float("nan"), "data_hash": "random-weights",
               "architecture": {"hidden": list(hidden), "activation": "tanh"}}
         sur = Surrogate(w, b, np.zeros(7), np.ones(7), np.zeros(1), np.ones(1), md)
@@ -163,7 +165,6 @@ def cmd_sweep(args) -> dict:
                         "selected_over_floor": res.score / floor,
                         "selected_vs_truth_median": float(np.median(err_clean))})
     print(res.markdown())
-    print(json.dumps({k: v for k, v in summary.items() if k != "selected"}, indent=2, default=float))
     (out / "benchmark_summary.json").write_text(json.dumps(summary, indent=2, default=float))
     return summary
 
@@ -200,6 +201,7 @@ def main(argv=None) -> int:
     s.add_argument("--json-out", default=None)
     args = ap.parse_args(argv)
     res = cmd_throughput(args) if args.cmd == "throughput" else cmd_sweep(args)
+    print(json.dumps({k: v for k, v in res.items() if k != "selected"}, default=float))  # the JSON line
     if args.json_out:
         Path(args.json_out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json_out).write_text(json.dumps(res, indent=2, default=float))

@@ -1,4 +1,4 @@
-"""Validation of the fidelity tiers against the published Mirheo curves and against each other (issue 6).
+"""Validation of the fidelity tiers against the published Mirheo curves and against each other.
 
 For each diameter: the first ``--rows`` valid rows of
 ``<reference>/training_head_{compression,indentation}_<d>um.csv`` (read with
@@ -6,7 +6,7 @@ For each diameter: the first ``--rows`` valid rows of
 d = 2 * radius_dpd - axial diameter) are simulated with each requested tier (``get_tier``) at the rows'
 parameters and grid, geometry from the rows' radius (3.2 um rows: radius 6.38 -> 3.19 um).  Reported per
 diameter and tier: median and IQR of the relative L2 error ||y_tier - y_pub|| / ||y_pub|| over the rows,
-the same against the explicit tier (the <= 3 % gate of issue 6) when it ran, wall seconds, curves per
+the same against the explicit tier (the <= 3 % fidelity gate) when it ran, wall seconds, curves per
 GPU-hour (ok curves / wall), statuses.  Files under ``--out``: ``tier_validation.json`` (rewritten
 after every diameter, so a cut-off run keeps its finished diameters), ``curves_<d>um.csv`` (all curves)
 and ``overlay_<d>um.png`` (published vs tiers, up to 4 rows).  Last stdout line: one JSON summary.
@@ -115,7 +115,8 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
     from bubblecal.sim.campaign import lhs_design
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
-    names = [c for c in available_campaigns() if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
+    suffixes = (f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um")
+    names = [c for c in available_campaigns() if c.endswith(suffixes)]
     if not names:
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     cfg = load_campaign_file(names[0]).config
@@ -140,7 +141,8 @@ def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
     from bubblecal.surrogates.dataset import TrainingSet
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
-    names = [c for c in available_campaigns() if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
+    suffixes = (f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um")
+    names = [c for c in available_campaigns() if c.endswith(suffixes)]
     if not names:
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     grid = np.asarray(load_campaign_file(names[0]).config.grid_for(diameter), dtype=np.float64)

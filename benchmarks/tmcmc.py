@@ -1,6 +1,6 @@
 """TMCMC benchmark: bubblecal's compiled TMCMC core vs BlackJAX 1.7.1 ``adaptive_tempered_smc``.
 
-Likelihood (surrogate-shaped, as in issue 3): a random tanh MLP 7→128×4→1 with softplus output,
+Likelihood (surrogate-shaped): a random tanh MLP 7→128×4→1 with softplus output,
 evaluated at 24 points; parameters (k_a, k_b, b1, b2, a3, a4, d0, σ) under an 8-parameter box prior;
 compression-style input x̃ = max(0, x − d0); multiplicative Gaussian noise y ~ N(ŷ, (σŷ)²) with data
 drawn at 5 % noise.  Both samplers: the same N, likelihood, box prior in the original space, RW-MH
@@ -380,7 +380,8 @@ def main(args):
         f"TMCMC benchmark: N = {n}, {args.steps} MH steps/stage, device {out['device']}, "
         f"one vmapped evaluation of all particles {t_eval * 1e3:.2f} ms"
     )
-    hdr = f"{'sampler':>14s} {'wall s':>8s} {'stages':>6s} {'evals':>10s} {'evals/s':>10s} {'floor s':>8s} {'x floor':>7s} {'vs BJ':>6s} {'log Z':>9s}"
+    hdr = (f"{'sampler':>14s} {'wall s':>8s} {'stages':>6s} {'evals':>10s} {'evals/s':>10s} {'floor s':>8s} "
+           f"{'x floor':>7s} {'vs BJ':>6s} {'log Z':>9s}")
     extra = (
         f" {'sdZ/run':>8s} {'ESSmin/run':>10s} {'TTA s':>8s} {'TTA vs BJ':>9s}" if args.replicas >= 2 else ""
     )

@@ -1,6 +1,6 @@
 """Milliseconds per Adam step of the surrogate trainer: CPU (1 thread), CUDA eager, CUDA graphs.
 
-    python3 benchmarks/device/train_step_bench.py [--points 81000] [--epochs 3]
+    python benchmarks/train_step_bench.py [--points 81000] [--epochs 3]
 
 Prints a table and one JSON line.  Each run trains ``--epochs`` epochs of the standard recipe (batch 256) on
 random inputs; the time per step is the epoch wall time over the number of batches.

@@ -1,6 +1,6 @@
 """FIRE work of quasi-static indentation curves with the first-load ramp (``first_load_ramp``), against a store.
 
-    python benchmarks/first_load_ramp.py STORE [--n 30] [--seed 1] [--ramp 6] [--device cpu]
+    python benchmarks/studies/first_load_ramp.py STORE [--n 30] [--seed 1] [--ramp 6] [--device cpu]
 
 Re-runs ``--n`` random curves of an indentation campaign store or export (one batch, the store's diameter and
 indentation convention, the tier's FIRE settings: float64, ftol 0.05, max_steps 100,000 per point) with the

@@ -1,4 +1,4 @@
-"""What a smaller quasi-static ``max_steps`` would cost and save, from a campaign's own records (issue 6 item 6).
+"""What a smaller quasi-static ``max_steps`` would cost and save, from a campaign's own records.
 
 A quasi-static record carries ``fire_steps_chain``: the FIRE updates of every chain point (the ramp's sub-points
 included).  With ``stop_unstable`` a point that reaches ``max_steps`` ends its curve as 'unstable'; a smaller cap
@@ -7,7 +7,7 @@ the cap, with the same iterates (the same curve), and a cut curve costs its step
 This prints, per cap: ok curves kept and lost, where the lost ones sit in k_b and k_a, the pool's FIRE work relative
 to the run's, and the largest per-curve work (the pool's tail is set by its longest curves).
 
-    python benchmarks/max_steps_study.py STORE [--caps 100000,50000,40000,30000,20000]
+    python benchmarks/studies/max_steps_study.py STORE [--caps 100000,50000,40000,30000,20000]
 
 Input: a campaign store folder or its ``.jsonl.gz`` export, made with ``stop_unstable = true`` and a cap at least as
 large as every cap asked for.  Last stdout line: one JSON summary.

@@ -1,6 +1,6 @@
-"""Run a shipped campaign in-process on the lent GPU (no CLI / Dask needed there), resumable.
+"""Run a shipped campaign in-process on a GPU machine (no CLI / Dask needed there), resumable: campaign throughput.
 
-    python3 benchmarks/device/run_campaign.py NAME STORE_DIR [--limit N] [--device cuda] [--diameter D ...]
+    python benchmarks/run_campaign.py NAME STORE_DIR [--limit N] [--device cuda] [--diameter D ...]
         [--replicas-per-task N] [--max-replicas R] [--workers W]
 
 Prints one progress line per finished task and the campaign summary as JSON.  Same records as

@@ -1,13 +1,13 @@
 """Do other FIRE controls shorten the slowest quasi-static indentation curves, and at what change of the curve?
 
-The wall time of a campaign task is set by its slowest curve (benchmarks/RESULTS.md, sessions 6 and 10): an
+The wall time of a campaign task is set by its slowest curve (benchmarks/RESULTS.md, Quasi-static throughput): an
 iteration of the slowest replica costs a fixed ~0.3 ms on an H100 however few replicas relax.  This script takes
 the ``--n`` slowest curves of a campaign store (FIRE iterations in ``provenance.info.fire_steps``), re-runs them
 one replica each with the quasi-static tier's settings (float64, ftol 0.05, max_steps 100,000 per point, the
 store's indentation convention) under FIRE variants, and reports per variant and curve the FIRE iterations and
 the relative L2 change of d(F) against the baseline variant (same controls as the store).
 
-    python benchmarks/fire_tail.py STORE [--n 3] [--quantiles 0.5,0.9] [--variants baseline,dtmax_0.1,move_0.02]
+    python benchmarks/studies/fire_tail.py STORE [--n 3] [--quantiles 0.5,0.9] [--variants baseline,dtmax_0.1,move_0.02]
         [--device cpu] [--diameter 3.2] [--out DIR]
 
 Variants: ``baseline`` (FireSettings defaults of the tier: dt 0.005, dt_max 0.05, max_move 0.01, ftol 0.05 and the
@@ -104,7 +104,8 @@ def main(argv=None) -> int:
                    "rel_l2_vs_first": rel, "wall_s": round(time.perf_counter() - t0, 1)}
             rows.append(row)
             print(f"{row['sample_id']}  ka {row['ka']:9.0f} kb {row['kb']:7.0f}  {variant:22s} {row['status']:13s} "
-                  f"FIRE {row['fire_steps']:8d} (store {row['store_fire_steps']:8d}, max/point {row['max_point_steps']:6d})"
+                  f"FIRE {row['fire_steps']:8d} (store {row['store_fire_steps']:8d}, "
+                  f"max/point {row['max_point_steps']:6d})"
                   f"  dL2 {rel:.4f}  {row['wall_s']} s", flush=True)
     out = {"benchmark": "fire_tail", "store": args.store, "device": args.device, "rows": rows,
            "total_wall_s": round(time.perf_counter() - t_all, 1)}

@@ -1,12 +1,12 @@
 """Which convention difference explains the size-dependent indentation gap to the published Mirheo curves?
 
-Answer (session 9, benchmarks/RESULTS.md): the loaded pole patch.  The published curves' compliance exponents
-(d/F ~ ka^a kb^b over the rows) are matched only with ~7 loaded vertices per pole on the subdivision-4 mesh
-(the pole vertex and its first ring) and kernel kb = published kb: the tier's ``indentation_convention =
-"mirheo"`` (variant ``mirheo``).
+Answer (benchmarks/RESULTS.md, archive 2026-11-25, "the 5.8 um gap found"): the loaded pole patch.  The published
+curves' compliance exponents (d/F ~ ka^a kb^b over the rows) are matched only with ~7 loaded vertices per pole on the
+subdivision-4 mesh (the pole vertex and its first ring) and kernel kb = published kb: the tier's
+``indentation_convention = "mirheo"`` (variant ``mirheo``).
 
 At 3.2 um the quasi-static tier (kb x KB_KERNEL_SCALE["indentation"] = 2/3) matches the published Mirheo
-d(F) to 1.00 +- 0.02; at 5.8 um it is 13-15 % stiffer (benchmarks/RESULTS.md, "Fidelity gate at 5.8 um").
+d(F) to 1.00 +- 0.02; at 5.8 um it is 13-15 % stiffer (benchmarks/RESULTS.md, archive, "Gate at 5.8 um").
 This script runs the quasi-static tier on a few valid published rows of both diameters (3.2 um = control)
 for a set of variants and reports, per variant and diameter, the ratio d_ours / d_published per loading
 point, reduced to the median over points ``--points`` (default 5-15, 1-based) per row, then the median
@@ -28,8 +28,8 @@ Analysis-only (no extra simulation, from the baseline curves):
   pubref_F0      published d taken relative to the published F = 0 axial diameter (instead of 2 radius)
 
 Usage:
-  python benchmarks/mirheo_gap_58.py --device cpu --rows58 1,2,3 --rows32 1,2 --variants baseline,gas_p0_0
-  python benchmarks/mirheo_gap_58.py --device cuda --rows58 1-8 --rows32 1-4        # GPU: more rows
+  python benchmarks/studies/mirheo_gap_58.py --device cpu --rows58 1,2,3 --rows32 1,2 --variants baseline,gas_p0_0
+  python benchmarks/studies/mirheo_gap_58.py --device cuda --rows58 1-8 --rows32 1-4        # GPU: more rows
 Prints one table (variant x diameter: median ratio, per-row ratios, statuses, wall s) and one JSON line last.
 Reuses the row loading of benchmarks/tier_validation.py (read_published + filter_curves).
 """
@@ -45,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from tier_validation import find_reference, load_rows  # noqa: E402  (sibling script)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for tier_validation.py
+from tier_validation import find_reference, load_rows  # noqa: E402  (benchmark script)
 
 VARIANTS = {
     "baseline": {},
@@ -219,7 +219,8 @@ def main(argv=None) -> int:
         ts = ts_all.subset(np.array([r - 1 for r in rows if r - 1 < ts_all.n_curves]))
         pub = ts.y  # d = 2 radius - axial diameter (read_published)
         exp_pub = compliance_exponents(pub, ts.x, ts.params[:, 0], ts.params[:, 1], pts)
-        results[f"{d:g}"] = {"exponents_published": exp_pub, "rows": rows, "ka": ts.params[:, 0].tolist(), "kb": ts.params[:, 1].tolist(),
+        results[f"{d:g}"] = {"exponents_published": exp_pub, "rows": rows, "ka": ts.params[:, 0].tolist(),
+                             "kb": ts.params[:, 1].tolist(),
                              "published": pub.tolist(), "grid": ts.x[0].tolist(), "variants": {}}
         print(f"=== {d:g} um: rows {rows}, ka {np.round(ts.params[:, 0]).tolist()}, kb "
               f"{np.round(ts.params[:, 1]).tolist()}; published compliance ~ ka^a kb^b, (a, b) = {exp_pub}",
@@ -238,11 +239,12 @@ def main(argv=None) -> int:
             y = np.where(ok[:, None], r["y"], np.nan)
             per_row, per_point = point_ratio(y, pub, pts)
             med = float(np.nanmedian(per_row)) if np.isfinite(per_row).any() else None
-            # the issue's metric: relative L2 over the whole curve, median over rows
+            # the validation metric: relative L2 over the whole curve, median over rows
             rel_l2 = np.linalg.norm(y - pub, axis=1) / np.linalg.norm(pub, axis=1)
             med_l2 = float(np.nanmedian(rel_l2)) if np.isfinite(rel_l2).any() else None
             expo = compliance_exponents(y, ts.x, ts.params[:, 0], ts.params[:, 1], pts)
-            entry = {"median_ratio": med, "median_rel_l2": med_l2, "row_rel_l2": rel_l2.tolist(), "exponents": expo, "row_ratios": per_row.tolist(), "point_ratios": per_point.tolist(),
+            entry = {"median_ratio": med, "median_rel_l2": med_l2, "row_rel_l2": rel_l2.tolist(), "exponents": expo,
+                     "row_ratios": per_row.tolist(), "point_ratios": per_point.tolist(),
                      "status": r["status"], "wall_s": r["wall_s"], "n_vertices": r["n_vertices"],
                      "k_loaded": r["k_loaded"], "radius_dpd_mesh": r["radius_dpd_mesh"], "spec": spec,
                      "fire_steps": r["fire_steps"], "curves": r["y"].tolist()}
@@ -279,7 +281,8 @@ def main(argv=None) -> int:
               f"{str(expo):>16} {ls:>7} {wall:7.1f}  {','.join(st)}")
     compact = {d: {v: {"median_ratio": None if e["median_ratio"] is None else round(e["median_ratio"], 4),
                        "median_rel_l2": None if e.get("median_rel_l2") is None else round(e["median_rel_l2"], 4),
-                       "exponents": e.get("exponents"), "wall_s": round(e["wall_s"], 1)} for v, e in r["variants"].items()}
+                       "exponents": e.get("exponents"), "wall_s": round(e["wall_s"], 1)}
+                   for v, e in r["variants"].items()}
                for d, r in results.items()}
     if args.out:
         (Path(args.out) / "mirheo_gap_58.json").write_text(json.dumps(results, indent=1))

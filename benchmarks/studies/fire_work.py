@@ -1,6 +1,6 @@
-"""Per-store FIRE work and statuses of campaign stores (a throughput diagnosis; runs anywhere, the lent GPU too).
+"""Per-store FIRE work and statuses of campaign stores (a throughput diagnosis; runs anywhere).
 
-    python3 benchmarks/device/fire_work.py STORE [STORE ...] [--top 20]
+    python benchmarks/studies/fire_work.py STORE [STORE ...] [--top 20]
 
 Prints per store: records, statuses, median / p90 / max / sum of FIRE iterations per curve
 (provenance.info.fire_steps), task compute seconds, and which curves make a pool's tail: the statuses of the

@@ -6,7 +6,7 @@ the relative L2 error ||y_surrogate - y_published|| / ||y_published|| over the r
 training box (rows outside are counted, not scored), the median ratio per loading point, and the same numbers
 for the surrogate's own grouped-holdout score (from its metadata) for comparison.
 
-    python benchmarks/own_surrogate_vs_published.py --surrogate OUT/indentation_3.2um.npz --setup indentation \
+    python benchmarks/studies/own_surrogate_vs_published.py --surrogate OUT/indentation_3.2um.npz --setup indentation \
         --diameter 3.2 [--reference DIR]
 
 Prints a table and a final JSON line; skips cleanly (exit 0) when the reference file is absent.
@@ -20,7 +20,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from tier_validation import find_reference  # sibling script (benchmarks/ is on sys.path when run)
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for tier_validation.py
+from tier_validation import find_reference  # noqa: E402  (benchmark script)
 
 
 def main(argv=None) -> int:

@@ -1,6 +1,6 @@
 """Model of a quasi-static slot-refill pool's wall time from its curves' FIRE work and measured iteration costs.
 
-    python3 benchmarks/device/pool_model.py STORE [STORE ...] --costs benchmarks/figures/qs_iteration_cost_h100.jsonl
+    python benchmarks/studies/pool_model.py STORE [STORE ...] --costs benchmarks/figures/qs_iteration_cost_h100.jsonl
         [--slots 500,1000] [--threads-tag TEXT ...] [--max-steps 40000,30000]
 
 Replays the schedule of ``quasistatic_*(..., max_replicas=R)`` (softest k_a first; a finished slot takes the next
@@ -8,8 +8,8 @@ curve; once the pool is empty and at most 1/8 of the slots relax, they move to a
 that batch has more than 8 slots) with each curve's total FIRE iterations from the store, and charges each batch
 iteration the measured ms of ``benchmarks/qs_iteration_cost.py`` for its size and relaxing count (linear in the
 relaxing count between one and all, linear in between measured sizes).  Host work (point measurements, refills)
-is not modelled: against the measured session-11 pools the model was 8-11 % short.  ``--max-steps``: also model
-smaller per-point FIRE caps from the records' ``fire_steps_chain`` (``benchmarks/max_steps_study.py``: a cut curve
+is not modelled: against measured pools the model was 8-19 % short (benchmarks/RESULTS.md).  ``--max-steps``: also model
+smaller per-point FIRE caps from the records' ``fire_steps_chain`` (``max_steps_study.py`` here: a cut curve
 costs its steps up to the cut plus the cap, and counts as 'ok' only if every point converged within the cap).  A
 ``--threads-tag`` matches a cost line's ``threads_per_replica`` or ``kernels`` text.  Prints a table and a JSON line.
 """
@@ -24,10 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # sibling study scripts
 from fire_work import load_work  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from max_steps_study import cap_curves, chains_of  # noqa: E402
 
 COMPACT_BELOW, COMPACT_MIN = 0.125, 8  # as bubblecal.sim.tiers.quasistatic
