@@ -39,7 +39,7 @@ def test_caps_keep_exactly_the_curves_whose_points_all_converged_within_them(ms)
 
 
 def test_reads_a_store_and_its_export_and_refuses_what_the_records_cannot_answer(ms, tmp_path, capsys):
-    from bubblecal.data.store import CampaignStore, export_compressed, make_record
+    from bubblecal.data import CampaignStore, export_compressed, make_record
 
     store = CampaignStore.create(tmp_path / "s.store")
     full = {"ka": 1.0, "kb": 1.0, "b1": 0.0, "b2": 0.0, "a3": 0.0, "a4": 0.0}

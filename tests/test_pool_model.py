@@ -57,7 +57,7 @@ def test_cost_lines_match_on_kernels_text_too(pm):
 def test_max_steps_models_the_capped_work_and_the_kept_curves(pm, tmp_path, capsys):
     import json
 
-    from bubblecal.data.store import CampaignStore, make_record
+    from bubblecal.data import CampaignStore, make_record
 
     store = CampaignStore.create(tmp_path / "s.store")
     full = {"ka": 1.0, "kb": 1.0, "b1": 0.0, "b2": 0.0, "a3": 0.0, "a4": 0.0}

@@ -1,6 +1,6 @@
 # Lent-GPU production of shipped campaigns, resumable across calls (stores under /tmp/st; a previous machine's store
 # can be carried back as .device-stores/NAME.store).  Each store comes back as one file, $OUT/NAME.jsonl.gz (the
-# shipped export, bubblecal.data.store.export_compressed), also left in /tmp/train for training on the same machine.
+# shipped export, bubblecal.data.export_compressed), also left in /tmp/train for training on the same machine.
 #   usage: bash benchmarks/device/prod_campaigns.sh NAME [NAME ...]
 #   env: PROD_TIMEOUT total seconds (default 550), RPT replicas per task (default: the campaign file's),
 #        WORKERS Dask LocalCluster processes (default: in-process, no Dask; in-process runs store each quasi-static
@@ -31,7 +31,7 @@ run_one() {
   # only a finished design is exported (training waits for the file); an unfinished store stays in $ST
   # (sweep_status.sh returns it as NAME.store.tgz; carried back as .device-stores/NAME.store it resumes)
   if [ $RC -eq 0 ] && [ -d $ST/$NAME.store ]; then
-    python3 -c "from bubblecal.data.store import export_compressed as e; e('$ST/$NAME.store', '$TR/$NAME.jsonl.gz')" \
+    python3 -c "from bubblecal.data import export_compressed as e; e('$ST/$NAME.store', '$TR/$NAME.jsonl.gz')" \
       && cp $TR/$NAME.jsonl.gz $OUT/
   fi
 }
