@@ -59,7 +59,7 @@ def cmd_throughput(args) -> dict:
     import jax.numpy as jnp
     import numpy as np
 
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.surrogates.bundle import Surrogate, load
     from bubblecal.surrogates.mlp import flops_per_point, matmul_floor_forward, xavier_uniform_weights
 

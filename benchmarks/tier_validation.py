@@ -111,7 +111,7 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
     same grid and radius; their published curve is NaN (tier-vs-tier comparison only)."""
     import dataclasses
 
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.campaign import lhs_design
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
@@ -136,8 +136,7 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
 def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
     """A diameter without published rows (e.g. 3.4 um): ``n`` LHS rows of the shipped campaign's box on its
     grid and radius (tier-vs-tier comparison only)."""
-    from bubblecal.data.names import SHELL_PARAMETERS
-    from bubblecal.data.units import radius_dpd_from_diameter_um
+    from bubblecal.data import SHELL_PARAMETERS, radius_dpd_from_diameter_um
     from bubblecal.surrogates.dataset import TrainingSet
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
@@ -291,7 +290,7 @@ def main(argv=None) -> int:
     import warp as wp
 
     wp.config.quiet = True
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.protocols.md_loading import ProtocolSteps, steps_per_curve
     from bubblecal.sim.tiers import CurveRequest, get_tier

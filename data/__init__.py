@@ -1,8 +1,19 @@
-"""bubblecal.data: the bottom layer — units, reference curves, acoustic observations, loaders.
+"""bubblecal.data: the bottom layer - units, names, curves, acoustic observations, the campaign store, files.
 
-Public API::
+Every public object of the layer is imported from here, e.g.::
 
-    from bubblecal.data import DEFAULT_UNITS, load_reference, reference_curves, acoustic_observations
+    from bubblecal.data import DEFAULT_UNITS, SHELL_PARAMETERS, load_reference, reference_curves
+
+* units (:mod:`~bubblecal.data.units`): :class:`UnitSystem`, the only place that knows a conversion factor;
+* names defined once (:mod:`~bubblecal.data.names`): parameters, agents, protocols, statuses, code version;
+* loading curves: the types (:mod:`~bubblecal.data.curves`), the CSV reader (:mod:`~bubblecal.data.readers`)
+  and the shipped reference curves (:mod:`~bubblecal.data.reference`);
+* acoustic resonance observations (:mod:`~bubblecal.data.acoustic`);
+* the append-only campaign store (:mod:`~bubblecal.data.records`, :mod:`~bubblecal.data.store`);
+* atomic file writes and JSON conversion (:mod:`~bubblecal.data.files`);
+* the layer's errors (:mod:`~bubblecal.data.errors`).
+
+Importing it needs NumPy only.
 """
 
 from bubblecal.data.acoustic import (
@@ -12,20 +23,54 @@ from bubblecal.data.acoustic import (
     acoustic_observations,
     load_acoustic_table,
 )
-from bubblecal.data.curves import (
-    DataError,
-    LoadingCurve,
-    SourceCurve,
-    expected_columns,
-    load_curve,
+from bubblecal.data.curves import KINDS, UNITS, LoadingCurve, SourceCurve, expected_columns
+from bubblecal.data.errors import DataError, StoreError
+from bubblecal.data.files import atomic_write, jsonable
+from bubblecal.data.names import (
+    AGENTS,
+    LOADING_PROTOCOLS,
+    MODEL_PARAMETERS,
+    NOISE_PARAMETERS,
+    NONLINEAR_PARAMETERS,
+    PARAMETER_UNITS,
+    POSITIVE_PARAMETERS,
+    PROTOCOLS,
+    RECORD_STATUSES,
+    RETRY_STATUSES,
+    SHELL_PARAMETERS,
+    STATUSES,
+    code_version,
+)
+from bubblecal.data.readers import MIN_POINTS, RETAINED_COLUMN, load_curve
+from bubblecal.data.records import RECORD_VERSION, REQUIRED_FIELDS, make_record, validate_record
+from bubblecal.data.reference import (
+    REFERENCE_CURVES,
     load_reference,
     reference_curves,
     reference_names,
+    resolve_reference_name,
 )
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data.store import STORE_FORMAT, STORE_FORMAT_VERSION, CampaignStore, export_compressed
+from bubblecal.data.units import DEFAULT_UNITS, K_BOLTZMANN, UnitSystem, radius_dpd_from_diameter_um
 
 __all__ = [
-    "DEFAULT_UNITS", "UnitSystem", "DataError", "LoadingCurve", "SourceCurve", "expected_columns",
-    "load_curve", "load_reference", "reference_curves", "reference_names", "AcousticDataset",
-    "AcousticObservation", "acoustic_datasets", "acoustic_observations", "load_acoustic_table",
+    # units
+    "DEFAULT_UNITS", "K_BOLTZMANN", "UnitSystem", "radius_dpd_from_diameter_um",
+    # names
+    "SHELL_PARAMETERS", "NONLINEAR_PARAMETERS", "MODEL_PARAMETERS", "NOISE_PARAMETERS", "PARAMETER_UNITS",
+    "POSITIVE_PARAMETERS", "AGENTS", "LOADING_PROTOCOLS", "PROTOCOLS", "STATUSES", "RECORD_STATUSES",
+    "RETRY_STATUSES", "code_version",
+    # errors
+    "DataError", "StoreError",
+    # loading curves
+    "KINDS", "UNITS", "LoadingCurve", "SourceCurve", "expected_columns", "RETAINED_COLUMN", "MIN_POINTS",
+    "load_curve", "REFERENCE_CURVES", "reference_names", "resolve_reference_name", "load_reference",
+    "reference_curves",
+    # acoustic observations
+    "AcousticObservation", "AcousticDataset", "acoustic_observations", "acoustic_datasets", "load_acoustic_table",
+    # campaign store
+    "RECORD_VERSION", "REQUIRED_FIELDS", "make_record", "validate_record", "STORE_FORMAT", "STORE_FORMAT_VERSION",
+    "CampaignStore", "export_compressed",
+    # files
+    "atomic_write", "jsonable",
 ]

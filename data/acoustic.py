@@ -1,8 +1,8 @@
-"""Acoustic resonance observations: the shipped table and its grouping into datasets.
+"""Acoustic resonance observations: the shipped table, its reader and its grouping into datasets.
 
 In the hierarchy each acoustic dataset has its own latent shell parameters: Definity's 14
 bubbles (Goertz et al. 2006) form one dataset, SonoVue's 3 bubbles (van der Meer et al. 2004)
-three datasets (docs/inference.md, section 3).
+three datasets (docs/inference.md section 3).  Diameters are in um, frequencies in MHz.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.curves import DataError
+from bubblecal.data.errors import DataError
 from bubblecal.data.names import AGENTS
 
 __all__ = ["AcousticObservation", "AcousticDataset", "acoustic_observations", "acoustic_datasets",
@@ -26,7 +26,21 @@ _COLUMNS = ("agent", "source", "source_figure", "diameter_um", "resonance_freque
 
 @dataclass(frozen=True)
 class AcousticObservation:
-    """One bubble: ``diameter_um`` [um] and measured resonance ``frequency_MHz`` [MHz]."""
+    """One bubble's measured resonance.
+
+    Parameters
+    ----------
+    agent : str
+        'definity' or 'sonovue'.
+    diameter_um : float
+        Bubble diameter [um].
+    frequency_MHz : float
+        Measured resonance frequency [MHz].
+    source : str
+        Citation of the measurement.
+    source_figure : str
+        Figure of the source the value was read from.
+    """
 
     agent: str
     diameter_um: float
@@ -39,7 +53,18 @@ class AcousticObservation:
 class AcousticDataset:
     """A group of observations sharing one latent parameter set in the hierarchy.
 
-    ``diameter_um`` [um] and ``frequency_MHz`` [MHz] are arrays of equal length.
+    Parameters
+    ----------
+    name : str
+        Dataset name, e.g. ``"definity_acoustic"`` or ``"sonovue_acoustic_2.6um"``.
+    agent : str
+        'definity' or 'sonovue'.
+    diameter_um : numpy.ndarray
+        Bubble diameters [um].
+    frequency_MHz : numpy.ndarray
+        Measured resonance frequencies [MHz], same length as ``diameter_um``.
+    source : str
+        Citation of the measurements.
     """
 
     name: str
@@ -55,8 +80,25 @@ class AcousticDataset:
 
 
 def load_acoustic_table(path: str | Path) -> list[AcousticObservation]:
-    """Read and validate an acoustic table (columns: agent, source, source_figure, diameter_um,
-    resonance_frequency_MHz). Raises :class:`DataError` naming file, row and column."""
+    """Read and validate an acoustic observations table.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A headed CSV file with the columns agent, source, source_figure, diameter_um [um] and
+        resonance_frequency_MHz [MHz] (more columns are ignored); agent is case-insensitive.
+
+    Returns
+    -------
+    list of AcousticObservation
+        One per row, in file order.
+
+    Raises
+    ------
+    DataError
+        If the file is missing or lacks a column, or listing every bad cell with row and column: an unknown
+        agent, a diameter or frequency that is not a finite number > 0.
+    """
     path = Path(path)
     problems: list[str] = []
     try:
@@ -94,7 +136,23 @@ def load_acoustic_table(path: str | Path) -> list[AcousticObservation]:
 
 
 def acoustic_observations(agent: str | None = None) -> list[AcousticObservation]:
-    """The 17 shipped observations (or one agent's), in file order."""
+    """The 17 shipped observations, or one agent's.
+
+    Parameters
+    ----------
+    agent : str, optional
+        'definity' or 'sonovue' (case-insensitive); None for all.
+
+    Returns
+    -------
+    list of AcousticObservation
+        In file order (3 SonoVue, then 14 Definity bubbles).
+
+    Raises
+    ------
+    DataError
+        If ``agent`` is not one of the agents.
+    """
     path = Path(str(resources.files("bubblecal.data") / "reference" / "acoustic_observations_published.csv"))
     rows = load_acoustic_table(path)
     if agent is None:
@@ -105,7 +163,25 @@ def acoustic_observations(agent: str | None = None) -> list[AcousticObservation]
 
 
 def acoustic_datasets(agent: str, observations: list[AcousticObservation] | None = None) -> list[AcousticDataset]:
-    """Group observations into hierarchy datasets: Definity one dataset; SonoVue one per bubble."""
+    """Group one agent's observations into hierarchy datasets: Definity one dataset, SonoVue one per bubble.
+
+    Parameters
+    ----------
+    agent : str
+        'definity' or 'sonovue' (case-insensitive).
+    observations : list of AcousticObservation, optional
+        The observations to group (those of other agents are ignored); default: the shipped ones.
+
+    Returns
+    -------
+    list of AcousticDataset
+        Empty if the agent has no observations.
+
+    Raises
+    ------
+    DataError
+        If ``observations`` is None and ``agent`` is not one of the agents.
+    """
     rows = acoustic_observations(agent) if observations is None else [o for o in observations
                                                                        if o.agent == agent.lower()]
     if not rows:
@@ -113,8 +189,8 @@ def acoustic_datasets(agent: str, observations: list[AcousticObservation] | None
     if agent.lower() == "definity":
         return [AcousticDataset(
             name="definity_acoustic", agent="definity",
-            diameter_um=np.array([r.diameter_um for r in rows]), frequency_MHz=np.array([r.frequency_MHz for r in rows]),
-            source=rows[0].source)]
+            diameter_um=np.array([r.diameter_um for r in rows]),
+            frequency_MHz=np.array([r.frequency_MHz for r in rows]), source=rows[0].source)]
     return [AcousticDataset(name=f"sonovue_acoustic_{r.diameter_um:g}um", agent="sonovue",
                             diameter_um=np.array([r.diameter_um]), frequency_MHz=np.array([r.frequency_MHz]),
                             source=r.source) for r in rows]

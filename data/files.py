@@ -1,5 +1,7 @@
-"""File helpers: atomic writes (a reader sees the old file or the new one, never half of one) and plain-JSON
-conversion of NumPy-laden results."""
+"""File helpers: atomic writes and plain-JSON conversion of NumPy-laden results.
+
+An atomic write leaves a reader the old file or the new one, never half of one.
+"""
 
 from __future__ import annotations
 
@@ -15,8 +17,27 @@ __all__ = ["atomic_write", "jsonable"]
 
 
 def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
-    """Write ``path`` by calling ``writer(tmp)`` on a temporary file in the same folder, fsync it and
-    rename it over ``path``; if ``writer`` raises, the temporary file is removed and ``path`` is untouched."""
+    """Write ``path`` atomically through a temporary file in the same folder.
+
+    ``writer`` fills the temporary file, which is then fsync'ed and renamed over ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write; missing parent folders are created.
+    writer : callable
+        ``writer(tmp)`` writes the whole content to the temporary file ``tmp`` (a :class:`pathlib.Path`).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    BaseException
+        Whatever ``writer`` raises; the temporary file is removed and ``path`` is left untouched.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -34,8 +55,21 @@ def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
 
 
 def jsonable(obj, *, nonfinite_as_none: bool = False):
-    """``obj`` with mappings, sequences and NumPy arrays/scalars turned into plain JSON types (keys as str,
-    unknown objects as ``str``); NaN/inf become None when ``nonfinite_as_none`` (strict JSON)."""
+    """``obj`` converted to plain JSON types.
+
+    Parameters
+    ----------
+    obj : object
+        Mappings, lists/tuples, NumPy arrays and scalars, Python scalars, None, nested freely.
+    nonfinite_as_none : bool
+        Turn NaN/inf floats into None (strict JSON); otherwise they stay floats.
+
+    Returns
+    -------
+    object
+        Mappings become dicts with ``str`` keys, sequences and arrays lists, NumPy/Python booleans, integers and
+        floats ``bool``, ``int`` and ``float``; None and strings are kept and any other object becomes ``str(obj)``.
+    """
     if isinstance(obj, Mapping):
         return {str(k): jsonable(v, nonfinite_as_none=nonfinite_as_none) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):

@@ -1,155 +1,82 @@
 """Campaign store: the append-only record of finished simulation samples (writer + reader).
 
-Simulation campaigns (:mod:`bubblecal.campaigns`) write it; the surrogate training sets
-(:mod:`bubblecal.surrogates.training`) read it.  It lives in the data layer so that both ``sim`` and ``surrogates`` may import
-it.  Format version 1 (``'invalid'`` status and ``'ringdown'`` setup added backwards-compatibly: every
-older store still reads):
+Simulation campaigns write it; the surrogate training sets read it.  It lives in the data layer so that both
+``sim`` and ``surrogates`` may import it.  Store format version 1 (docs/data-formats.md); the records are
+described in :mod:`bubblecal.data.records`.
 
 Layout
 ------
 A directory ``STORE/`` holding
 
 * ``store.json`` - header written once, atomically: ``{"format": "bubblecal-campaign-store",
-  "format_version": 1, "created_utc": ..., "description": ..., "meta": {...}}``;
-* ``records.jsonl`` - **append-only JSON lines**, one record per finished sample (UTF-8, ``\\n``
-  terminated). A path ending in ``.jsonl`` is accepted as a bare records file (no header).
-* A path ending in ``.jsonl.gz`` is a gzip-compressed bare records file: read-only (how finished training
-  sets ship with the package, :func:`export_compressed`).
+  "format_version": 1, "created_utc": ..., "description": ..., "meta": {...}, "code_version": ...}``;
+* ``records.jsonl`` - **append-only JSON lines**, one checksummed record per finished sample (UTF-8,
+  ``\\n`` terminated).
 
-Record (one JSON object per line; all keys required unless marked optional)
---------------------------------------------------------------------------
-=================  ===========================================================================
-``v``              record schema version (1)
-``sample_id``      str, the design point's id, unique within the campaign (resume key)
-``curve_id``       str, globally unique id of this curve (e.g. ``"camp3/lhs-000123/r0"``)
-``setup``          ``"compression"`` | ``"indentation"`` | ``"ringdown"``
-``params``         {"ka","kb","b1","b2","a3","a4": float} (DPD units, see data/units.py)
-``radius_dpd``     float, bubble radius [DPD length] (diameter_um = radius_dpd * 0.5)
-``x``              [float] loading coordinate: compression imposed total displacement [DPD
-                   length]; indentation applied force [DPD force]; ringdown time t [DPD time]
-``y``              [float] response: compression force [DPD force]; indentation displacement
-                   (reduction of the pole-to-pole distance) [DPD length]; ringdown volume radius
-                   R(t) = (3V/4 pi)^(1/3) [DPD length]; same length as x
-``status``         ``"ok"`` | ``"ruptured"`` | ``"failed"`` | ``"unstable"`` | ``"timeout"`` |
-                   ``"invalid"`` (the simulation reported ok but the curve holds non-finite numbers)
-``seed``           int, the random seed of the run
-``tier``           str, fidelity tier (``"explicit"``, ``"implicit"``, ``"quasistatic"``, ...)
-``code_version``   str, bubblecal version (and git commit when known)
-``provenance``     object, free-form (host, device, config hash, wall time, start/end, ...)
-``written_utc``    str, ISO-8601 time of writing
-``message``        optional str (e.g. the failure reason)
-``crc32``          int, zlib.crc32 of the canonical JSON (sorted keys, no spaces) of the record
-                   without ``crc32``: detects torn or edited lines
-=================  ===========================================================================
-
-NaN/Infinity are written as the JSON extensions ``NaN``/``Infinity`` (Python's json reads them).
+A path ending in ``.jsonl`` is accepted as a bare records file (no header).  A path ending in ``.jsonl.gz``
+is a gzip-compressed bare records file: read-only (how finished training sets ship with the package,
+:func:`export_compressed`).
 
 Robustness
 ----------
-Each record is written with a single ``write`` on a file opened in append mode, then flushed
-(and fsync'ed unless ``fsync=False``). A crash mid-write leaves at most one torn last line; the
-next writer terminates it with a newline before appending (nothing is ever rewritten), and the
-reader skips lines that fail to parse or whose checksum disagrees, reporting them in
-:attr:`CampaignStore.problems` and with a warning. When a ``sample_id`` appears more than once
-the **last** record wins (a retried 'failed' sample is superseded by its later result).
+Each append is a single ``write`` on a file opened in append mode, then flushed (and fsync'ed unless
+``fsync=False``). A crash mid-write leaves at most one torn last line; the next writer terminates it with a
+newline before appending (nothing is ever rewritten), and the reader skips lines that fail to parse or whose
+checksum disagrees, reporting them in :attr:`CampaignStore.problems` and with a warning. When a ``sample_id``
+appears more than once the **last** record wins (a retried 'failed' sample is superseded by its later result).
 :meth:`CampaignStore.finished_ids` gives the samples a resumed campaign can skip.
-One writing process per store is assumed (Dask: gather results and write from the client).
+One writing process per store is assumed (with Dask: gather the results and write from the client).
 """
 
 from __future__ import annotations
 
-import datetime as _dt
 import gzip
 import json
-import math
 import os
 import warnings
 import zlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
+from bubblecal.data.errors import StoreError
 from bubblecal.data.files import atomic_write
-from bubblecal.data.names import PROTOCOLS, RECORD_STATUSES, SHELL_PARAMETERS
+from bubblecal.data.names import RECORD_STATUSES
 from bubblecal.data.names import code_version as running_code_version
+from bubblecal.data.records import _canonical, _checksummed_line, _utc_now, validate_record
 
-__all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "RECORD_VERSION", "StoreError", "CampaignStore", "make_record",
-           "validate_record", "export_compressed"]
+__all__ = ["STORE_FORMAT", "STORE_FORMAT_VERSION", "CampaignStore", "export_compressed"]
 
+#: Value of the header's ``format`` field.
 STORE_FORMAT = "bubblecal-campaign-store"
+#: Store format version written and read by this code.
 STORE_FORMAT_VERSION = 1
-RECORD_VERSION = 1
-REQUIRED = ("v", "sample_id", "curve_id", "setup", "params", "radius_dpd", "x", "y", "status", "seed",
-            "tier", "code_version", "provenance", "written_utc")
-
-
-class StoreError(ValueError):
-    """A record or store file is invalid; the message names the file/record and the field."""
-
-
-def _utc_now() -> str:
-    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
-
-
-def _canonical(obj: Mapping) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=True)
-
-
-def _checksummed_line(rec: Mapping) -> str:
-    """One store line: the canonical JSON of ``rec`` (without any old checksum) plus its crc32, newline-ended."""
-    rec = {k: v for k, v in rec.items() if k != "crc32"}
-    rec["crc32"] = zlib.crc32(_canonical(rec).encode())
-    return _canonical(rec) + "\n"
-
-
-def make_record(*, sample_id: str, setup: str, params: Mapping[str, float], radius_dpd: float,
-                x: Iterable[float], y: Iterable[float], status: str, seed: int, tier: str,
-                curve_id: str | None = None, provenance: Mapping | None = None, message: str | None = None,
-                code_version: str | None = None) -> dict:
-    """Build and validate a record (see the module docstring for the fields)."""
-    rec = {
-        "v": RECORD_VERSION, "sample_id": str(sample_id),
-        "curve_id": str(curve_id if curve_id is not None else sample_id), "setup": setup,
-        "params": {k: float(params[k]) for k in SHELL_PARAMETERS} if all(k in params for k in SHELL_PARAMETERS) else dict(params),
-        "radius_dpd": float(radius_dpd), "x": [float(v) for v in x], "y": [float(v) for v in y],
-        "status": status, "seed": int(seed), "tier": str(tier),
-        "code_version": code_version or running_code_version(), "provenance": dict(provenance or {}),
-        "written_utc": _utc_now(),
-    }
-    if message is not None:
-        rec["message"] = str(message)
-    validate_record(rec)
-    return rec
-
-
-def validate_record(rec: Mapping, where: str = "record") -> None:
-    """Raise :class:`StoreError` naming the field when ``rec`` does not follow the schema."""
-    for key in REQUIRED:
-        if key not in rec:
-            raise StoreError(f"{where}: missing field '{key}'")
-    if rec["v"] != RECORD_VERSION:
-        raise StoreError(f"{where}: field 'v' is {rec['v']!r}, this code reads record version {RECORD_VERSION}")
-    if rec["setup"] not in PROTOCOLS:
-        raise StoreError(f"{where}: field 'setup' must be one of {PROTOCOLS}, got {rec['setup']!r}")
-    if rec["status"] not in RECORD_STATUSES:
-        raise StoreError(f"{where}: field 'status' must be one of {RECORD_STATUSES}, got {rec['status']!r}")
-    params = rec["params"]
-    if not isinstance(params, Mapping):
-        raise StoreError(f"{where}: field 'params' must be an object")
-    for k in SHELL_PARAMETERS:
-        if k not in params:
-            raise StoreError(f"{where}: field 'params' lacks '{k}'")
-    if len(rec["x"]) != len(rec["y"]):
-        raise StoreError(f"{where}: fields 'x' and 'y' differ in length ({len(rec['x'])} vs {len(rec['y'])})")
-    if rec["status"] == "ok":
-        vals = list(rec["x"]) + list(rec["y"]) + [params[k] for k in SHELL_PARAMETERS] + [rec["radius_dpd"]]
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
-            raise StoreError(f"{where}: status 'ok' but non-finite numbers in params/radius_dpd/x/y")
-        if len(rec["x"]) == 0:
-            raise StoreError(f"{where}: status 'ok' but field 'x' is empty")
 
 
 class CampaignStore:
-    """Append-only campaign store at ``path`` (a directory, or a bare ``.jsonl`` file)."""
+    """Append-only campaign store at ``path``.
+
+    Opening a store reads nothing; :meth:`create` makes a new one.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A store directory, a bare ``.jsonl`` records file, or a read-only ``.jsonl.gz`` export.
+    fsync : bool
+        Fsync the records file after every append (durable against power loss; slower).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        ``path``.
+    compressed : bool
+        True for a ``.jsonl.gz`` export (read-only).
+    records_path : pathlib.Path
+        The records file.
+    header_path : pathlib.Path or None
+        The header file of a directory store; None for a bare records file.
+    problems : list of str
+        Lines skipped by the last read (file:line and why).
+    """
 
     def __init__(self, path: str | Path, fsync: bool = True):
         self.path = Path(path)
@@ -168,7 +95,32 @@ class CampaignStore:
     @classmethod
     def create(cls, path: str | Path, description: str = "", meta: Mapping | None = None,
                exist_ok: bool = True, fsync: bool = True) -> CampaignStore:
-        """Create (or open, with ``exist_ok``) a store directory with its header."""
+        """Create a store (or open an existing one) with its header and an empty records file.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            A store directory, or a bare ``.jsonl`` records file (created empty, no header).
+        description : str
+            Free text stored in the header.
+        meta : mapping, optional
+            Free-form metadata stored in the header (e.g. the campaign configuration).
+        exist_ok : bool
+            Open an existing store directory instead of failing.
+        fsync : bool
+            As in :class:`CampaignStore`.
+
+        Returns
+        -------
+        CampaignStore
+
+        Raises
+        ------
+        FileExistsError
+            If the store directory exists and ``exist_ok`` is False.
+        StoreError
+            If an existing store's header is invalid.
+        """
         store = cls(path, fsync=fsync)
         if store.header_path is None:
             store.records_path.parent.mkdir(parents=True, exist_ok=True)
@@ -187,7 +139,18 @@ class CampaignStore:
         return store
 
     def header(self) -> dict:
-        """The header of a directory store (validated); ``{}`` for a bare .jsonl file."""
+        """The header of a directory store, validated.
+
+        Returns
+        -------
+        dict
+            The parsed ``store.json``; ``{}`` for a bare records file.
+
+        Raises
+        ------
+        StoreError
+            If the header is missing, not JSON, or of another format or format version.
+        """
         if self.header_path is None:
             return {}
         if not self.header_path.is_file():
@@ -197,7 +160,9 @@ class CampaignStore:
         except json.JSONDecodeError as exc:
             raise StoreError(f"{self.header_path}: not valid JSON ({exc})") from exc
         if header.get("format") != STORE_FORMAT:
-            raise StoreError(f"{self.header_path}: field 'format' is {header.get('format')!r}, expected {STORE_FORMAT!r}")
+            raise StoreError(
+                f"{self.header_path}: field 'format' is {header.get('format')!r}, expected {STORE_FORMAT!r}"
+            )
         if header.get("format_version") != STORE_FORMAT_VERSION:
             raise StoreError(f"{self.header_path}: field 'format_version' is {header.get('format_version')!r}, "
                              f"this code reads version {STORE_FORMAT_VERSION}")
@@ -219,11 +184,39 @@ class CampaignStore:
                     fh.write(b"\n")
 
     def append(self, record: Mapping) -> None:
-        """Validate and append one record (one write call, flushed and fsync'ed)."""
+        """Validate and append one record (one write call, flushed and fsync'ed).
+
+        Parameters
+        ----------
+        record : mapping
+            A record as built by :func:`~bubblecal.data.make_record`.
+
+        Raises
+        ------
+        StoreError
+            As :meth:`append_many`.
+        """
         self.append_many([record])
 
     def append_many(self, records: Iterable[Mapping]) -> int:
-        """Append several records; each line is complete and checksummed. Returns the count."""
+        """Validate and append several records in one write; each line is complete and checksummed.
+
+        Parameters
+        ----------
+        records : iterable of mapping
+            Records as built by :func:`~bubblecal.data.make_record`; an old ``crc32`` is replaced.
+
+        Returns
+        -------
+        int
+            Number of records appended.
+
+        Raises
+        ------
+        StoreError
+            If the store is a read-only ``.jsonl.gz`` export, a directory without a header, or a record is
+            invalid (nothing is written then).
+        """
         if self.compressed:
             raise StoreError(f"{self.path}: a compressed (.jsonl.gz) store is read-only; campaigns append to a "
                              f"store directory")
@@ -252,7 +245,23 @@ class CampaignStore:
 
     # -- reading ----------------------------------------------------------------------------------
     def iter_records(self):
-        """Yield every valid record in file order (duplicates included); problems collected."""
+        """Yield every valid record in file order, duplicates included.
+
+        Lines that do not parse, lack or fail their checksum, or break the schema are skipped and listed in
+        :attr:`problems`.
+
+        Yields
+        ------
+        dict
+            A record without its ``crc32``.
+
+        Raises
+        ------
+        StoreError
+            If a directory store's header is invalid.
+        FileNotFoundError
+            If the records file does not exist.
+        """
         self.problems = []
         if self.header_path is not None:
             self.header()
@@ -283,7 +292,28 @@ class CampaignStore:
                 yield rec
 
     def read(self, statuses: Iterable[str] | None = None, warn: bool = True) -> list[dict]:
-        """All records, the last one per ``sample_id`` winning; optionally only some statuses."""
+        """The latest record of every sample.
+
+        Parameters
+        ----------
+        statuses : iterable of str, optional
+            Keep only samples whose latest record has one of these statuses (default: all).
+        warn : bool
+            Warn (``UserWarning``) when lines were skipped.
+
+        Returns
+        -------
+        list of dict
+            One record per ``sample_id`` (the last one written wins), ordered by when each sample's latest
+            record was written.
+
+        Raises
+        ------
+        StoreError
+            If a directory store's header is invalid.
+        FileNotFoundError
+            If the records file does not exist.
+        """
         latest: dict[str, dict] = {}
         for rec in self.iter_records():
             latest.pop(rec["sample_id"], None)
@@ -298,11 +328,28 @@ class CampaignStore:
         return records
 
     def finished_ids(self, statuses: Iterable[str] = ("ok", "ruptured")) -> set[str]:
-        """sample_ids whose latest record has one of ``statuses`` (a resumed campaign skips them)."""
+        """The samples a resumed campaign skips.
+
+        Parameters
+        ----------
+        statuses : iterable of str
+            Statuses that count as finished.
+
+        Returns
+        -------
+        set of str
+            The ``sample_id`` of every sample whose latest record has one of ``statuses``.
+        """
         return {r["sample_id"] for r in self.read(statuses=statuses, warn=False)}
 
     def counts(self) -> dict[str, int]:
-        """Number of samples per status (latest record per sample)."""
+        """Number of samples per status, counting each sample's latest record.
+
+        Returns
+        -------
+        dict of str to int
+            Every status of :data:`~bubblecal.data.RECORD_STATUSES` (zero included).
+        """
         out = dict.fromkeys(RECORD_STATUSES, 0)
         for r in self.read(warn=False):
             out[r["status"]] = out.get(r["status"], 0) + 1
@@ -310,9 +357,28 @@ class CampaignStore:
 
 
 def export_compressed(store: CampaignStore | str | Path, out: str | Path) -> Path:
-    """Write the latest record of every sample of ``store`` (all statuses, checksums kept) to the gzip
-    file ``out`` (must end in ``.jsonl.gz``), atomically; a read-only store for shipping finished sets.
-    Gzip's header time is fixed so the same records give the same bytes.  Returns ``out``."""
+    """Write the latest record of every sample of a store to a read-only gzip store, atomically.
+
+    All statuses are kept, with their checksums. Gzip's header time and file name are fixed, so the same
+    records give the same bytes. This is how finished training sets ship with the package.
+
+    Parameters
+    ----------
+    store : CampaignStore or str or pathlib.Path
+        The store to export.
+    out : str or pathlib.Path
+        The output file; its name must end in ``.jsonl.gz``.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+
+    Raises
+    ------
+    StoreError
+        If ``out`` does not end in ``.jsonl.gz``, the store's header is invalid, or the store holds no records.
+    """
     out = Path(out)
     if not out.name.endswith(".jsonl.gz"):
         raise StoreError(f"{out}: a compressed store's name must end in .jsonl.gz")

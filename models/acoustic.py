@@ -37,10 +37,10 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, UnitSystem
 from bubblecal.models.likelihood import SD_FLOOR_REL, noise_sd, sd_floor_for
 from bubblecal.models.mechanical import population_factor
-from bubblecal.priors.spec import PriorSpec
+from bubblecal.priors import PriorSpec
 
 __all__ = ["acoustic_model", "acoustic_prediction", "as_fres", "predict_frequency", "FrequencyTable"]
 

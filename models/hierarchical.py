@@ -41,7 +41,7 @@ import numpyro.distributions as dist
 from numpyro.distributions import constraints
 from numpyro.distributions.util import promote_shapes, validate_sample
 
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, UnitSystem
 from bubblecal.models.acoustic import predict_frequency
 from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
@@ -52,7 +52,7 @@ from bubblecal.models.likelihood import (
     truncnorm_icdf,
 )
 from bubblecal.models.mechanical import derived_sites, resolve_setup, shell_params
-from bubblecal.priors.spec import PriorSpec
+from bubblecal.priors import PriorSpec
 
 __all__ = ["TruncatedNormalPopulation", "hierarchical_model", "curve_site_name", "acoustic_site_name"]
 

@@ -49,8 +49,7 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
-from bubblecal.data.names import MODEL_PARAMETERS, NONLINEAR_PARAMETERS, SHELL_PARAMETERS
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, MODEL_PARAMETERS, NONLINEAR_PARAMETERS, SHELL_PARAMETERS, UnitSystem
 from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
     noise_sd,
@@ -58,7 +57,7 @@ from bubblecal.models.likelihood import (
     predict_mechanical,
     sd_floor_for,
 )
-from bubblecal.priors.spec import PriorSpec
+from bubblecal.priors import PriorSpec
 from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
 
 __all__ = [

@@ -31,7 +31,7 @@ import numpyro.distributions as dist
 from jax.scipy.special import logsumexp
 
 from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
-from bubblecal.priors.spec import PriorSpec
+from bubblecal.priors import PriorSpec
 
 __all__ = ["hyperprior_sites", "phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name",
            "leave_one_out_log_weights"]

@@ -36,7 +36,7 @@ import numpy as np
 
 import bubblecal.surrogates as surrogates
 from bubblecal.data import DEFAULT_UNITS as units
-from bubblecal.data.units import radius_dpd_from_diameter_um
+from bubblecal.data import radius_dpd_from_diameter_um
 from bubblecal.surrogates.dataset import filter_curves, read_dataset
 from bubblecal.surrogates.export import export_sweep
 from bubblecal.surrogates.sweep import SweepConfig, run_sweep

@@ -37,8 +37,7 @@ from numpyro.infer import init_to_value
 
 import bubblecal.surrogates as surrogates
 from bubblecal.data import DEFAULT_UNITS as units
-from bubblecal.data import load_reference
-from bubblecal.data.units import radius_dpd_from_diameter_um
+from bubblecal.data import load_reference, radius_dpd_from_diameter_um
 from bubblecal.inference.compare import compare_posteriors
 from bubblecal.inference.nuts import run_nuts
 from bubblecal.inference.predictive import predictive_band

@@ -1,17 +1,24 @@
-"""bubblecal.priors: user-editable prior/hyperprior TOML files (one per workflow) and their loader."""
+"""bubblecal.priors: the user-edited prior/hyperprior TOML files (one per workflow) and their typed loader.
 
-from bubblecal.priors.spec import (
-    Bounds,
-    NoisePrior,
-    ParameterPrior,
+Every public object of the layer is imported from here, e.g.::
+
+    from bubblecal.priors import PriorError, load_priors
+
+* the specification types (:mod:`~bubblecal.priors.spec`): :class:`PriorSpec`, :class:`ParameterPrior`,
+  :class:`NoisePrior`, :class:`Bounds`;
+* finding, loading and checking files (:mod:`~bubblecal.priors.loading`), validated by
+  :mod:`~bubblecal.priors.validation`.
+"""
+
+from bubblecal.priors.loading import (
     PriorError,
-    PriorSpec,
     available_priors,
     check_priors,
     load_priors,
     prior_path,
     workflow_file_name,
 )
+from bubblecal.priors.spec import Bounds, NoisePrior, ParameterPrior, PriorSpec
 
 __all__ = [
     "Bounds", "ParameterPrior", "NoisePrior",

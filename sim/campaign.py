@@ -72,16 +72,17 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.files import jsonable
-from bubblecal.data.names import (
+from bubblecal.data import (
     PROTOCOLS,
     RECORD_STATUSES,
     RETRY_STATUSES,
     SHELL_PARAMETERS,
+    CampaignStore,
     code_version,
+    jsonable,
+    make_record,
+    radius_dpd_from_diameter_um,
 )
-from bubblecal.data.store import CampaignStore, make_record
-from bubblecal.data.units import radius_dpd_from_diameter_um
 from bubblecal.sim.tiers import TIER_NAMES
 
 __all__ = [

@@ -44,8 +44,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from bubblecal.data.files import atomic_write
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, UnitSystem, atomic_write
 
 __all__ = ["RingdownFit", "fit_ringdown", "damped_sine", "DiameterFit", "fit_quadratic", "AcousticSurrogate",
            "AcousticFormatError", "AcousticRangeError", "AcousticRangeWarning", "ACOUSTIC_FORMAT",

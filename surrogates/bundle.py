@@ -62,8 +62,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from bubblecal.data.files import atomic_write
-from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS, code_version
+from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS, atomic_write, code_version
 from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
 
 __all__ = [

@@ -40,8 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS
-from bubblecal.data.units import DEFAULT_UNITS
+from bubblecal.data import DEFAULT_UNITS, LOADING_PROTOCOLS, SHELL_PARAMETERS
 
 __all__ = [
     "DatasetError", "TrainingSet", "FilterReport", "read_published",
@@ -421,7 +420,7 @@ def read_store_dataset(path: str | Path, setup: str | None = None) -> TrainingSe
     Records of one setup only (``setup`` selects when the store holds several). Curves must all
     have the same number of points (the published protocol); otherwise DatasetError.
     """
-    from bubblecal.data.store import CampaignStore
+    from bubblecal.data import CampaignStore
 
     store = CampaignStore(path)
     records = store.read()

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.names import PARAMETER_UNITS, SHELL_PARAMETERS
+from bubblecal.data import PARAMETER_UNITS, SHELL_PARAMETERS
 from bubblecal.surrogates.bundle import save_surrogate
 from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
 from bubblecal.surrogates.train import TrainedMLP

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from bubblecal.data.names import SHELL_PARAMETERS
+from bubblecal.data import SHELL_PARAMETERS
 from bubblecal.surrogates.dataset import TrainingSet
 
 __all__ = ["DEFAULT_RANGES", "DEFAULT_X", "compression_force", "indentation_displacement", "truth", "make_synthetic",

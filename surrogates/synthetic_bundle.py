@@ -43,9 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.curves import REFERENCE_CURVES, load_reference
-from bubblecal.data.names import SHELL_PARAMETERS
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, REFERENCE_CURVES, SHELL_PARAMETERS, UnitSystem, load_reference
 from bubblecal.surrogates.acoustic import AcousticSurrogate
 from bubblecal.surrogates.bundle import save_surrogate, write_bundle
 from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
@@ -263,7 +261,7 @@ def _mechanical(folder: Path, agent: str, setup: str, nominal: float, measured: 
 
 
 def _acoustic(folder: Path, agent: str, units: UnitSystem) -> Path:
-    from bubblecal.data.acoustic import acoustic_observations
+    from bubblecal.data import acoustic_observations
 
     lo, hi = ACOUSTIC_GRID_UM[agent]
     diameters = {round(float(d), 2) for d in np.arange(lo, hi + 1e-9, 0.25)}

@@ -30,8 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.files import jsonable
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, UnitSystem, jsonable
 
 __all__ = ["AGENT_KB", "ACOUSTIC_PRIOR", "SweepResult", "default_ka_values", "ringdown_sweep", "fit_sweep",
            "write_sweep_outputs", "ROW_FIELDS", "sweep_row", "sweeps_from_store", "sweeps_from_rows_csv",
@@ -56,7 +55,7 @@ def _agent(agent: str) -> str:
 
 def default_ka_values(agent: str, n_ka: int = 28) -> np.ndarray:
     """``n_ka`` evenly spaced k_a values (DPD 2-D modulus) over the agent's acoustic prior range of k_a."""
-    from bubblecal.priors.spec import load_priors
+    from bubblecal.priors import load_priors
 
     if not isinstance(n_ka, (int, np.integer)) or n_ka < 3:
         raise ValueError(f"n_ka must be an integer >= 3 (a quadratic needs 3 points), got {n_ka!r}")
@@ -139,7 +138,7 @@ def sweeps_from_store(store, agent: str | None = None, t_start: float | None = N
     'definity_ringdown' / 'sonovue_ringdown').  Records must be setup 'ringdown' (x = t [DPD time],
     y = R(t) [DPD length]); the check-7 prediction is recomputed from each record's equilibrium radius,
     gas pressure and shell mass (the area ratio of its mesh)."""
-    from bubblecal.data.store import CampaignStore
+    from bubblecal.data import CampaignStore
     from bubblecal.sim.protocols.ringdown import breathing_mode_prediction
 
     st = store if isinstance(store, CampaignStore) else CampaignStore(store)

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.files import atomic_write
+from bubblecal.data import atomic_write
 
 __all__ = ["AGENTS", "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION",
            "CalibrationError", "CalibrationConfig", "AgentPlan", "Plan", "PhaseStore", "AgentResult", "make_plan", "run_calibration",
@@ -221,14 +221,13 @@ def resolve_bundle(path: Path | None) -> Path:
 
 
 def _workflow_priors_name(agent: str, workflow: str) -> str:
-    from bubblecal.priors.spec import workflow_file_name
+    from bubblecal.priors import workflow_file_name
 
     return workflow_file_name(agent, workflow)
 
 
 def _load_curves(agent: str, data_dir: Path | None) -> list:
-    from bubblecal.data import DataError, load_curve, load_reference
-    from bubblecal.data.curves import REFERENCE_CURVES
+    from bubblecal.data import REFERENCE_CURVES, DataError, load_curve, load_reference
 
     curves = []
     for name, (ag, kind, nominal, measured, _cite) in REFERENCE_CURVES.items():
@@ -310,7 +309,7 @@ def make_plan(config: CalibrationConfig) -> Plan:
                                    f"{config.workflow!r} needs {str(wants_acoustic).lower()}")
         curves = _load_curves(agent, config.data_dir)
         if config.curves:
-            from bubblecal.data.curves import REFERENCE_CURVES
+            from bubblecal.data import REFERENCE_CURVES
 
             unknown = [c for c in config.curves if c not in REFERENCE_CURVES]
             if unknown:

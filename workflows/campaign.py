@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from bubblecal.data.names import PROTOCOLS, SHELL_PARAMETERS
+from bubblecal.data import PROTOCOLS, SHELL_PARAMETERS
 from bubblecal.sim.campaign import DESIGNS, CampaignConfig, CampaignConfigError
 from bubblecal.sim.tiers import TIER_NAMES
 
@@ -119,7 +119,7 @@ def _key_for(fld: str) -> str:
 
 def _prior_box(path: Path, priors: str) -> dict[str, tuple[float, float]]:
     """The shell-parameter box {param: (lo, hi)} of one workflow prior (fixed values as lo = hi)."""
-    from bubblecal.priors.spec import PriorError, available_priors, load_priors
+    from bubblecal.priors import PriorError, available_priors, load_priors
 
     target = priors
     if (priors.endswith(".toml") or "/" in priors) and not Path(priors).is_absolute():
@@ -151,7 +151,7 @@ def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
     if priors is not None:
         names = priors if isinstance(priors, list) else [priors]
         if not names or not all(isinstance(n, str) and n for n in names):
-            from bubblecal.priors.spec import available_priors
+            from bubblecal.priors import available_priors
 
             raise CampaignFileError(path, "[ranges].priors", f"must be a shipped workflow name "
                                                              f"({', '.join(available_priors())}), a TOML path, or a "

@@ -33,7 +33,7 @@ def _prior_box_domain_warnings(surrogate, spec, x) -> list[str]:
 
     import numpy as np
 
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.surrogates import SurrogateDomainWarning
 
     axes = [spec.parameters[k].prior.as_tuple() if k in spec.parameters else (spec.fixed[k],)
@@ -74,8 +74,7 @@ def compare(
 ) -> None:
     """Sample one curve's posterior with TMCMC and with NUTS (the same NumPyro model) and report
     whether the two agree (quantile differences in posterior sd and KS statistic per parameter)."""
-    from bubblecal.data import DataError, load_curve, load_reference
-    from bubblecal.data.curves import REFERENCE_CURVES, resolve_reference_name
+    from bubblecal.data import REFERENCE_CURVES, DataError, load_curve, load_reference, resolve_reference_name
     from bubblecal.priors import PriorError, load_priors
     from bubblecal.surrogates import SurrogateFormatError, load
 

@@ -7,8 +7,16 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from bubblecal.data import DEFAULT_UNITS, DataError, acoustic_observations, load_curve, reference_curves
-from bubblecal.data.curves import KINDS, UNITS, resolve_reference_name
+from bubblecal.data import (
+    DEFAULT_UNITS,
+    KINDS,
+    UNITS,
+    DataError,
+    acoustic_observations,
+    load_curve,
+    reference_curves,
+    resolve_reference_name,
+)
 from bubblecal.workflows.console import console, fail, make_table
 
 app = typer.Typer(help="Reference force curves and acoustic observations.", no_args_is_help=True)

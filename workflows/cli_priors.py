@@ -7,8 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from bubblecal.data import DEFAULT_UNITS
-from bubblecal.data.names import PARAMETER_UNITS
+from bubblecal.data import DEFAULT_UNITS, PARAMETER_UNITS
 from bubblecal.priors import PriorError, available_priors, load_priors
 from bubblecal.workflows.console import console, fail, make_table
 

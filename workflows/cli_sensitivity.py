@@ -22,8 +22,7 @@ def sensitivity(
 ) -> None:
     """First-order and total Sobol indices (SALib, with confidence intervals) along the loading
     coordinate, averaged over the curve's explored range; writes a JSON report and a plot."""
-    from bubblecal.data import DataError, load_reference
-    from bubblecal.data.curves import REFERENCE_CURVES, resolve_reference_name
+    from bubblecal.data import REFERENCE_CURVES, DataError, load_reference, resolve_reference_name
     from bubblecal.priors import PriorError, load_priors
     from bubblecal.surrogates import load
     from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity, write_sensitivity

@@ -59,7 +59,7 @@ def _fmt(v: float) -> str:
 
 def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: str) -> None:
     """Print the campaign summary and the ranges table (units in the headers)."""
-    from bubblecal.data.names import PARAMETER_UNITS
+    from bubblecal.data import PARAMETER_UNITS
     from bubblecal.workflows.cli_priors import _physical
 
     c = cf.config
@@ -91,7 +91,7 @@ def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: st
 
 
 def _pending_per_diameter(c, n_pending: int) -> list[int]:
-    from bubblecal.data.store import CampaignStore
+    from bubblecal.data import CampaignStore
     from bubblecal.sim.campaign import design_points, pending_indices
 
     if n_pending == 0:
@@ -140,7 +140,7 @@ def campaign(
     rescheduled. On a SLURM cluster start a dask_jobqueue.SLURMCluster, cluster.scale(jobs=N), and pass
     --scheduler tcp://... (see `python -c "import bubblecal.workflows.cli_sim as m; print(m.__doc__)"`).
     Exit 1 on a bad configuration."""
-    from bubblecal.data.store import CampaignStore, StoreError
+    from bubblecal.data import CampaignStore, StoreError
     from bubblecal.sim.campaign import (
         CampaignConfigError,
         CampaignError,
@@ -218,7 +218,7 @@ def campaign_status(store: Path = typer.Argument(..., help="Campaign store direc
                                                "retry_statuses define 'pending' (default: the store's own)."),
                     ) -> None:
     """Counts by status (latest record per sample) and what is still pending; exit 1 if STORE is unreadable."""
-    from bubblecal.data.store import CampaignStore, StoreError
+    from bubblecal.data import CampaignStore, StoreError
     from bubblecal.sim.campaign import pending_indices, store_status
     from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file
 

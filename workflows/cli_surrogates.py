@@ -179,7 +179,7 @@ def synthetic(
     seed: int = typer.Option(0),
 ) -> None:
     """Write a known-answer synthetic training set (closed-form shell force law + noise)."""
-    from bubblecal.data.units import radius_dpd_from_diameter_um
+    from bubblecal.data import radius_dpd_from_diameter_um
     from bubblecal.surrogates.dataset import write_published
     from bubblecal.surrogates.synthetic import make_synthetic
 
@@ -211,7 +211,7 @@ def acoustic(
     t_start: float = typer.Option(None, "--t-start", help="Fit R(t) only after this DPD time."),
 ) -> None:
     """Fit the acoustic surrogate (f_res^2(k_a) quadratic per diameter, LOO errors) from ringdown stores."""
-    from bubblecal.data.store import StoreError
+    from bubblecal.data import StoreError
     from bubblecal.workflows.acoustic_sweep import acoustic_surrogate_from_stores
     from bubblecal.workflows.console import fail
 

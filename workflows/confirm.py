@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.units import DEFAULT_UNITS
+from bubblecal.data import DEFAULT_UNITS
 
 __all__ = ["find_runs", "map_parameters", "confirm_run"]
 
@@ -69,8 +69,7 @@ def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", s
 
     import pandas as pd
 
-    from bubblecal.data import reference_curves
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS, reference_curves
     from bubblecal.priors import load_priors
     from bubblecal.sim.tiers import CurveRequest, get_tier
     from bubblecal.surrogates import load_bundle

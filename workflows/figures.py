@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.units import DEFAULT_UNITS
+from bubblecal.data import DEFAULT_UNITS
 
 __all__ = ["agent_figures", "fit_figure", "ka_kb_figure", "population_figure", "acoustic_figure"]
 

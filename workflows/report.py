@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.units import DEFAULT_UNITS
+from bubblecal.data import DEFAULT_UNITS
 
 __all__ = ["PHYSICAL", "hyperprior_bound_notes", "dataset_posteriors", "summarise_agent", "summary_table", "write_report", "POPULATION_ROW"]
 

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data.names import SHELL_PARAMETERS
+from bubblecal.data import SHELL_PARAMETERS
 from bubblecal.inference.sensitivity import SobolResult, sobol_along
-from bubblecal.priors.spec import PriorSpec
+from bubblecal.priors import PriorSpec
 
 __all__ = ["SensitivityRun", "surrogate_sensitivity", "plot_sensitivity", "write_sensitivity"]
 

@@ -23,7 +23,7 @@ STATUSES = ("ok", "unstable", "ruptured", "failed")
 def load_work(path: str) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
     """Records of a campaign store or export and, per record, FIRE iterations (NaN where not recorded), status
     and k_a (DPD units)."""
-    from bubblecal.data.store import CampaignStore
+    from bubblecal.data import CampaignStore
 
     recs = CampaignStore(path).read(warn=False)
     steps = np.array([r["provenance"].get("info", {}).get("fire_steps", np.nan) for r in recs], dtype=float)

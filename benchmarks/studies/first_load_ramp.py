@@ -31,7 +31,7 @@ def main(argv=None) -> int:
     import warp as wp
 
     wp.config.quiet = True
-    from bubblecal.data.store import CampaignStore
+    from bubblecal.data import CampaignStore
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.engine.system import resolve_dtype
     from bubblecal.sim.tiers import CurveRequest, indentation_convention

@@ -24,7 +24,7 @@ import numpy as np
 
 def read_records(path: str) -> list[dict]:
     """Records of a campaign store folder or of its read-only ``.jsonl.gz`` export."""
-    from bubblecal.data.store import CampaignStore
+    from bubblecal.data import CampaignStore
 
     return CampaignStore(path).read(warn=False)
 

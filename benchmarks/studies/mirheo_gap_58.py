@@ -144,7 +144,7 @@ def compliance_exponents(y: np.ndarray, x: np.ndarray, ka: np.ndarray, kb: np.nd
 
 
 def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
     from bubblecal.surrogates.dataset import diameter_um_from_radius

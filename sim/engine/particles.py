@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, UnitSystem
 
 WATER, GAS, VERTEX, WALL = 0, 1, 2, 3
 N_TYPES = 4

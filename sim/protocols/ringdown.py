@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bubblecal.data.names import STATUSES
+from bubblecal.data import STATUSES
 
 __all__ = [
     "RingdownBatch",

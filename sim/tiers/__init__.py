@@ -49,7 +49,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS, STATUSES
+from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS, STATUSES
 
 __all__ = [
     "TIER_NAMES",

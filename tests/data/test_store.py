@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from bubblecal.data.store import CampaignStore, StoreError, make_record
+from bubblecal.data import CampaignStore, StoreError, make_record
 
 P = {"ka": 15000.0, "kb": 900.0, "b1": 1.0, "b2": 0.5, "a3": -0.3, "a4": 1.7}
 
@@ -109,7 +109,7 @@ def test_invalid_status_and_ringdown_setup_roundtrip(tmp_path):
 
 
 def test_compressed_export_is_exact_deterministic_and_read_only(tmp_path):
-    from bubblecal.data.store import export_compressed
+    from bubblecal.data import export_compressed
 
     store = CampaignStore.create(tmp_path / "s", fsync=False)
     store.append_many([rec(0, status="failed"), rec(1), rec(2, status="ruptured")])

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bubblecal.data.store import CampaignStore
+from bubblecal.data import CampaignStore
 
 TRAINING = Path(__file__).resolve().parents[2] / "data" / "training"
 SETS = sorted(TRAINING.glob("*.jsonl.gz"))

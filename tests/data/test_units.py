@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.data import DEFAULT_UNITS, UnitSystem
 
 
 def test_pinned_numbers():

@@ -16,7 +16,7 @@ import cloudpickle
 import numpy as np
 import pytest
 
-from bubblecal.data.store import CampaignStore
+from bubblecal.data import CampaignStore
 from bubblecal.sim.campaign import (
     CampaignConfig,
     CampaignConfigError,

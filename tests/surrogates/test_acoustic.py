@@ -8,7 +8,7 @@ import jax
 import numpy as np
 import pytest
 
-from bubblecal.data.units import DEFAULT_UNITS
+from bubblecal.data import DEFAULT_UNITS
 from bubblecal.surrogates.acoustic import (
     AcousticFormatError,
     AcousticRangeError,

@@ -140,7 +140,7 @@ def test_too_few_curves_for_sweep():
 
 
 def test_read_dataset_dispatches_to_store(tmp_path):
-    from bubblecal.data.store import CampaignStore, make_record
+    from bubblecal.data import CampaignStore, make_record
 
     store = CampaignStore.create(tmp_path / "camp", fsync=False)
     ts = make_synthetic(3, "compression", noise=0.0, seed=2)

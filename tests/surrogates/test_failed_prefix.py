@@ -219,7 +219,7 @@ def test_train_export_end_to_end_with_prefixes(tmp_path):
 
 
 def _write_store(tmp_path, ts):
-    from bubblecal.data.store import CampaignStore, make_record
+    from bubblecal.data import CampaignStore, make_record
 
     store = CampaignStore.create(tmp_path / "camp", fsync=False)
     for i in range(ts.n_curves):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from bubblecal.data.units import DEFAULT_UNITS
+from bubblecal.data import DEFAULT_UNITS
 from bubblecal.workflows.acoustic_sweep import (
     AGENT_KB,
     ROW_FIELDS,
@@ -100,7 +100,7 @@ def test_cli_ringdown_tiny(tmp_path):
 
 def _ringdown_store(path, diameters=(4.68, 5.18), n=6):
     """A ringdown campaign store whose R(t) are damped cosines with f_res^2 = 0.1 + 2e-4 ka [MHz^2]."""
-    from bubblecal.data.store import CampaignStore, make_record
+    from bubblecal.data import CampaignStore, make_record
 
     conv = float(DEFAULT_UNITS.frequency_to_physical(1.0, 160.0)) / 1e6
     st = CampaignStore.create(path, meta={"campaign": {"name": "definity_ringdown"}})
@@ -162,7 +162,7 @@ def test_acoustic_cli_and_bad_inputs(tmp_path):
 def test_shipped_ringdown_rows_are_physical():
     from pathlib import Path
 
-    from bubblecal.data.acoustic import acoustic_observations
+    from bubblecal.data import acoustic_observations
     from bubblecal.workflows.acoustic_sweep import sweeps_from_rows_csv
 
     folder = Path(__file__).resolve().parents[2] / "data" / "training"

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from bubblecal.data.names import STATUSES
+from bubblecal.data import STATUSES
 from bubblecal.sim.protocols.md_loading import (
     STATUS_MAP,
     ExplicitTier,

@@ -112,7 +112,7 @@ def test_mirheo_convention_reproduces_the_published_indentation_curves(shared_re
     with the ``mirheo`` convention both are 0.97-0.98 (measured; asserted in [0.95, 1.0]) and within 2 % of each
     other; the ``bubblecal-v1`` patch (25 vertices) gives 0.95 and 1.10, a ka / kb-dependent error (RESULTS.md)."""
     pytest.importorskip("warp")
-    from bubblecal.data.names import SHELL_PARAMETERS
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.tiers import get_tier
 
     ts = _published_rows(shared_reference, [0, 2])
