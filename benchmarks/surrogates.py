@@ -59,8 +59,13 @@ def cmd_throughput(args) -> dict:
     import numpy as np
 
     from bubblecal.data.names import SHELL_PARAMETERS
-    from bubblecal.surrogates.bundle import Surrogate, load
-    from bubblecal.surrogates.mlp import flops_per_point, matmul_floor_forward, xavier_uniform_weights
+    from bubblecal.surrogates import (
+        Surrogate,
+        flops_per_point,
+        load,
+        matmul_floor_forward,
+        xavier_uniform_weights,
+    )
 
     if args.weights:
         sur = load(args.weights)
@@ -69,7 +74,8 @@ def cmd_throughput(args) -> dict:
         sizes = [7, *hidden, 1]
         w, b = xavier_uniform_weights(sizes, seed=0)
         md = {"setup": "compression", "diameter_um": 2.1, "radius_dpd": 4.2, "param_names": list(SHELL_PARAMETERS),
-              "input_names": [*SHELL_PARAMETERS, "displacement"], "param_ranges": {k: [0.0, 1.0] for k in SHELL_PARAMETERS},
+              "input_names": [*SHELL_PARAMETERS, "displacement"],
+              "param_ranges": {k: [0.0, 1.0] for k in SHELL_PARAMETERS},
               "x_range": [0.0, 1.0], "holdout_score": float("nan"), "data_hash": "random-weights",
               "architecture": {"hidden": list(hidden), "activation": "tanh"}}
         sur = Surrogate(w, b, np.zeros(7), np.ones(7), np.zeros(1), np.ones(1), md)
@@ -124,11 +130,17 @@ def cmd_sweep(args) -> dict:
     _import_bubblecal()
     import numpy as np
 
-    from bubblecal.surrogates.dataset import filter_curves, read_dataset
-    from bubblecal.surrogates.export import export_sweep
-    from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-    from bubblecal.surrogates.synthetic import make_synthetic, noise_floor, relative_l2
-    from bubblecal.surrogates.train import TrainConfig
+    from bubblecal.surrogates.training import (
+        SweepConfig,
+        TrainConfig,
+        export_sweep,
+        filter_curves,
+        make_synthetic,
+        noise_floor,
+        read_dataset,
+        relative_l2,
+        run_sweep,
+    )
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
