@@ -63,7 +63,7 @@ def main(argv=None) -> dict:
     bundle_seconds = 0.0
     bundle = args.bundle
     if bundle is None:
-        from bubblecal.surrogates.synthetic_bundle import write_synthetic_bundle
+        from bubblecal.surrogates import write_synthetic_bundle
 
         t0 = time.perf_counter()
         bundle = write_synthetic_bundle(args.out / "synthetic_bundle", quick=True, progress=lambda m: print("  " + m))

@@ -35,8 +35,7 @@ from tier_validation import find_reference  # sibling script (benchmarks/ is on 
 
 from bubblecal.sim.engine.system import resolve_dtype
 from bubblecal.sim.tiers import CurveRequest, get_tier
-from bubblecal.surrogates.dataset import filter_curves, read_published
-from bubblecal.surrogates.synthetic import relative_l2
+from bubblecal.surrogates.training import filter_curves, read_published, relative_l2
 
 HEADS = (("compression", 2.1), ("compression", 2.9), ("compression", 3.0),
          ("indentation", 3.2), ("indentation", 5.8))

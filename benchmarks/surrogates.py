@@ -60,8 +60,13 @@ def cmd_throughput(args) -> dict:
     import numpy as np
 
     from bubblecal.data import SHELL_PARAMETERS
-    from bubblecal.surrogates.bundle import Surrogate, load
-    from bubblecal.surrogates.mlp import flops_per_point, matmul_floor_forward, xavier_uniform_weights
+    from bubblecal.surrogates import (
+        Surrogate,
+        flops_per_point,
+        load,
+        matmul_floor_forward,
+        xavier_uniform_weights,
+    )
 
     if args.weights:
         sur = load(args.weights)
@@ -126,11 +131,17 @@ def cmd_sweep(args) -> dict:
     _import_bubblecal()
     import numpy as np
 
-    from bubblecal.surrogates.dataset import filter_curves, read_dataset
-    from bubblecal.surrogates.export import export_sweep
-    from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-    from bubblecal.surrogates.synthetic import make_synthetic, noise_floor, relative_l2
-    from bubblecal.surrogates.train import TrainConfig
+    from bubblecal.surrogates.training import (
+        SweepConfig,
+        TrainConfig,
+        export_sweep,
+        filter_curves,
+        make_synthetic,
+        noise_floor,
+        read_dataset,
+        relative_l2,
+        run_sweep,
+    )
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -2,7 +2,7 @@
 
 For each diameter: the first ``--rows`` valid rows of
 ``<reference>/training_head_{compression,indentation}_<d>um.csv`` (read with
-:func:`bubblecal.surrogates.dataset.read_published` + :func:`filter_curves`; indentation responses are
+:func:`bubblecal.surrogates.training.read_published` + :func:`filter_curves`; indentation responses are
 d = 2 * radius_dpd - axial diameter) are simulated with each requested tier (``get_tier``) at the rows'
 parameters and grid, geometry from the rows' radius (3.2 um rows: radius 6.38 -> 3.19 um).  Reported per
 diameter and tier: median and IQR of the relative L2 error ||y_tier - y_pub|| / ||y_pub|| over the rows,
@@ -72,7 +72,7 @@ def _head_file(ref: Path, protocol: str, diameter: float) -> Path | None:
 
 def load_rows(ref: Path, diameter: float, n_rows: int, first_row: int = 1):
     """(protocol, TrainingSet of n valid rows from the first_row-th valid row on) or (protocol, None)."""
-    from bubblecal.surrogates.dataset import filter_curves, read_published
+    from bubblecal.surrogates.training import filter_curves, read_published
 
     protocol = PROTOCOL_OF.get(diameter)
     if protocol is None:
@@ -137,7 +137,7 @@ def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
     """A diameter without published rows (e.g. 3.4 um): ``n`` LHS rows of the shipped campaign's box on its
     grid and radius (tier-vs-tier comparison only)."""
     from bubblecal.data import SHELL_PARAMETERS, radius_dpd_from_diameter_um
-    from bubblecal.surrogates.dataset import TrainingSet
+    from bubblecal.surrogates.training import TrainingSet
     from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
     suffixes = (f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um")
@@ -294,7 +294,7 @@ def main(argv=None) -> int:
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.protocols.md_loading import ProtocolSteps, steps_per_curve
     from bubblecal.sim.tiers import CurveRequest, get_tier
-    from bubblecal.surrogates.dataset import diameter_um_from_radius
+    from bubblecal.surrogates.training import diameter_um_from_radius
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,7 @@ import numpy as np
 def main() -> None:
     import torch
 
-    from bubblecal.surrogates.train import TrainConfig, train_mlp
+    from bubblecal.surrogates.training import TrainConfig, train_mlp
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=81000)

@@ -58,7 +58,7 @@ from bubblecal.models.likelihood import (
     sd_floor_for,
 )
 from bubblecal.priors import PriorSpec
-from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
+from bubblecal.surrogates import mlp_forward, surrogate_inputs
 
 __all__ = [
     "nuts_init_values",
@@ -76,7 +76,7 @@ __all__ = [
 
 @jax.tree_util.register_pytree_node_class
 class TracedSurrogate:
-    """A loaded MLP surrogate (:class:`bubblecal.surrogates.bundle.Surrogate`) as a pytree of its arrays.
+    """A loaded MLP surrogate (:class:`bubblecal.surrogates.Surrogate`) as a pytree of its arrays.
 
     Same call ``(params[..., 6], x[...]) -> y[...]`` and the same arithmetic as the surrogate, but the
     weights and normalisations are pytree leaves: given to a model as an argument they are traced data

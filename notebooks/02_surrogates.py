@@ -16,7 +16,7 @@
 #
 # The likelihood never calls the DPD simulator: it calls a small MLP surrogate S(k_a, k_b, b1, b2, a3,
 # a4; x) per bubble diameter. This notebook checks the surrogate pipeline against a **known answer**:
-# curves from a closed-form shell law (`bubblecal.surrogates.synthetic`, *not* DPD) with 1 % relative
+# curves from a closed-form shell law (`bubblecal.surrogates.training.synthetic`, *not* DPD) with 1 % relative
 # noise, so that the best achievable held-out error is the *noise floor* (the exact law scored against
 # the noisy curves).
 #
@@ -37,11 +37,17 @@ import numpy as np
 import bubblecal.surrogates as surrogates
 from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import radius_dpd_from_diameter_um
-from bubblecal.surrogates.dataset import filter_curves, read_dataset
-from bubblecal.surrogates.export import export_sweep
-from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-from bubblecal.surrogates.synthetic import make_synthetic, noise_floor, relative_l2
-from bubblecal.surrogates.train import TrainConfig
+from bubblecal.surrogates.training import (
+    SweepConfig,
+    TrainConfig,
+    export_sweep,
+    filter_curves,
+    make_synthetic,
+    noise_floor,
+    read_dataset,
+    relative_l2,
+    run_sweep,
+)
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 N_CURVES, WIDTHS, DEPTHS, EPOCHS = (150, (8, 16), (2,), 300) if SMALL else (600, (32, 64, 128), (2, 3), 600)

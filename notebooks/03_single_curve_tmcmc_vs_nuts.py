@@ -44,11 +44,15 @@ from bubblecal.inference.predictive import predictive_band
 from bubblecal.inference.tmcmc import TMCMC
 from bubblecal.models import mechanical_model, mechanical_prediction, nuts_init_values
 from bubblecal.priors import load_priors
-from bubblecal.surrogates.dataset import filter_curves
-from bubblecal.surrogates.export import export_sweep
-from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-from bubblecal.surrogates.synthetic import DEFAULT_RANGES, make_synthetic
-from bubblecal.surrogates.train import TrainConfig
+from bubblecal.surrogates.training import (
+    DEFAULT_RANGES,
+    SweepConfig,
+    TrainConfig,
+    export_sweep,
+    filter_curves,
+    make_synthetic,
+    run_sweep,
+)
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 N_CURVES, WIDTH, DEPTH, EPOCHS = (120, 16, 2, 60) if SMALL else (400, 64, 3, 400)

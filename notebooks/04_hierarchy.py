@@ -55,8 +55,7 @@ from bubblecal.models import (
 )
 from bubblecal.models.staged import leave_one_out_log_weights, pooled_bounds
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.synthetic_bundle import development_bundle_path, is_synthetic_bundle
+from bubblecal.surrogates import development_bundle_path, is_synthetic_bundle, load_bundle
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 PARTICLES = 300 if SMALL else 10_000

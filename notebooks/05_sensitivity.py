@@ -35,8 +35,7 @@ import numpy as np
 from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import load_reference
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.synthetic_bundle import development_bundle_path, is_synthetic_bundle
+from bubblecal.surrogates import development_bundle_path, is_synthetic_bundle, load_bundle
 from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"

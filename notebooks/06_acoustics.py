@@ -38,12 +38,12 @@ from bubblecal.inference.predictive import predictive_band
 from bubblecal.inference.tmcmc import TMCMC
 from bubblecal.models import acoustic_model, acoustic_prediction
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.acoustic import fit_quadratic
-from bubblecal.surrogates.synthetic_bundle import (
+from bubblecal.surrogates import (
     ACOUSTIC_KA_RANGE,
     development_bundle_path,
+    fit_quadratic,
     is_synthetic_bundle,
+    load_bundle,
     ringdown_frequency_MHz,
 )
 
@@ -73,7 +73,7 @@ print([d.name for d in acoustic_datasets("definity") + acoustic_datasets("sonovu
 # %% [markdown]
 # ## f_res²(k_a) per diameter and leave-one-out errors
 # At each diameter the squared resonance frequency is fitted by a quadratic in k_a with a free intercept
-# (`bubblecal.surrogates.acoustic.fit_quadratic`); the leave-one-out relative error of f_res says how
+# (`bubblecal.surrogates.fit_quadratic`); the leave-one-out relative error of f_res says how
 # well the quadratic interpolates between simulated k_a values. Here the fits are redone from frequencies
 # at 9 k_a values per diameter, for three Definity diameters.
 

@@ -1,6 +1,6 @@
 """bubblecal.surrogates: the fast maps the likelihood calls.
 
-Calibration-side API (pure JAX/numpy; never imports torch or onnx)::
+Calibration-side API (pure JAX/numpy; importing this package never imports torch or onnx)::
 
     from bubblecal.surrogates import load, load_bundle, AcousticSurrogate
     sur = load("compression_2.1um.npz")      # Surrogate: (params[..., 6], x[...]) -> y[...]
@@ -8,21 +8,85 @@ Calibration-side API (pure JAX/numpy; never imports torch or onnx)::
     mask = sur.in_training_box(params, x)    # never evaluate outside the box silently
     sur.check_domain(params, x)              # warns (or raises with action="raise")
 
-Training side (imports torch): :mod:`.dataset` (data I/O, filtering), :mod:`.store` (campaign
-store), :mod:`.train`, :mod:`.sweep`, :mod:`.export`, :mod:`.onnx_check`, :mod:`.synthetic`.
+Modules: :mod:`~bubblecal.surrogates.mlp` (JAX forward pass), :mod:`~bubblecal.surrogates.surrogate` (the
+loaded :class:`Surrogate`), :mod:`~bubblecal.surrogates.surrogate_file` (the ``.npz`` format),
+:mod:`~bubblecal.surrogates.bundle` (bundles, the shipped default), :mod:`~bubblecal.surrogates.ringdown`
+(ringdown fits), :mod:`~bubblecal.surrogates.resonance` (the f_res^2(k_a) quadratic at one diameter),
+:mod:`~bubblecal.surrogates.acoustic` (the acoustic surrogate over diameters), :mod:`~bubblecal.surrogates.axes`
+(loading coordinate and response per protocol), :mod:`~bubblecal.surrogates.synthetic_bundle` (the SYNTHETIC
+development bundle). Training (dataset I/O, filtering, torch training, sweeps, export, ONNX) lives in
+:mod:`bubblecal.surrogates.training`.
 """
 
-from bubblecal.surrogates.acoustic import AcousticSurrogate, fit_ringdown
+from bubblecal.surrogates.acoustic import (
+    ACOUSTIC_FORMAT,
+    ACOUSTIC_FORMAT_VERSION,
+    AcousticFormatError,
+    AcousticRangeError,
+    AcousticRangeWarning,
+    AcousticSurrogate,
+)
+from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.bundle import (
+    BUNDLE_FORMAT,
+    BUNDLE_FORMAT_VERSION,
     Bundle,
-    OutOfDomainError,
-    Surrogate,
-    SurrogateDomainWarning,
-    SurrogateFormatError,
-    load,
+    NoDefaultBundleError,
+    default_bundle_path,
     load_bundle,
     write_bundle,
 )
+from bubblecal.surrogates.mlp import (
+    flops_per_point,
+    matmul_floor_forward,
+    mlp_forward,
+    standardised_forward,
+    surrogate_inputs,
+    xavier_uniform_weights,
+)
+from bubblecal.surrogates.resonance import DiameterFit, fit_quadratic
+from bubblecal.surrogates.ringdown import RingdownFit, damped_sine, fit_ringdown
+from bubblecal.surrogates.surrogate import OutOfDomainError, Surrogate, SurrogateDomainWarning
+from bubblecal.surrogates.surrogate_file import (
+    FORMAT,
+    FORMAT_VERSION,
+    REQUIRED_METADATA,
+    SurrogateFormatError,
+    load,
+    save_surrogate,
+)
+from bubblecal.surrogates.synthetic_bundle import (
+    ACOUSTIC_GRID_UM,
+    ACOUSTIC_KA_RANGE,
+    DEPTH_CAP_RADII,
+    GAS_PRESSURE_DPD,
+    LOG_PARAMETERS,
+    RHO_SHELL_KG_M3,
+    SYNTHETIC_NOTE,
+    TRAINING_BOXES,
+    X_MARGIN,
+    development_bundle_path,
+    is_synthetic_bundle,
+    ringdown_frequency_MHz,
+    write_synthetic_bundle,
+)
 
-__all__ = ["load", "load_bundle", "write_bundle", "Surrogate", "Bundle", "SurrogateFormatError",
-           "OutOfDomainError", "SurrogateDomainWarning", "AcousticSurrogate", "fit_ringdown"]
+__all__ = [
+    # mechanical surrogates and their files
+    "Surrogate", "load", "save_surrogate", "SurrogateFormatError", "OutOfDomainError", "SurrogateDomainWarning",
+    "FORMAT", "FORMAT_VERSION", "REQUIRED_METADATA", "X_INFO", "Y_INFO",
+    # bundles
+    "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
+    "BUNDLE_FORMAT_VERSION",
+    # acoustics
+    "AcousticSurrogate", "DiameterFit", "fit_quadratic", "AcousticFormatError", "AcousticRangeError",
+    "AcousticRangeWarning", "ACOUSTIC_FORMAT", "ACOUSTIC_FORMAT_VERSION", "fit_ringdown", "RingdownFit",
+    "damped_sine",
+    # the JAX forward pass
+    "surrogate_inputs", "mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
+    "xavier_uniform_weights",
+    # the SYNTHETIC development bundle
+    "write_synthetic_bundle", "development_bundle_path", "is_synthetic_bundle", "SYNTHETIC_NOTE", "TRAINING_BOXES",
+    "ringdown_frequency_MHz", "LOG_PARAMETERS", "X_MARGIN", "DEPTH_CAP_RADII", "GAS_PRESSURE_DPD", "RHO_SHELL_KG_M3",
+    "ACOUSTIC_KA_RANGE", "ACOUSTIC_GRID_UM",
+]

@@ -7,7 +7,9 @@ output; hidden layers use ``tanh``, the output layer is linear:
     h_0 = z;  h_{l+1} = tanh(h_l W_l + b_l)  (l < L-1);  out = h_{L-1} W_{L-1} + b_{L-1}
     y = out * out_std + out_mean
 
-``W_l`` has shape (fan_in, fan_out) (the transpose of torch's ``Linear.weight``).
+``W_l`` has shape (fan_in, fan_out) (the transpose of torch's ``Linear.weight``). Inputs are the shell
+parameters [DPD units] and the loading coordinate [DPD length or DPD force]; the output is the response
+[DPD force or DPD length] (:mod:`bubblecal.surrogates.axes`).
 """
 
 from __future__ import annotations
@@ -22,8 +24,27 @@ __all__ = ["surrogate_inputs", "mlp_forward", "standardised_forward", "matmul_fl
 
 
 def surrogate_inputs(params, x, param_names: Sequence[str]):
-    """Raw network inputs ``u[..., n + 1]``: ``params[..., n]`` (in ``param_names`` order) broadcast against
-    the loading coordinate ``x[...]`` (DPD displacement or force), which is appended last."""
+    """Raw network inputs: the parameters broadcast against the loading coordinate, which is appended last.
+
+    Parameters
+    ----------
+    params : array_like, shape (..., n)
+        Parameters in ``param_names`` order [DPD units].
+    x : array_like
+        Loading coordinate [DPD length (displacement) or DPD force]; broadcasts against ``params[..., 0]``.
+    param_names : sequence of str
+        Names of the n parameters (for the error message).
+
+    Returns
+    -------
+    jax.Array, shape (broadcast shape, n + 1)
+        The inputs ``u``.
+
+    Raises
+    ------
+    ValueError
+        When the last axis of ``params`` does not have length n.
+    """
     params = jnp.asarray(params)
     x = jnp.asarray(x)
     if params.ndim == 0 or params.shape[-1] != len(param_names):
@@ -36,9 +57,21 @@ def surrogate_inputs(params, x, param_names: Sequence[str]):
 
 
 def standardised_forward(weights: Sequence, biases: Sequence, z, xp=jnp):
-    """Forward pass on already standardised inputs ``z[..., n_in]`` -> ``out[..., n_out]``.
+    """Forward pass on already standardised inputs (tanh hidden layers, linear output).
 
-    ``xp`` is the array module: ``jax.numpy`` (default) or ``numpy`` (float64 reference on the host).
+    Parameters
+    ----------
+    weights, biases : sequence of array_like
+        Layer weights (fan_in, fan_out) and biases (fan_out,), input side first.
+    z : array_like, shape (..., n_in)
+        Standardised inputs.
+    xp : module
+        Array module: ``jax.numpy`` (default) or ``numpy`` (float64 reference on the host).
+
+    Returns
+    -------
+    array, shape (..., n_out)
+        Standardised outputs.
     """
     h = z
     last = len(weights) - 1
@@ -50,13 +83,45 @@ def standardised_forward(weights: Sequence, biases: Sequence, z, xp=jnp):
 
 
 def mlp_forward(weights, biases, in_mean, in_std, out_mean, out_std, u, xp=jnp):
-    """Full map from raw inputs ``u[..., n_in]`` to raw outputs ``y[..., n_out]``."""
+    """Full map from raw inputs to raw outputs: standardise, :func:`standardised_forward`, de-standardise.
+
+    Parameters
+    ----------
+    weights, biases : sequence of array_like
+        Layer weights (fan_in, fan_out) and biases (fan_out,), input side first.
+    in_mean, in_std : array_like, shape (n_in,)
+        Standardisation of the raw inputs.
+    out_mean, out_std : array_like, shape (n_out,)
+        Standardisation of the raw outputs.
+    u : array_like, shape (..., n_in)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+    xp : module
+        Array module (``jax.numpy`` or ``numpy``).
+
+    Returns
+    -------
+    array, shape (..., n_out)
+        Raw outputs [DPD force or DPD length].
+    """
     z = (u - in_mean) / in_std
     return standardised_forward(weights, biases, z, xp=xp) * out_std + out_mean
 
 
 def matmul_floor_forward(weights, biases, u):
-    """The same chain of matrix products with no activation or normalisation (throughput floor)."""
+    """The same chain of matrix products with no activation or normalisation (a throughput floor for benchmarks).
+
+    Parameters
+    ----------
+    weights, biases : sequence of array_like
+        Layer weights (fan_in, fan_out) and biases (fan_out,).
+    u : array_like, shape (..., n_in)
+        Inputs.
+
+    Returns
+    -------
+    array, shape (..., n_out)
+        ``u`` through the affine layers only.
+    """
     h = u
     for w, b in zip(weights, biases, strict=True):
         h = h @ w + b
@@ -64,12 +129,38 @@ def matmul_floor_forward(weights, biases, u):
 
 
 def flops_per_point(layer_sizes: Sequence[int]) -> int:
-    """Floating-point operations of one forward pass (2·fan_in·fan_out per layer, multiply-add)."""
+    """Floating-point operations of one forward pass (2·fan_in·fan_out per layer, multiply-add).
+
+    Parameters
+    ----------
+    layer_sizes : sequence of int
+        Widths from the input to the output layer.
+
+    Returns
+    -------
+    int
+        FLOPs per evaluated point.
+    """
     return int(sum(2 * a * b for a, b in zip(layer_sizes[:-1], layer_sizes[1:], strict=True)))
 
 
 def xavier_uniform_weights(layer_sizes: Sequence[int], seed: int = 0, dtype=np.float32):
-    """Random Xavier-uniform weights and zero biases (numpy), e.g. for throughput benchmarks."""
+    """Random Xavier-uniform weights and zero biases (numpy), e.g. for throughput benchmarks and initial weights.
+
+    Parameters
+    ----------
+    layer_sizes : sequence of int
+        Widths from the input to the output layer.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    dtype : numpy dtype
+        Dtype of the arrays.
+
+    Returns
+    -------
+    weights, biases : list of numpy.ndarray
+        Weights (fan_in, fan_out) and zero biases (fan_out,).
+    """
     rng = np.random.default_rng(seed)
     weights, biases = [], []
     for fan_in, fan_out in zip(layer_sizes[:-1], layer_sizes[1:], strict=True):

@@ -7,7 +7,7 @@
   (Definity compression 2.1 / 2.9 / 3.0 um; SonoVue indentation 3.2 / 3.4 / 5.8 um, data diameters
   3.19 / 3.40 / 5.76 um, radius_dpd = D / 0.5 um), each a tiny tanh MLP fitted in seconds (L-BFGS on the
   squared *relative* error, numpy/scipy) to the closed-form laws of
-  :mod:`bubblecal.surrogates.synthetic`, over a parameter box (:data:`TRAINING_BOXES`) that contains
+  :mod:`bubblecal.surrogates.training.synthetic`, over a parameter box (:data:`TRAINING_BOXES`) that contains
   every shipped prior box of the agent (full, reduced and reduced_acoustic workflows; the test
   ``tests/surrogates/test_synthetic_bundle.py`` checks this) and a loading coordinate range from 0 to
   :data:`X_MARGIN` times the largest value of the reference curve. k_a and k_b are sampled
@@ -17,7 +17,7 @@
   depths larger than the bubble that the softest corner of the SonoVue box produces;
 * two acoustic surrogates (``definity``, ``sonovue``): f_res^2(k_a) quadratics fitted at every observed
   acoustic diameter of the agent plus a 0.25 um grid (for plots), to frequencies of the ringdown law of
-  ``shared/docs/physics.md`` section 6 check 7,
+  docs/physics.md section 6, check 7,
 
       omega_0^2 = (16 pi k_a + 12 pi R p_g) / M_shell      [DPD: k_a 2-D modulus, R length, p_g pressure]
 
@@ -45,11 +45,15 @@ import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS, REFERENCE_CURVES, SHELL_PARAMETERS, UnitSystem, load_reference
 from bubblecal.surrogates.acoustic import AcousticSurrogate
-from bubblecal.surrogates.bundle import save_surrogate, write_bundle
-from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
-from bubblecal.surrogates.synthetic import truth
+from bubblecal.surrogates.axes import X_INFO, Y_INFO
+from bubblecal.surrogates.bundle import default_bundle_path, write_bundle
+from bubblecal.surrogates.mlp import mlp_forward, xavier_uniform_weights
+from bubblecal.surrogates.surrogate_file import save_surrogate
+from bubblecal.surrogates.training.dataset import TrainingSet
+from bubblecal.surrogates.training.synthetic import truth
 
-__all__ = ["development_bundle_path", "SYNTHETIC_NOTE", "TRAINING_BOXES", "LOG_PARAMETERS", "X_MARGIN", "DEPTH_CAP_RADII", "GAS_PRESSURE_DPD", "RHO_SHELL_KG_M3",
+__all__ = ["development_bundle_path", "SYNTHETIC_NOTE", "TRAINING_BOXES", "LOG_PARAMETERS", "X_MARGIN",
+           "DEPTH_CAP_RADII", "GAS_PRESSURE_DPD", "RHO_SHELL_KG_M3", "ACOUSTIC_KA_RANGE", "ACOUSTIC_GRID_UM",
            "ringdown_frequency_MHz", "write_synthetic_bundle", "is_synthetic_bundle"]
 
 #: The loud warning carried by the manifest and every file of the bundle.
@@ -83,8 +87,28 @@ ACOUSTIC_GRID_UM = {"definity": (4.0, 12.0), "sonovue": (2.0, 5.0)}
 
 def ringdown_frequency_MHz(ka, diameter_um: float, units: UnitSystem = DEFAULT_UNITS,
                            gas_pressure_dpd: float = GAS_PRESSURE_DPD, rho_shell_kg_m3: float = RHO_SHELL_KG_M3):
-    """Undamped ringdown frequency f_0 [MHz] of the physics.md check-7 law at stretching modulus ``ka`` [DPD]
-    and bubble diameter ``diameter_um`` [um]: omega_0^2 = (16 pi ka + 12 pi R p_g) / M_shell (module docstring)."""
+    """Undamped ringdown frequency f_0 of the check-7 law, omega_0^2 = (16 pi ka + 12 pi R p_g) / M_shell.
+
+    The law of docs/physics.md section 6, check 7, with the real shell mass (module docstring).
+
+    Parameters
+    ----------
+    ka : array_like
+        Stretching modulus [DPD 2-D modulus].
+    diameter_um : float
+        Bubble diameter [um].
+    units : bubblecal.data.units.UnitSystem
+        Unit system (radius, shell thickness, mass and time scales).
+    gas_pressure_dpd : float
+        Gas pressure p_g [DPD pressure].
+    rho_shell_kg_m3 : float
+        Shell density [kg/m^3].
+
+    Returns
+    -------
+    numpy.ndarray
+        f_0 [MHz], the shape of ``ka``.
+    """
     radius = float(units.radius_dpd(diameter_um))
     area_m2 = 4.0 * math.pi * (radius * units.length_m) ** 2
     mass_dpd = rho_shell_kg_m3 * units.shell_thickness_m * area_m2 / units.mass_kg
@@ -111,8 +135,10 @@ def _lhs(rng: np.random.Generator, n: int, box: dict[str, tuple[float, float]]) 
 
 @contextlib.contextmanager
 def _single_blas_thread():
-    """Best effort: run numpy's OpenBLAS single-threaded inside the block (tiny matrices on a loaded
-    machine run ~3x faster without thread hand-offs); a no-op where the library cannot be found."""
+    """Best effort: run numpy's OpenBLAS single-threaded inside the block; a no-op where it cannot be found.
+
+    Tiny matrices run faster without thread hand-offs, notably on a loaded machine.
+    """
     handles = []
     try:
         with open("/proc/self/maps") as fh:
@@ -146,8 +172,6 @@ def _fit_mlp(u: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], iterations: 
     :mod:`bubblecal.surrogates.mlp` convention (W: (fan_in, fan_out)).
     """
     from scipy.optimize import minimize
-
-    from bubblecal.surrogates.mlp import xavier_uniform_weights
 
     in_mean, in_std = u.mean(axis=0), u.std(axis=0)
     out_mean, out_std = np.array([y.mean()]), np.array([y.std()])
@@ -195,7 +219,7 @@ def _fit_mlp(u: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], iterations: 
 
 
 def _law(setup: str, params, x, radius_dpd: float) -> np.ndarray:
-    """The training law: :func:`bubblecal.surrogates.synthetic.truth`, indentation depth softly saturated."""
+    """The training law: :func:`bubblecal.surrogates.training.truth`, indentation depth softly saturated."""
     y = truth(setup, params, x, radius_dpd)
     if setup == "indentation":
         cap = DEPTH_CAP_RADII * radius_dpd
@@ -215,6 +239,7 @@ def _reference_geometry():
 def _mechanical(folder: Path, agent: str, setup: str, nominal: float, measured: float, x_max: float, *,
                 n_curves: int, n_points: int, hidden: tuple[int, ...], iterations: int, seed: int,
                 units: UnitSystem) -> tuple[Path, float]:
+    """Fit and save one mechanical surrogate of the closed-form law; returns (file, holdout score)."""
     radius = float(units.radius_dpd(measured))
     rng = np.random.default_rng(seed)
     box = TRAINING_BOXES[agent]
@@ -229,8 +254,6 @@ def _mechanical(folder: Path, agent: str, setup: str, nominal: float, measured: 
     w, b, im, isd, om, osd, rel = _fit_mlp(u, target, hidden, iterations, seed)
     # held-out check against the exact law on fresh parameter sets (median per-curve relative L2)
     test = _lhs(np.random.default_rng(seed + 1000), 64, box)
-    from bubblecal.surrogates.mlp import mlp_forward
-
     uu = np.concatenate([np.repeat(test, n_points, axis=0), np.tile(x, 64)[:, None]], axis=1)
     pred = mlp_forward(w, b, im, isd, om, osd, uu, xp=np)[:, 0].reshape(64, n_points)
     exact = _law(setup, test, x, radius)
@@ -261,6 +284,7 @@ def _mechanical(folder: Path, agent: str, setup: str, nominal: float, measured: 
 
 
 def _acoustic(folder: Path, agent: str, units: UnitSystem) -> Path:
+    """Fit and save the agent's acoustic surrogate of the check-7 law; returns the file."""
     from bubblecal.data import acoustic_observations
 
     lo, hi = ACOUSTIC_GRID_UM[agent]
@@ -276,13 +300,29 @@ def _acoustic(folder: Path, agent: str, units: UnitSystem) -> Path:
 
 def write_synthetic_bundle(path: str | Path, *, seed: int = 0, quick: bool = False,
                            units: UnitSystem = DEFAULT_UNITS, progress=None) -> Path:
-    """Write the SYNTHETIC development bundle into directory ``path`` and return ``path``.
+    """Write the SYNTHETIC development bundle into directory ``path``.
 
-    ``quick=True`` (tests): 150 curves x 10 points, a 16x16 MLP, 1000 L-BFGS iterations per surrogate
-    (1-3 s each on a CPU); default: 400 curves x 16 points, 24x24, 4000 iterations (tens of seconds
-    each). Holdout errors against the exact law are in the manifest notes. ``seed`` fixes the
-    designs and initial weights. ``progress`` is an optional callable receiving one line per file.
-    Surrogates are in DPD units (module docstring); acoustic ones in MHz vs k_a [DPD].
+    Surrogates are in DPD units (module docstring); acoustic ones in MHz vs k_a [DPD]. Holdout errors against
+    the exact law are in the manifest notes.
+
+    Parameters
+    ----------
+    path : str or Path
+        Bundle directory (created when missing).
+    seed : int
+        Fixes the designs and the initial weights.
+    quick : bool
+        Test settings: 150 curves x 10 points, a 16x16 MLP, 1000 L-BFGS iterations per surrogate; default:
+        400 curves x 16 points, 24x24, 4000 iterations.
+    units : bubblecal.data.units.UnitSystem
+        Unit system of the geometry and the acoustic law.
+    progress : callable, optional
+        Receives one line of text per file written.
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     path = Path(path)
     path.mkdir(parents=True, exist_ok=True)
@@ -306,11 +346,23 @@ def write_synthetic_bundle(path: str | Path, *, seed: int = 0, quick: bool = Fal
 
 
 def development_bundle_path(quick: bool = False, cache_dir: str | Path | None = None) -> Path:
-    """The shipped bundle when installed, else a SYNTHETIC one written once into ``cache_dir``
-    (default: the temp folder) and reused; for notebooks and demos until the DPD bundle ships."""
-    import tempfile
+    """The shipped bundle when installed, else a SYNTHETIC one written once into ``cache_dir`` and reused.
 
-    from bubblecal.surrogates.bundle import default_bundle_path
+    For notebooks and demos that must run without the shipped bundle.
+
+    Parameters
+    ----------
+    quick : bool
+        Settings of a bundle written here (:func:`write_synthetic_bundle`).
+    cache_dir : str or Path, optional
+        Folder of the synthetic bundle (default: the temp folder).
+
+    Returns
+    -------
+    Path
+        The bundle directory.
+    """
+    import tempfile
 
     shipped = Path(default_bundle_path())
     if (shipped / "manifest.json").is_file():
@@ -322,6 +374,17 @@ def development_bundle_path(quick: bool = False, cache_dir: str | Path | None = 
 
 
 def is_synthetic_bundle(bundle) -> bool:
-    """True when a loaded :class:`~bubblecal.surrogates.bundle.Bundle` (or its manifest dict) is synthetic."""
+    """Whether a bundle is SYNTHETIC (its manifest notes say so).
+
+    Parameters
+    ----------
+    bundle : Bundle or dict
+        A loaded :class:`~bubblecal.surrogates.Bundle` or its manifest.
+
+    Returns
+    -------
+    bool
+        True for a synthetic bundle.
+    """
     manifest = getattr(bundle, "manifest", bundle)
     return "SYNTHETIC" in str(manifest.get("notes", ""))

@@ -73,7 +73,7 @@ def tiny_compression_surrogate(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def synthetic_bundle(tmp_path_factory) -> Path:
     """A complete SYNTHETIC bundle (6 mechanical + 2 acoustic surrogates, closed-form laws, quick
-    settings; ~10 s, built once per run): bubblecal.surrogates.synthetic_bundle.write_synthetic_bundle."""
-    from bubblecal.surrogates.synthetic_bundle import write_synthetic_bundle
+    settings; ~10 s, built once per run): bubblecal.surrogates.write_synthetic_bundle."""
+    from bubblecal.surrogates import write_synthetic_bundle
 
     return write_synthetic_bundle(tmp_path_factory.mktemp("synthetic_bundle"), seed=0, quick=True)

@@ -38,7 +38,7 @@ def test_explicit_curves_from_an_earlier_run(tv, tmp_path):
 
 
 def test_lhs_slice_keeps_the_published_rows_and_the_chosen_lhs_rows(tv):
-    from bubblecal.surrogates.dataset import TrainingSet
+    from bubblecal.surrogates.training import TrainingSet
 
     ts = tv.lhs_only_rows("indentation", 3.2, 6, seed=3)  # 6 LHS rows of the shipped 3.2 um box
     both = tv.with_lhs_rows(ts.subset(np.arange(2)), "indentation", 3.2, 4, seed=3)  # 2 "published" + 4 LHS

@@ -6,11 +6,11 @@ Pipeline (issue 6 items 1 and 5-acoustic, physics.md section 5):
    agent's acoustic prior range of k_a), mu = k_a / 3, k_b fixed (389.23 Definity, 7850.29 SonoVue),
    b1 = b2 = a3 = a4 = 0; the replicas are simulated in batches by
    :func:`bubblecal.sim.protocols.ringdown.ringdown_batch` (all replicas of a batch in the same
-   launches), each R(t) is fitted with :func:`bubblecal.surrogates.acoustic.fit_ringdown` and the DPD
+   launches), each R(t) is fitted with :func:`bubblecal.surrogates.fit_ringdown` and the DPD
    frequencies are converted with ``f = f_dpd sqrt(mass_factor) / u_t`` through
    :meth:`bubblecal.data.units.UnitSystem.frequency_to_physical`.  The check-7 ratio
    (2 pi f_0)^2 / omega0^2 with omega0^2 = (16 pi k_a + 12 pi R p_gas) / M is reported per row.
-2. :func:`fit_sweep` -- :func:`bubblecal.surrogates.acoustic.fit_quadratic` per diameter
+2. :func:`fit_sweep` -- :func:`bubblecal.surrogates.fit_quadratic` per diameter
    (f_res^2 = a0 + a1 k_a + a2 k_a^2, f_res in MHz) with leave-one-out relative errors.
 3. :func:`write_sweep_outputs` -- CSV (one row per k_a), JSON (rows, fit, settings) and a PNG
    (R(t) with fits; f_res^2 against k_a with the quadratic).
@@ -67,7 +67,7 @@ def default_ka_values(agent: str, n_ka: int = 28) -> np.ndarray:
 class SweepResult:
     """One diameter's sweep: ``rows`` (dicts with :data:`ROW_FIELDS`), the traces ``t [T]`` / ``radius [n, T]``
     (DPD time / length; batches may differ in T, then ``traces`` holds (t, radius) per row), the fits
-    (:class:`bubblecal.surrogates.acoustic.RingdownFit` or None per row), settings and timings."""
+    (:class:`bubblecal.surrogates.RingdownFit` or None per row), settings and timings."""
 
     agent: str
     diameter_um: float
@@ -106,7 +106,7 @@ def sweep_row(ka: float, kb: float, seed: int, status: str, t, radius, *, omega0
     """Fit one R(t) trace (``t`` DPD time, ``radius`` DPD length) and build its :data:`ROW_FIELDS` row
     (frequencies in MHz via ``mass_factor``; check-7 ratios against ``omega0_sq`` [rad^2 / DPD time^2]).
     Returns (row, RingdownFit or None)."""
-    from bubblecal.surrogates.acoustic import fit_ringdown
+    from bubblecal.surrogates import fit_ringdown
 
     r = np.asarray(radius, dtype=np.float64)
     fit = None
@@ -255,12 +255,12 @@ def ringdown_sweep(agent: str, diameter_um: float, ka_values: Sequence[float] | 
 
 
 def fit_sweep(results: SweepResult | Sequence[SweepResult]) -> dict:
-    """:func:`bubblecal.surrogates.acoustic.fit_quadratic` per diameter over the valid rows.
+    """:func:`bubblecal.surrogates.fit_quadratic` per diameter over the valid rows.
 
     Returns {diameter_um: DiameterFit} (f_res in MHz, ka DPD; leave-one-out relative errors of f_res).
     Several results at the same diameter are pooled.
     """
-    from bubblecal.surrogates.acoustic import fit_quadratic
+    from bubblecal.surrogates import fit_quadratic
 
     items = [results] if isinstance(results, SweepResult) else list(results)
     by_d: dict[float, list[SweepResult]] = {}
@@ -409,7 +409,7 @@ def acoustic_surrogate_from_stores(stores: Sequence, out: str | Path, agent: str
     ``rows_csv``: also write every fitted row (diameter_um + :data:`ROW_FIELDS`).  Raises ValueError when a
     diameter has fewer than 3 valid rows.  Returns (AcousticSurrogate, list of SweepResult).
     """
-    from bubblecal.surrogates.acoustic import AcousticSurrogate
+    from bubblecal.surrogates import AcousticSurrogate
 
     sweeps: list[SweepResult] = []
     for st in stores:

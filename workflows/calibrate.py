@@ -206,7 +206,7 @@ class Plan:
 
 def resolve_bundle(path: Path | None) -> Path:
     """The bundle directory to use: ``path`` or the shipped default (CalibrationError with advice if absent)."""
-    from bubblecal.surrogates.bundle import NoDefaultBundleError, default_bundle_path
+    from bubblecal.surrogates import NoDefaultBundleError, default_bundle_path
 
     if path is not None:
         path = Path(path)
@@ -263,9 +263,13 @@ def make_plan(config: CalibrationConfig) -> Plan:
     """Validate the whole configuration and load every input; raise :class:`CalibrationError` (one clear
     message naming the file, field or range) before any sampling starts."""
     from bubblecal.priors import PriorError, load_priors
-    from bubblecal.surrogates import SurrogateFormatError, load_bundle
-    from bubblecal.surrogates.acoustic import AcousticFormatError, AcousticRangeError
-    from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
+    from bubblecal.surrogates import (
+        AcousticFormatError,
+        AcousticRangeError,
+        SurrogateFormatError,
+        is_synthetic_bundle,
+        load_bundle,
+    )
 
     bad = [a for a in config.agents if a not in AGENTS]
     if bad or not config.agents:

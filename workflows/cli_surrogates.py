@@ -78,12 +78,20 @@ def train(
     """
     import numpy as np
 
-    from bubblecal.surrogates.bundle import load
-    from bubblecal.surrogates.dataset import DatasetError, filter_curves, read_dataset
-    from bubblecal.surrogates.export import export_onnx, export_sweep
-    from bubblecal.surrogates.onnx_check import onnx_parity, scaled_max_rel_diff
-    from bubblecal.surrogates.sweep import MIN_SWEEP_CURVES, SweepConfig, run_sweep
-    from bubblecal.surrogates.train import TrainConfig
+    from bubblecal.surrogates import load
+    from bubblecal.surrogates.training import (
+        MIN_SWEEP_CURVES,
+        DatasetError,
+        SweepConfig,
+        TrainConfig,
+        export_onnx,
+        export_sweep,
+        filter_curves,
+        onnx_parity,
+        read_dataset,
+        run_sweep,
+        scaled_max_rel_diff,
+    )
 
     if setup not in ("compression", "indentation"):
         raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
@@ -143,7 +151,7 @@ def train(
 @app.command("info")
 def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle directory.")) -> None:
     """Print the metadata of a surrogate file or the contents of a bundle."""
-    from bubblecal.surrogates.bundle import SurrogateFormatError, load, load_bundle
+    from bubblecal.surrogates import SurrogateFormatError, load, load_bundle
 
     try:
         if path.is_dir():
@@ -180,8 +188,7 @@ def synthetic(
 ) -> None:
     """Write a known-answer synthetic training set (closed-form shell force law + noise)."""
     from bubblecal.data import radius_dpd_from_diameter_um
-    from bubblecal.surrogates.dataset import write_published
-    from bubblecal.surrogates.synthetic import make_synthetic
+    from bubblecal.surrogates.training import make_synthetic, write_published
 
     ts = make_synthetic(n_curves, setup, radius_dpd=radius_dpd_from_diameter_um(diameter), noise=noise, seed=seed)
     write_published(ts, out)
@@ -195,7 +202,7 @@ def synthetic_bundle(
     quick: bool = typer.Option(False, "--quick", help="Smaller designs and networks (~10 s; for tests)."),
 ) -> None:
     """Write a SYNTHETIC development bundle (closed-form laws, not DPD): six mechanical + two acoustic surrogates."""
-    from bubblecal.surrogates.synthetic_bundle import write_synthetic_bundle
+    from bubblecal.surrogates import write_synthetic_bundle
 
     write_synthetic_bundle(out, seed=seed, quick=quick, progress=typer.echo)
     typer.echo(f"wrote {out} -- SYNTHETIC closed-form laws, for development/tests, not DPD")
@@ -239,7 +246,7 @@ def bundle(
     notes: str = typer.Option("", "--notes", help="Free text stored in the manifest (provenance)."),
 ) -> None:
     """Assemble surrogates into a bundle directory (what `bubblecal calibrate --bundle DIR` reads)."""
-    from bubblecal.surrogates.bundle import SurrogateFormatError, load_bundle, write_bundle
+    from bubblecal.surrogates import SurrogateFormatError, load_bundle, write_bundle
     from bubblecal.workflows.console import fail
 
     ac: dict[str, Path] = {}

@@ -147,7 +147,7 @@ def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
     from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
-    from bubblecal.surrogates.dataset import diameter_um_from_radius
+    from bubblecal.surrogates.training import diameter_um_from_radius
 
     dia = diameter if spec.get("nominal_radius") else diameter_um_from_radius(float(np.median(ts.radius_dpd)))
     sub = int(spec.get("subdivisions", args.subdivisions))

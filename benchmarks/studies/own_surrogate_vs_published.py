@@ -33,9 +33,8 @@ def main(argv=None) -> int:
     ap.add_argument("--reference", default=None)
     args = ap.parse_args(argv)
 
-    from bubblecal.surrogates.bundle import load
-    from bubblecal.surrogates.dataset import filter_curves, read_published
-    from bubblecal.surrogates.synthetic import relative_l2
+    from bubblecal.surrogates import load
+    from bubblecal.surrogates.training import filter_curves, read_published, relative_l2
 
     ref = Path(args.reference) if args.reference else find_reference(None)
     path = Path(ref or ".") / f"training_head_{args.setup}_{args.diameter:g}um.csv"

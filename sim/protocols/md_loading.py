@@ -20,7 +20,7 @@ Protocols (same grids and conventions as :class:`bubblecal.sim.tiers.Quasistatic
   anchored in z.  Axial extent H = max z - min z over the vertices, sampled every ``sample_every`` steps;
   observable d(F) = 2 R - mean(H over the last 90 % of the hold's samples), with R the mesh's nominal
   radius (``radius_dpd`` = D/0.5): the published training tables define the initial diameter as 2 * radius
-  (reference README section (c), :func:`bubblecal.surrogates.dataset.read_published`), not as the
+  (reference README section (c), :func:`bubblecal.surrogates.training.read_published`), not as the
   measured H(0).
 * Points are chained (each starts from the previous state); a grid point equal to the previous load (the
   first point at 0) is held without a ramp.  Before the first point the system is equilibrated for

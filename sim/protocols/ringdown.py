@@ -3,7 +3,7 @@
 After equilibration every replica's shell is scaled radially by ``1 + perturbation`` about its
 centroid and the free oscillation of R(t) = (3 V / 4 pi)^(1/3) (V: enclosed volume of the mesh, DPD
 length^3) is recorded.  The fit R0 + c t + exp(-lam t)[A sin w_d t + B cos w_d t] lives in
-:mod:`bubblecal.surrogates.acoustic` (``sim`` may not import ``surrogates``): the sweep pipeline
+:mod:`bubblecal.surrogates.ringdown` (``sim`` may not import ``surrogates``): the sweep pipeline
 :mod:`bubblecal.workflows.acoustic_sweep` does the fitting and the unit conversion.
 
 Mass scaling: the shell vertex mass is multiplied by ``mass_factor`` (160 in the published sweeps) so

@@ -9,7 +9,7 @@ import pytest
 
 
 class ClosedFormSurrogate:
-    """The closed-form laws of :mod:`bubblecal.surrogates.synthetic` in JAX, with the surrogate contract
+    """The closed-form laws of :mod:`bubblecal.surrogates.training.synthetic` in JAX, with the surrogate contract
     ``(params[..., 6], x[...]) -> y[...]`` (DPD units; ``radius_dpd`` of the bubble). Checked against
     the NumPy original in ``test_coverage.py``."""
 

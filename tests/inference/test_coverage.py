@@ -4,7 +4,7 @@ Each dataset is one loading curve generated *by the package's own model*
 (:func:`bubblecal.models.mechanical_model` run forward with ``y=None``, i.e. the relative-noise model
 with its floor) at parameters Θ = (k_a, k_b, d0, σ) drawn from the prior of a reduced-shell workflow,
 on the loading coordinates of a shipped curve. The surrogate is the closed-form law of
-:mod:`bubblecal.surrogates.synthetic` written in JAX (checked against the NumPy original), so the
+:mod:`bubblecal.surrogates.training.synthetic` written in JAX (checked against the NumPy original), so the
 model is exactly right and any miscoverage comes from the sampler or the model code. Posteriors are
 sampled with TMCMC through the same ``mechanical_model``.
 
@@ -35,7 +35,7 @@ from bubblecal.data import load_reference
 from bubblecal.inference.tmcmc import TMCMC
 from bubblecal.models import mechanical_model
 from bubblecal.priors import load_priors
-from bubblecal.surrogates.synthetic import truth
+from bubblecal.surrogates.training import truth
 
 PARAMETERS = ("ka", "kb", "d0", "sigma")
 LEVEL = 0.9

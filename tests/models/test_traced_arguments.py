@@ -12,7 +12,7 @@ from bubblecal.inference._numpyro_utils import FlatModel
 from bubblecal.models.acoustic import FrequencyTable, acoustic_model
 from bubblecal.models.mechanical import TracedSurrogate, mechanical_model, pad_curve
 from bubblecal.priors import load_priors
-from bubblecal.surrogates.bundle import default_bundle_path, load_bundle
+from bubblecal.surrogates import default_bundle_path, load_bundle
 
 
 @pytest.fixture(scope="module")

@@ -165,7 +165,7 @@ def _nan_and_ruptured(task):
 
 
 def test_invalid_and_ruptured_are_stored_not_rerun_and_filtered(tmp_path):
-    from bubblecal.surrogates.dataset import filter_curves, read_dataset
+    from bubblecal.surrogates.training import filter_curves, read_dataset
 
     c = cfg(tmp_path, n_samples=9, replicas_per_task=3)
     s = run_campaign(c, scheduler_address="inline", simulate=_nan_and_ruptured, progress=False)

@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 
 from bubblecal.data import acoustic_observations, reference_curves
-from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.bundle import default_bundle_path
-from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
+from bubblecal.surrogates import default_bundle_path, is_synthetic_bundle, load_bundle
 
 PATH = default_bundle_path()
 pytestmark = pytest.mark.skipif(not (PATH / "manifest.json").is_file(), reason="no shipped bundle in this checkout")
@@ -32,7 +30,8 @@ def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
         md = sur.metadata
         assert not md.get("synthetic", False)
         # trained on the shipped set of the campaign of this diameter (indentation: the Mirheo convention's twin)
-        name = f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um" + ("_mirheo" if curve.kind == "indentation" else "")
+        name = (f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um"
+                + ("_mirheo" if curve.kind == "indentation" else ""))
         assert md["source"].endswith(f"data/training/{name}.jsonl.gz"), (name, md["source"])
         assert md["n_curves_train"] >= 4500  # 90 % of >= 5,000 valid curves (10 % held out)
         cfg = load_campaign_file(name).config

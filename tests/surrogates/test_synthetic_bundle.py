@@ -9,11 +9,11 @@ import pytest
 
 from bubblecal.data import acoustic_observations, reference_curves
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import load_bundle
-from bubblecal.surrogates.synthetic_bundle import (
+from bubblecal.surrogates import (
     SYNTHETIC_NOTE,
     TRAINING_BOXES,
     is_synthetic_bundle,
+    load_bundle,
     ringdown_frequency_MHz,
 )
 

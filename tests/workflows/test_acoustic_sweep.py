@@ -24,7 +24,7 @@ from bubblecal.workflows.cli import app
 
 def _synthetic_result(n=8, mass_factor=160.0):
     """Rows whose f_res follows an exact quadratic f^2 = a0 + a1 ka + a2 ka^2 [MHz^2]."""
-    from bubblecal.surrogates.acoustic import fit_ringdown
+    from bubblecal.surrogates import fit_ringdown
 
     ka = np.linspace(3500, 34000, n)
     f2 = 0.1 + 2e-4 * ka - 1e-10 * ka**2
@@ -125,7 +125,7 @@ def _ringdown_store(path, diameters=(4.68, 5.18), n=6):
 
 
 def test_acoustic_surrogate_from_a_store_and_from_its_rows(tmp_path):
-    from bubblecal.surrogates.acoustic import AcousticSurrogate
+    from bubblecal.surrogates import AcousticSurrogate
     from bubblecal.workflows.acoustic_sweep import acoustic_surrogate_from_stores, sweeps_from_store
 
     truth = _ringdown_store(tmp_path / "rd.store")
@@ -178,7 +178,7 @@ def test_shipped_ringdown_rows_are_physical():
 
 
 def test_bundle_cli_assembles_and_refuses_bad_input(tmp_path):
-    from bubblecal.surrogates.bundle import load_bundle
+    from bubblecal.surrogates import load_bundle
 
     _ringdown_store(tmp_path / "rd.store", diameters=(4.68,))
     runner = CliRunner()

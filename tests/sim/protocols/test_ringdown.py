@@ -19,7 +19,7 @@ from bubblecal.sim.protocols.ringdown import (
     breathing_mode_prediction,
     ringdown_batch,
 )
-from bubblecal.surrogates.acoustic import fit_ringdown
+from bubblecal.surrogates import fit_ringdown
 
 KA = np.array([5584.0, 20000.0])
 KB = np.array([389.23, 389.23])

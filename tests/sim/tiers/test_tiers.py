@@ -101,7 +101,7 @@ def test_tiers_reject_an_unknown_indentation_convention_at_construction():
 
 
 def _published_rows(ref, rows):
-    from bubblecal.surrogates.dataset import filter_curves, read_published
+    from bubblecal.surrogates.training import filter_curves, read_published
 
     ts, _ = filter_curves(read_published(ref / "training_head_indentation_3.2um.csv", setup="indentation"))
     return ts.subset(np.asarray(rows))

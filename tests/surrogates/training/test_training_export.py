@@ -20,9 +20,7 @@ from bubblecal.surrogates import (
     load_bundle,
     write_bundle,
 )
-from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-from bubblecal.surrogates.synthetic import make_synthetic
-from bubblecal.surrogates.train import TrainConfig, train_mlp
+from bubblecal.surrogates.training import SweepConfig, TrainConfig, make_synthetic, run_sweep, train_mlp
 
 torch = pytest.importorskip("torch")
 
@@ -31,7 +29,7 @@ TINY = TrainConfig(max_epochs=12, patience=3, max_reductions=1, batch_size=128)
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    from bubblecal.surrogates.export import export_sweep
+    from bubblecal.surrogates.training import export_sweep
 
     ts = make_synthetic(30, "compression", noise=0.01, seed=5)
     res = run_sweep(ts, SweepConfig(widths=(16,), depths=(2,), min_curves=2, train=TINY), progress=False)
@@ -68,8 +66,7 @@ def test_jax_matches_torch_1e5(trained):
 
 
 def test_onnx_parity_1e5(trained, tmp_path):
-    from bubblecal.surrogates.export import export_onnx
-    from bubblecal.surrogates.onnx_check import onnx_parity
+    from bubblecal.surrogates.training import export_onnx, onnx_parity
 
     res, path = trained
     onnx_path = export_onnx(res.best_model, tmp_path / "m.onnx")
@@ -168,7 +165,7 @@ def test_lr_schedule_stops_after_reductions():
 
 
 def test_bundle_roundtrip(trained, tmp_path):
-    from bubblecal.surrogates.acoustic import AcousticSurrogate
+    from bubblecal.surrogates import AcousticSurrogate
 
     _, path = trained
     ka = np.linspace(1e3, 2e4, 8)

@@ -8,10 +8,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from bubblecal.surrogates.dataset import write_published
-from bubblecal.surrogates.sweep import SweepConfig, grouped_holdout, run_sweep
-from bubblecal.surrogates.synthetic import make_synthetic
-from bubblecal.surrogates.train import TrainConfig
+from bubblecal.surrogates.training import (
+    SweepConfig,
+    TrainConfig,
+    grouped_holdout,
+    make_synthetic,
+    run_sweep,
+    write_published,
+)
 
 pytest.importorskip("torch")
 TINY = TrainConfig(max_epochs=6, patience=2, max_reductions=1, batch_size=128)
@@ -104,7 +108,7 @@ def test_surrogates_group_registered():
 
 
 def test_sweep_checkpoints_resume_and_reject_other_recipes(tmp_path):
-    from bubblecal.surrogates.sweep import checkpoint_path
+    from bubblecal.surrogates.training import checkpoint_path
 
     ts = make_synthetic(24, "compression", noise=0.01, seed=2)
     cfg = SweepConfig(widths=(4, 8), depths=(1,), train=TINY, min_curves=2)
@@ -123,7 +127,7 @@ def test_sweep_checkpoints_resume_and_reject_other_recipes(tmp_path):
                                                                       batch_size=128), min_curves=2)
     third = run_sweep(ts, other, progress=False, checkpoints=tmp_path)
     assert third.models[0].wall_s != first.models[0].wall_s
-    from bubblecal.surrogates.sweep import checkpoint_key
+    from bubblecal.surrogates.training import checkpoint_key
     k_cpu = checkpoint_key("h", (4,), cfg)
     k_gpu = checkpoint_key("h", (4,), SweepConfig(widths=(4, 8), depths=(1,), min_curves=2,
                                                   train=TrainConfig(max_epochs=6, patience=2, max_reductions=1,
@@ -136,7 +140,7 @@ def test_cuda_graph_training_matches_eager_cuda_and_cpu():
     # same initial weights and batch order on every path; graphs replay the eager step exactly
     import torch
 
-    from bubblecal.surrogates.train import train_mlp
+    from bubblecal.surrogates.training import train_mlp
 
     if not torch.cuda.is_available():
         pytest.skip("no CUDA device")

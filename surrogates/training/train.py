@@ -1,20 +1,16 @@
 """PyTorch training of one standardised tanh MLP surrogate (CPU, or CUDA for sweeps). Imports torch.
 
-Recipe (issue 4): tanh hidden layers, Xavier-uniform weights and zero biases; inputs
-``(ka, kb, b1, b2, a3, a4, x)`` and the target standardised with the training points' mean and
-standard deviation (stored with the weights); a seeded 90/10 *pointwise* split of the training
-points for monitoring; Adam on the MSE of the standardised target; the learning rate is divided
-by 10 when the validation loss has not improved by a relative ``min_rel_improvement`` for
-``patience`` epochs; training stops when it stalls again after ``max_reductions`` reductions,
-or at ``max_epochs``. The weights with the best validation loss are returned. Same seed, same
+The recipe: tanh hidden layers, Xavier-uniform weights and zero biases; inputs ``(ka, kb, b1, b2, a3, a4, x)``
+and the target standardised with the training points' mean and standard deviation (stored with the weights);
+a seeded 90/10 *pointwise* split of the training points for monitoring; Adam on the MSE of the standardised
+target; the learning rate is divided by 10 when the validation loss has not improved by a relative
+``min_rel_improvement`` for ``patience`` epochs; training stops when it stalls again after ``max_reductions``
+reductions, or at ``max_epochs``. The weights with the best validation loss are returned. Same seed, same
 data and same thread count give bit-identical weights.
 
-``device = "cuda"`` trains the same recipe on a GPU: the initial weights and the batch order are
-drawn from the same CPU generator (identical to the CPU run); only floating-point rounding
-differs. Small MLPs are bound by kernel-launch latency there, so by default each Adam step
-(gather, forward, MSE, backward, update) is captured once in a CUDA graph per batch size and
-replayed (``cuda_graphs``); the learning rate lives in a device tensor so that the plateau
-schedule needs no re-capture.
+``device = "cuda"`` trains the same recipe on a GPU: the initial weights and the batch order are drawn from
+the same CPU generator (identical to the CPU run); only floating-point rounding differs. By default each Adam
+step is replayed from a CUDA graph (``cuda_graphs``, :mod:`bubblecal.surrogates.training.steps`).
 """
 
 from __future__ import annotations
@@ -29,13 +25,46 @@ import torch
 from torch import nn
 
 from bubblecal.surrogates.mlp import mlp_forward
+from bubblecal.surrogates.training.steps import EagerSteps, GraphSteps
 
 __all__ = ["TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"]
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """Training settings (see module docstring)."""
+    """Training settings of :func:`train_mlp` (module docstring).
+
+    Parameters
+    ----------
+    lr : float
+        Initial Adam learning rate.
+    batch_size : int
+        Training points per Adam step.
+    max_epochs : int
+        Most epochs.
+    patience : int
+        Epochs without relative improvement ``min_rel_improvement`` of the validation loss before the
+        learning rate is reduced (or training stops after ``max_reductions`` reductions).
+    lr_factor : float
+        Learning-rate reduction factor.
+    max_reductions : int
+        Most learning-rate reductions.
+    min_rel_improvement : float
+        Relative decrease of the validation loss that counts as an improvement.
+    val_frac : float
+        Fraction of the training points held out (pointwise) for monitoring.
+    threads : int or None
+        torch intra-op threads during training (1 suits these small MLPs; None keeps torch's setting).
+    device : str
+        ``'cpu'``, ``'cuda'`` or ``'cuda:N'``.
+    cuda_graphs : bool
+        On CUDA, replay one captured graph per Adam step (launch latency dominates small MLPs).
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``device``.
+    """
 
     lr: float = 1e-3
     batch_size: int = 256
@@ -45,9 +74,9 @@ class TrainConfig:
     max_reductions: int = 3
     min_rel_improvement: float = 1e-4
     val_frac: float = 0.1
-    threads: int | None = 1  # torch intra-op threads; 1 is fastest for these small MLPs (None: torch's)
-    device: str = "cpu"  # cpu | cuda | cuda:N
-    cuda_graphs: bool = True  # on cuda: replay one captured graph per Adam step (launch latency dominates)
+    threads: int | None = 1
+    device: str = "cpu"
+    cuda_graphs: bool = True
 
     def __post_init__(self):
         dev = str(self.device)
@@ -55,17 +84,43 @@ class TrainConfig:
             raise ValueError(f"TrainConfig.device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
 
     def as_dict(self) -> dict:
+        """The settings as a plain dict (recorded in metadata and checkpoints)."""
         return asdict(self)
 
 
 def numpy_forward(weights, biases, in_mean, in_std, out_mean, out_std, u) -> np.ndarray:
-    """float64 numpy evaluation of :func:`bubblecal.surrogates.mlp.mlp_forward`."""
+    """float64 numpy evaluation of :func:`bubblecal.surrogates.mlp.mlp_forward`.
+
+    Parameters
+    ----------
+    weights, biases : sequence of array_like
+        Layer weights (fan_in, fan_out) and biases (fan_out,).
+    in_mean, in_std, out_mean, out_std : array_like
+        Standardisation of the raw inputs and outputs.
+    u : array_like, shape (..., n_in)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., n_out)
+        Raw outputs [DPD force or DPD length].
+    """
     return mlp_forward([np.asarray(w, dtype=float) for w in weights], [np.asarray(b, dtype=float) for b in biases],
                        in_mean, in_std, out_mean, out_std, np.asarray(u, dtype=float), xp=np)
 
 
 class NormalisedMLP(nn.Module):
-    """Raw inputs (n, 7) -> raw outputs (n, 1): standardise, tanh MLP, de-standardise (for ONNX)."""
+    """Raw inputs (n, 7) -> raw outputs (n, 1): standardise, tanh MLP, de-standardise (the ONNX export's module).
+
+    Parameters
+    ----------
+    layer_sizes : sequence of int
+        Widths from the input to the output layer.
+    in_mean, in_std : array_like, shape (n_in,)
+        Standardisation of the raw inputs (DPD units).
+    out_mean, out_std : array_like, shape (n_out,)
+        Standardisation of the raw output.
+    """
 
     def __init__(self, layer_sizes: Sequence[int], in_mean, in_std, out_mean, out_std):
         super().__init__()
@@ -76,6 +131,7 @@ class NormalisedMLP(nn.Module):
         self.register_buffer("out_std", torch.as_tensor(np.atleast_1d(out_std), dtype=torch.float32))
 
     def forward(self, u):
+        """Raw outputs (n, 1) of raw inputs ``u`` (n, 7)."""
         h = (u - self.in_mean) / self.in_std
         for i, layer in enumerate(self.layers):
             h = layer(h)
@@ -86,7 +142,33 @@ class NormalisedMLP(nn.Module):
 
 @dataclass
 class TrainedMLP:
-    """Result of :func:`train_mlp`: plain numpy weights (fan_in, fan_out), statistics, history."""
+    """Result of :func:`train_mlp`: plain numpy weights, standardisation statistics and the training history.
+
+    Parameters
+    ----------
+    hidden : tuple of int
+        Hidden-layer widths.
+    weights, biases : list of numpy.ndarray
+        Layer weights (fan_in, fan_out) (the transpose of torch's ``Linear.weight``) and biases (fan_out,).
+    in_mean, in_std : numpy.ndarray, shape (7,)
+        Mean and standard deviation of the raw training inputs (DPD units).
+    out_mean, out_std : numpy.ndarray, shape (1,)
+        Mean and standard deviation of the raw training target.
+    config : TrainConfig
+        The settings used.
+    seed : int
+        Seed of the split, the initial weights and the batch order.
+    epochs : int
+        Epochs run.
+    stop_reason : str
+        Why training stopped (``'max_epochs'``, a plateau, a non-finite validation loss).
+    best_val_loss : float
+        Best validation MSE (standardised target).
+    wall_s : float
+        Training wall time [s].
+    history : dict
+        Per-epoch ``train_loss``, ``val_loss`` and ``lr``.
+    """
 
     hidden: tuple[int, ...]
     weights: list[np.ndarray]
@@ -105,15 +187,38 @@ class TrainedMLP:
 
     @property
     def layer_sizes(self) -> list[int]:
+        """Widths from the input to the output layer."""
         return [self.weights[0].shape[0]] + [w.shape[1] for w in self.weights]
 
     def predict(self, u) -> np.ndarray:
-        """Raw outputs (n,) for raw inputs (n, 7), float64 numpy."""
+        """Raw outputs in float64 numpy.
+
+        Parameters
+        ----------
+        u : array_like, shape (n, 7)
+            Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            Raw outputs [DPD force (compression) or DPD length (indentation)].
+        """
         return numpy_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean,
                              self.out_std, u)[..., 0]
 
     def torch_module(self, dtype=torch.float32) -> NormalisedMLP:
-        """A torch module with these weights and the standardisation built in."""
+        """A torch module with these weights and the standardisation built in (evaluation mode).
+
+        Parameters
+        ----------
+        dtype : torch.dtype
+            Parameter dtype of the module.
+
+        Returns
+        -------
+        NormalisedMLP
+            Raw inputs (n, 7) -> raw outputs (n, 1).
+        """
         mod = NormalisedMLP(self.layer_sizes, self.in_mean, self.in_std, self.out_mean, self.out_std)
         with torch.no_grad():
             for layer, w, b in zip(mod.layers, self.weights, self.biases, strict=True):
@@ -122,104 +227,14 @@ class TrainedMLP:
         return mod.to(dtype).eval()
 
     def training_summary(self) -> dict:
+        """Architecture, seed, epochs, stop reason, best loss, wall time and settings (the metadata's ``training``)."""
         return {"hidden": list(self.hidden), "seed": self.seed, "epochs": self.epochs,
                 "stop_reason": self.stop_reason, "best_val_loss": self.best_val_loss, "wall_s": self.wall_s,
                 "config": self.config.as_dict()}
 
 
-class _EagerSteps:
-    """Plain Adam steps over one epoch's batches (CPU, or CUDA without graphs)."""
-
-    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float):
-        self.model, self.z, self.t, self.bs = model, z, t, bs
-        self.opt = torch.optim.Adam(model.parameters(), lr=lr)
-        self.loss_fn = nn.MSELoss()
-
-    def set_lr(self, lr: float) -> None:
-        for g in self.opt.param_groups:
-            g["lr"] = lr
-
-    def epoch(self, order: torch.Tensor) -> float:
-        """One pass over the batches in ``order``; returns the mean training MSE (standardised)."""
-        order = order.to(self.z.device)
-        n = self.z.shape[0]
-        total = 0.0
-        for start in range(0, n, self.bs):
-            idx = order[start:start + self.bs]
-            self.opt.zero_grad(set_to_none=True)
-            loss = self.loss_fn(self.model(self.z[idx]), self.t[idx])
-            loss.backward()
-            self.opt.step()
-            total += loss.item() * idx.shape[0]
-        return total / n
-
-
-class _GraphSteps:
-    """Adam steps replayed from CUDA graphs: one graph per batch size (full batches, remainder)."""
-
-    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float):
-        self.model, self.z, self.t, self.bs = model, z, t, bs
-        self.n = int(z.shape[0])
-        dev = z.device
-        self.params = list(model.parameters())
-        self.lr = torch.tensor(float(lr), device=dev)  # a tensor: the plateau schedule needs no re-capture
-        self.opt = torch.optim.Adam(self.params, lr=self.lr, capturable=True)
-        self.loss_fn = nn.MSELoss()
-        self.total = torch.zeros((), device=dev)
-        sizes = sorted({bs, self.n % bs} - {0})
-        self.idx = {m: torch.zeros(m, dtype=torch.long, device=dev) for m in sizes}
-        self._warm_up(sizes, dev)
-        self.graphs, self._keep = {}, []
-        for m in sizes:
-            g = torch.cuda.CUDAGraph()
-            self.opt.zero_grad(set_to_none=True)  # each graph owns its gradient buffers
-            with torch.cuda.graph(g):
-                self._step(m)
-            self._keep.append([p.grad for p in self.params])  # keep the captured buffers alive
-            self.graphs[m] = g
-
-    def _step(self, m: int) -> None:
-        idx = self.idx[m]
-        loss = self.loss_fn(self.model(self.z[idx]), self.t[idx])
-        loss.backward()
-        self.opt.step()
-        self.total.add_(loss.detach() * m)
-
-    def _warm_up(self, sizes, dev) -> None:
-        # capture needs warmed-up kernels and existing optimizer state; undo the warm-up steps afterwards
-        saved = [p.detach().clone() for p in self.params]
-        side = torch.cuda.Stream(device=dev)
-        side.wait_stream(torch.cuda.current_stream(dev))
-        with torch.cuda.stream(side):
-            for m in sizes:
-                for _ in range(3):
-                    self.opt.zero_grad(set_to_none=True)
-                    self._step(m)
-        torch.cuda.current_stream(dev).wait_stream(side)
-        with torch.no_grad():
-            for p, v in zip(self.params, saved, strict=True):
-                p.copy_(v)
-            for st in self.opt.state.values():
-                for v in st.values():
-                    if torch.is_tensor(v):
-                        v.zero_()  # step = 0, exp_avg = exp_avg_sq = 0: a fresh Adam
-            self.total.zero_()
-
-    def set_lr(self, lr: float) -> None:
-        self.lr.fill_(float(lr))
-
-    def epoch(self, order: torch.Tensor) -> float:
-        """One pass over the batches in ``order``; returns the mean training MSE (standardised)."""
-        order = order.to(self.z.device)
-        self.total.zero_()
-        for start in range(0, self.n, self.bs):
-            m = min(self.bs, self.n - start)
-            self.idx[m].copy_(order[start:start + m])
-            self.graphs[m].replay()
-        return float(self.total) / self.n
-
-
 def _build(layer_sizes: Sequence[int], gen: torch.Generator) -> nn.Sequential:
+    """The tanh MLP with Xavier-uniform weights (from ``gen``) and zero biases."""
     mods: list[nn.Module] = []
     for i, (a, b) in enumerate(zip(layer_sizes[:-1], layer_sizes[1:], strict=True)):
         lin = nn.Linear(a, b)
@@ -233,7 +248,35 @@ def _build(layer_sizes: Sequence[int], gen: torch.Generator) -> nn.Sequential:
 
 def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: TrainConfig | None = None,
               seed: int = 0, progress: bool = True, desc: str = "train") -> TrainedMLP:
-    """Train one MLP on raw inputs ``u`` (n, 7) and targets ``y`` (n,) (see module docstring)."""
+    """Train one MLP with the recipe of the module docstring.
+
+    Parameters
+    ----------
+    u : numpy.ndarray, shape (n, 7)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+    y : numpy.ndarray, shape (n,)
+        Raw targets [DPD force (compression) or DPD length (indentation)].
+    hidden : sequence of int
+        Hidden-layer widths.
+    config : TrainConfig, optional
+        Settings (default ``TrainConfig()``).
+    seed : int
+        Seed of the validation split (numpy), the initial weights and the batch order (torch).
+    progress : bool
+        Show a progress bar.
+    desc : str
+        Label of the progress bar.
+
+    Returns
+    -------
+    TrainedMLP
+        The weights with the best validation loss.
+
+    Raises
+    ------
+    ValueError
+        For mismatched shapes, fewer than 10 points, or an input column or target of zero variance.
+    """
     from tqdm.auto import tqdm
 
     config = config or TrainConfig()
@@ -278,9 +321,9 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
         n_tr = z_tr.shape[0]
         bs = min(config.batch_size, n_tr)
         if dev.type == "cuda" and config.cuda_graphs:
-            stepper = _GraphSteps(model, z_tr, t_tr, bs, lr)
+            stepper = GraphSteps(model, z_tr, t_tr, bs, lr)
         else:
-            stepper = _EagerSteps(model, z_tr, t_tr, bs, lr)
+            stepper = EagerSteps(model, z_tr, t_tr, bs, lr)
         best = math.inf
         best_state = {k: v.clone() for k, v in model.state_dict().items()}
         wait = 0

@@ -1,4 +1,4 @@
-"""Closed-form shell force laws over the six shell parameters: the known-answer surrogate benchmark.
+"""Closed-form shell force laws over the six shell parameters: known-answer training data for the surrogates.
 
 These laws are *not* a physical model of the DPD bubble; they are smooth, monotone, Reissner-
 flavoured maps of the same inputs and output scales, so that the surrogate pipeline can be
@@ -16,7 +16,7 @@ Indentation, force F -> pole displacement (q = F / (ka R), a dimensionless load)
 
     delta(F) = (F / k_R) [1 + b1 q / 4 + b2 q^2] / [1 + (2 + a3 / 2 + a4 / 4) q]
 
-Default parameter boxes mimic the published designs' magnitudes (DPD units).
+Default parameter boxes mimic the published designs' magnitudes (DPD units; b1..a4 dimensionless).
 """
 
 from __future__ import annotations
@@ -26,11 +26,12 @@ import math
 import numpy as np
 
 from bubblecal.data import SHELL_PARAMETERS
-from bubblecal.surrogates.dataset import TrainingSet
+from bubblecal.surrogates.training.dataset import TrainingSet
 
 __all__ = ["DEFAULT_RANGES", "DEFAULT_X", "compression_force", "indentation_displacement", "truth", "make_synthetic",
            "noise_floor", "relative_l2"]
 
+#: Default parameter box [lo, hi] per loading protocol (DPD units; b1..a4 dimensionless).
 DEFAULT_RANGES: dict[str, dict[str, tuple[float, float]]] = {
     "compression": {"ka": (5.0e3, 5.0e4), "kb": (100.0, 1000.0), "b1": (0.0, 3.0), "b2": (0.0, 10.0),
                     "a3": (-2.5, 3.0), "a4": (0.0, 4.0)},
@@ -38,6 +39,7 @@ DEFAULT_RANGES: dict[str, dict[str, tuple[float, float]]] = {
                     "a3": (0.0, 4.0), "a4": (0.0, 4.0)},
 }
 
+#: Default load points per loading protocol: displacement [DPD length] or force [DPD force].
 DEFAULT_X = {
     "compression": np.linspace(0.0, 1.68, 15),  # DPD length, as in F_Delta.dat
     "indentation": np.linspace(0.0, 6000.0, 15),  # DPD force, as in the 3.2 um samples_all.dat
@@ -45,6 +47,7 @@ DEFAULT_X = {
 
 
 def _reissner(ka, kb, radius):
+    """Reissner point-load stiffness k_R [DPD force / DPD length]."""
     return 8.0 * np.sqrt(np.abs(ka * kb) / math.sqrt(3.0)) / radius
 
 
@@ -60,9 +63,21 @@ def _columns(params, coord, radius_dpd: float):
 
 
 def compression_force(params, d, radius_dpd: float):
-    """Closed-form compression force F(d) [DPD force].
+    """Closed-form compression force F(d) (module docstring).
 
-    ``params`` (6,) with ``d`` (m,) gives (m,); ``params`` (n, 6) with ``d`` (m,) gives (n, m).
+    Parameters
+    ----------
+    params : array_like, shape (6,) or (n, 6)
+        Shell parameters (ka, kb, b1, b2, a3, a4) [DPD units].
+    d : array_like, shape (m,) or scalar
+        Total plate displacement [DPD length].
+    radius_dpd : float
+        Bubble radius [DPD length].
+
+    Returns
+    -------
+    numpy.ndarray
+        Force [DPD force]: (m,) for ``params`` (6,); (n, m) for ``params`` (n, 6) with ``d`` (m,).
     """
     (ka, kb, b1, b2, a3, a4, kr), d = _columns(params, d, radius_dpd)
     e = d / (2.0 * radius_dpd)
@@ -71,14 +86,51 @@ def compression_force(params, d, radius_dpd: float):
 
 
 def indentation_displacement(params, force, radius_dpd: float):
-    """Closed-form indentation depth delta(F) [DPD length]."""
+    """Closed-form indentation depth delta(F) (module docstring).
+
+    Parameters
+    ----------
+    params : array_like, shape (6,) or (n, 6)
+        Shell parameters (ka, kb, b1, b2, a3, a4) [DPD units].
+    force : array_like, shape (m,) or scalar
+        Applied pole force [DPD force].
+    radius_dpd : float
+        Bubble radius [DPD length].
+
+    Returns
+    -------
+    numpy.ndarray
+        Depth [DPD length], shaped as for :func:`compression_force`.
+    """
     (ka, kb, b1, b2, a3, a4, kr), f = _columns(params, force, radius_dpd)
     q = f / (ka * radius_dpd)
     return (f / kr) * (1.0 + 0.25 * b1 * q + b2 * q**2) / (1.0 + (2.0 + 0.5 * a3 + 0.25 * a4) * q)
 
 
 def truth(setup: str, params, x, radius_dpd: float):
-    """The exact law of ``setup`` at (params, x)."""
+    """The exact law of ``setup`` at (params, x).
+
+    Parameters
+    ----------
+    setup : {'compression', 'indentation'}
+        Loading protocol.
+    params : array_like, shape (6,) or (n, 6)
+        Shell parameters [DPD units].
+    x : array_like
+        Loading coordinate: displacement [DPD length] or force [DPD force].
+    radius_dpd : float
+        Bubble radius [DPD length].
+
+    Returns
+    -------
+    numpy.ndarray
+        Force [DPD force] (compression) or depth [DPD length] (indentation).
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``setup``.
+    """
     if setup == "compression":
         return compression_force(params, x, radius_dpd)
     if setup == "indentation":
@@ -91,7 +143,28 @@ def make_synthetic(n_curves: int, setup: str = "compression", radius_dpd: float 
     """Latin-hypercube parameter sets in ``ranges`` with curves from the closed form plus noise.
 
     Noise is multiplicative Gaussian: y = y_true (1 + noise * N(0, 1)), independent per point.
-    The clean curves are in ``ts.extra['y_true']``.
+
+    Parameters
+    ----------
+    n_curves : int
+        Number of parameter sets (one curve each).
+    setup : {'compression', 'indentation'}
+        Loading protocol.
+    radius_dpd : float
+        Bubble radius [DPD length].
+    noise : float
+        Relative noise level.
+    seed : int
+        Seed of the design and the noise.
+    ranges : dict, optional
+        Parameter box {name: (lo, hi)} (default :data:`DEFAULT_RANGES` of ``setup``).
+    x : array_like, optional
+        Load points (default :data:`DEFAULT_X` of ``setup``) [DPD length or DPD force].
+
+    Returns
+    -------
+    TrainingSet
+        The noisy curves; the clean ones are in ``extra['y_true']``.
     """
     rng = np.random.default_rng(seed)
     ranges = dict(ranges or DEFAULT_RANGES[setup])
@@ -111,14 +184,38 @@ def make_synthetic(n_curves: int, setup: str = "compression", radius_dpd: float 
 
 
 def relative_l2(y_hat, y) -> np.ndarray:
-    """Per-curve ||y_hat - y||_2 / ||y||_2 (last axis = points)."""
+    """Per-curve relative L2 error ||y_hat - y||_2 / ||y||_2 (last axis = points).
+
+    Parameters
+    ----------
+    y_hat, y : array_like
+        Predictions and references of the same shape (any units, the same for both).
+
+    Returns
+    -------
+    numpy.ndarray
+        One error per curve (the shape without the last axis).
+    """
     y_hat = np.asarray(y_hat, dtype=float)
     y = np.asarray(y, dtype=float)
     return np.linalg.norm(y_hat - y, axis=-1) / np.linalg.norm(y, axis=-1)
 
 
 def noise_floor(ts: TrainingSet, curve_index=None) -> float:
-    """Median per-curve relative L2 of the exact law against the noisy curves (best achievable)."""
+    """Median per-curve relative L2 of the exact law against the noisy curves: the best achievable score.
+
+    Parameters
+    ----------
+    ts : TrainingSet
+        A set from :func:`make_synthetic` (needs ``extra['y_true']``).
+    curve_index : array_like, optional
+        Curves to score (default: all).
+
+    Returns
+    -------
+    float
+        The noise floor of the grouped-holdout score.
+    """
     idx = np.arange(ts.n_curves) if curve_index is None else np.asarray(curve_index)
     y_true = ts.extra["y_true"][idx]
     return float(np.median(relative_l2(y_true, ts.y[idx])))

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.surrogates.dataset import (
+from bubblecal.surrogates.training import (
     DatasetError,
     filter_curves,
+    make_synthetic,
     read_dataset,
     read_published,
     write_published,
 )
-from bubblecal.surrogates.synthetic import make_synthetic
 
 HEADS = {
     "training_head_compression_2.1um.csv": ("compression", 2.1),
@@ -132,7 +132,7 @@ def test_zero_variance_parameter_named(shared_reference):
 
 
 def test_too_few_curves_for_sweep():
-    from bubblecal.surrogates.sweep import SweepConfig, run_sweep
+    from bubblecal.surrogates.training import SweepConfig, run_sweep
 
     ts = make_synthetic(12, "compression", noise=0.0, seed=1)
     with pytest.raises(DatasetError, match="12 curve.*at least 20"):

@@ -1,7 +1,7 @@
-"""Export trained models: plain-weight ``.npz`` (:mod:`bubblecal.surrogates.bundle` format) and ONNX.
+"""Export trained models: the plain-weight surrogate ``.npz`` (:mod:`bubblecal.surrogates.surrogate_file`) and ONNX.
 
-Imports torch (the training side); calibration reads the ``.npz`` with
-:func:`bubblecal.surrogates.load` and never imports this module.
+Imports torch (the training side); calibration reads the ``.npz`` with :func:`bubblecal.surrogates.load` and
+never imports this module.
 """
 
 from __future__ import annotations
@@ -12,26 +12,49 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import PARAMETER_UNITS, SHELL_PARAMETERS
-from bubblecal.surrogates.bundle import save_surrogate
-from bubblecal.surrogates.dataset import X_INFO, Y_INFO, TrainingSet
-from bubblecal.surrogates.train import TrainedMLP
+from bubblecal.surrogates.axes import X_INFO, Y_INFO
+from bubblecal.surrogates.surrogate_file import save_surrogate
+from bubblecal.surrogates.training.dataset import TrainingSet
+from bubblecal.surrogates.training.train import TrainedMLP
 
 __all__ = ["surrogate_metadata", "export_npz", "export_sweep", "export_onnx"]
 
+#: The ``holdout_metric`` recorded with a sweep's ``holdout_score``.
 HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
 
 
 def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score: float, data_hash: str,
                        extra_training: dict | None = None, nominal_diameter_um: float | None = None,
                        filter_report=None) -> dict:
-    """Metadata of a surrogate file (keys: see :mod:`bubblecal.surrogates.bundle`).
+    """Metadata of a surrogate file (keys: :mod:`bubblecal.surrogates.surrogate_file`).
 
-    ``diameter_um`` is the data's (2 x 0.25 um x median radius_dpd, e.g. 3.19 for the "3.2 um"
-    SonoVue set); ``nominal_diameter_um`` the name the user gave (defaults to the same). Provenance
-    of the training points: ``n_points_train`` (finite points), ``n_prefix_curves_train`` /
-    ``n_prefix_points_train`` (failure-truncated prefix curves, NaN tails, and their points) and
-    ``training_data`` (:meth:`TrainingSet.truncation_summary`); ``filter`` is the
-    :class:`~bubblecal.surrogates.dataset.FilterReport` (``as_dict``) when given.
+    ``diameter_um`` is the data's (2 x 0.25 um x median radius_dpd, e.g. 3.19 for the "3.2 um" SonoVue set);
+    ``nominal_diameter_um`` the name the user gave (defaults to the same). Provenance of the training points:
+    ``n_points_train`` (finite points), ``n_prefix_curves_train`` / ``n_prefix_points_train`` (failure-truncated
+    prefix curves, NaN tails, and their points) and ``training_data``
+    (:meth:`~bubblecal.surrogates.training.TrainingSet.truncation_summary`).
+
+    Parameters
+    ----------
+    model : TrainedMLP
+        The trained network.
+    train_set : TrainingSet
+        Its training curves (define the training box, DPD units).
+    holdout_score : float
+        Held-out median relative L2 error.
+    data_hash : str
+        Hash of the (filtered) data.
+    extra_training : dict, optional
+        Merged into the ``training`` entry (e.g. the sweep rows).
+    nominal_diameter_um : float, optional
+        Nominal bubble diameter [um].
+    filter_report : FilterReport or dict, optional
+        Recorded as ``filter`` (``as_dict``) when given.
+
+    Returns
+    -------
+    dict
+        The metadata (``code_version`` and ``created_utc`` are added when the file is written).
     """
     setup = train_set.setup
     training = model.training_summary()
@@ -69,7 +92,25 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
 def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, holdout_score: float,
                data_hash: str, extra_training: dict | None = None, nominal_diameter_um: float | None = None,
                filter_report=None) -> Path:
-    """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges)."""
+    """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges).
+
+    Parameters
+    ----------
+    model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um, filter_report
+        As :func:`surrogate_metadata`.
+    path : str or Path
+        Output ``.npz`` (written atomically).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    SurrogateFormatError
+        When the arrays or metadata are inconsistent (e.g. a zero standard deviation).
+    """
     md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um,
                             filter_report)
     return save_surrogate(path, model.weights, model.biases, model.in_mean, model.in_std, model.out_mean,
@@ -77,10 +118,23 @@ def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, hold
 
 
 def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = None, filter_report=None) -> Path:
-    """Write the selected model of a :class:`~bubblecal.surrogates.sweep.SweepResult` as ``.npz``.
+    """Write the selected model of a sweep as a surrogate ``.npz``.
 
-    ``filter_report`` (the :class:`~bubblecal.surrogates.dataset.FilterReport` of the data) is
-    recorded in the metadata as provenance (``filter``).
+    Parameters
+    ----------
+    result : SweepResult
+        The sweep (:func:`bubblecal.surrogates.training.run_sweep`).
+    path : str or Path
+        Output ``.npz``.
+    nominal_diameter_um : float, optional
+        Nominal bubble diameter [um].
+    filter_report : FilterReport, optional
+        The data's filter report, recorded in the metadata as provenance (``filter``).
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     b = result.best
     extra = {"holdout_seed": result.config.seed, "holdout_frac": result.config.holdout_frac,
@@ -96,7 +150,18 @@ def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = N
 def export_onnx(model: TrainedMLP, path: str | Path) -> Path:
     """Export the full raw-input -> raw-output map (standardisation included) to ONNX.
 
-    Input ``u`` float32 (n, 7) = (ka, kb, b1, b2, a3, a4, x); output ``y`` float32 (n, 1).
+    Parameters
+    ----------
+    model : TrainedMLP
+        The trained network.
+    path : str or Path
+        Output ``.onnx`` (parent folders are created).
+
+    Returns
+    -------
+    Path
+        ``path``: input ``u`` float32 (n, 7) = (ka, kb, b1, b2, a3, a4, x) [DPD units]; output ``y`` float32
+        (n, 1) [DPD force or DPD length].
     """
     import torch
 

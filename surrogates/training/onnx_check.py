@@ -15,14 +15,38 @@ __all__ = ["onnx_predict", "scaled_max_rel_diff", "onnx_parity"]
 
 
 def scaled_max_rel_diff(a, b) -> float:
-    """``max |a - b| / max |b|``."""
+    """Largest difference on the scale of the output: ``max |a - b| / max |b|``.
+
+    Parameters
+    ----------
+    a, b : array_like
+        Compared values (same units); ``b`` is the reference.
+
+    Returns
+    -------
+    float
+        The scaled difference.
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), np.finfo(float).tiny))
 
 
 def onnx_predict(onnx_path: str | Path, u) -> np.ndarray:
-    """Evaluate an exported model on raw inputs ``u`` (n, 7) with onnxruntime (CPU); returns (n,)."""
+    """Evaluate an exported model with onnxruntime (CPU).
+
+    Parameters
+    ----------
+    onnx_path : str or Path
+        Model from :func:`bubblecal.surrogates.training.export_onnx`.
+    u : array_like, shape (n, 7)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        Raw outputs (float32) [DPD force or DPD length].
+    """
     import onnxruntime as ort
 
     sess = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
@@ -31,9 +55,21 @@ def onnx_predict(onnx_path: str | Path, u) -> np.ndarray:
 
 
 def onnx_parity(onnx_path: str | Path, surrogate, u) -> dict:
-    """Compare onnxruntime with a loaded :class:`~bubblecal.surrogates.bundle.Surrogate` on ``u``.
+    """Compare onnxruntime with a loaded :class:`~bubblecal.surrogates.Surrogate` on ``u``.
 
-    Returns ``{"n": ..., "max_rel_diff": ...}``.
+    Parameters
+    ----------
+    onnx_path : str or Path
+        Exported model.
+    surrogate : Surrogate
+        The same model loaded from its ``.npz``.
+    u : array_like, shape (n, 7)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+
+    Returns
+    -------
+    dict
+        ``{"n": number of points, "max_rel_diff": scaled_max_rel_diff(onnx, surrogate)}``.
     """
     u = np.asarray(u, dtype=float)
     y_onnx = onnx_predict(onnx_path, u)

@@ -7,8 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from bubblecal.surrogates.dataset import DatasetError, filter_curves, leading_finite
-from bubblecal.surrogates.synthetic import make_synthetic
+from bubblecal.surrogates.training import DatasetError, filter_curves, leading_finite, make_synthetic
 
 M = 15  # loading points of the synthetic indentation curves (force 0..6000 DPD)
 N = 30
@@ -160,8 +159,7 @@ def test_points_exclude_nan_and_check_trainable():
 
 
 def test_curve_errors_mask_and_skip():
-    from bubblecal.surrogates.sweep import curve_errors, error_summary
-    from bubblecal.surrogates.train import TrainConfig, TrainedMLP
+    from bubblecal.surrogates.training import TrainConfig, TrainedMLP, curve_errors, error_summary
 
     ts = _store_like_set()
     kept, _ = filter_curves(ts, keep_failed_prefix=True)
@@ -189,9 +187,7 @@ def test_curve_errors_mask_and_skip():
 def test_train_export_end_to_end_with_prefixes(tmp_path):
     pytest.importorskip("torch")
     from bubblecal.surrogates import load
-    from bubblecal.surrogates.export import export_sweep
-    from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-    from bubblecal.surrogates.train import TrainConfig
+    from bubblecal.surrogates.training import SweepConfig, TrainConfig, export_sweep, run_sweep
 
     ts = _store_like_set()
     kept, report = filter_curves(ts, keep_failed_prefix=True)
@@ -235,7 +231,7 @@ def test_store_roundtrip_and_cli_default_keeps_prefixes(tmp_path):
     from typer.testing import CliRunner
 
     from bubblecal.surrogates import load
-    from bubblecal.surrogates.dataset import read_dataset
+    from bubblecal.surrogates.training import read_dataset
     from bubblecal.workflows.cli_surrogates import app
 
     ts = _store_like_set()

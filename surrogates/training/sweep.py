@@ -1,20 +1,21 @@
-"""Architecture sweep with a grouped parameter-set holdout. Imports torch (through train).
+"""Architecture sweep with a grouped parameter-set holdout. Imports torch (through training).
 
-Whole curves (parameter sets) are held out: a seeded random ``holdout_frac`` of the curves never
-enters training or the pointwise validation split. Each architecture (width x depth hidden
-layers, tanh) is trained on the remaining curves with :func:`bubblecal.surrogates.train.train_mlp`
-and scored on the held-out curves by
+Whole curves (parameter sets) are held out: a seeded random ``holdout_frac`` of the curves never enters
+training or the pointwise validation split. Each architecture (width x depth hidden layers, tanh) is trained
+on the remaining curves with :func:`bubblecal.surrogates.training.train_mlp` and scored on the held-out
+curves (:mod:`bubblecal.surrogates.training.holdout`) by
 
     score = median over held-out curves of ||y_hat - y||_2 / ||y||_2   (per curve, over its finite points)
 
-Curves may be failure-truncated prefixes (NaN tails, :func:`bubblecal.surrogates.dataset.filter_curves`
-with ``keep_failed_prefix``): training uses the finite points only, each held-out curve is scored on
-its finite points, and a held-out curve with fewer than 2 finite points is skipped (counted in the
+Curves may be failure-truncated prefixes (NaN tails, :func:`bubblecal.surrogates.training.filter_curves` with
+``keep_failed_prefix``): training uses the finite points only, each held-out curve is scored on its finite
+points, and a held-out curve with too few finite points is skipped (counted in the
 rows as ``holdout_n_skipped``). The rows also give the median over the held-out prefix curves alone.
 
-The architecture with the lowest score is selected (ties: fewer parameters). Reports:
-``sweep_report.md`` (table), ``sweep_report.json`` (everything, incl. per-curve errors of the
-selection) and ``heldout_curve.png`` (the held-out curve whose error is nearest the median).
+The architecture with the lowest score is selected (ties: fewer parameters). Reports: ``sweep_report.md``
+(table), ``sweep_report.json`` (everything, incl. per-curve errors of the selection) and ``heldout_curve.png``
+(the held-out curve whose error is nearest the median). Trained architectures can be checkpointed
+(:mod:`bubblecal.surrogates.training.checkpoints`) so that an interrupted sweep resumes.
 """
 
 from __future__ import annotations
@@ -29,90 +30,67 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.surrogates.dataset import DatasetError, TrainingSet
-from bubblecal.surrogates.train import TrainConfig, TrainedMLP, train_mlp
+from bubblecal.surrogates.axes import X_INFO, Y_INFO
+from bubblecal.surrogates.training.checkpoints import (
+    checkpoint_key,
+    checkpoint_path,
+    load_checkpoint,
+    save_checkpoint,
+)
+from bubblecal.surrogates.training.dataset import DatasetError, TrainingSet
+from bubblecal.surrogates.training.holdout import (
+    MIN_SCORED_POINTS,
+    curve_errors,
+    error_summary,
+    grouped_holdout,
+)
+from bubblecal.surrogates.training.train import TrainConfig, TrainedMLP, train_mlp
 
-__all__ = ["SweepConfig", "SweepResult", "grouped_holdout", "run_sweep", "curve_errors", "error_summary",
-           "checkpoint_key", "checkpoint_path", "save_checkpoint", "load_checkpoint", "MIN_SWEEP_CURVES",
-           "MIN_SCORED_POINTS"]
+__all__ = ["SweepConfig", "SweepResult", "run_sweep", "MIN_SWEEP_CURVES"]
 
+#: Fewest curves a sweep accepts (default of ``SweepConfig.min_curves``).
 MIN_SWEEP_CURVES = 20
-#: a held-out curve needs this many finite points to be scored
-MIN_SCORED_POINTS = 2
 
 
 @dataclass(frozen=True)
 class SweepConfig:
-    """Sweep settings: the architecture grid, holdout and training settings."""
+    """Sweep settings: the architecture grid, the holdout and the training settings.
+
+    Parameters
+    ----------
+    widths : tuple of int
+        Hidden-layer widths tried.
+    depths : tuple of int
+        Numbers of hidden layers tried (every width at every depth).
+    holdout_frac : float
+        Fraction of the curves held out, in (0, 1).
+    seed : int
+        Seed of the grouped split and of every training run.
+    min_curves : int
+        Fewest curves accepted.
+    jobs : int
+        Architectures trained in parallel processes (one torch thread each).
+    train : TrainConfig
+        Training settings of every architecture.
+    """
 
     widths: tuple[int, ...] = (32, 64, 128, 256)
     depths: tuple[int, ...] = (2, 3, 4)
     holdout_frac: float = 0.1
     seed: int = 0
     min_curves: int = MIN_SWEEP_CURVES
-    jobs: int = 1  # architectures trained in parallel processes (1 torch thread each)
+    jobs: int = 1
     train: TrainConfig = field(default_factory=TrainConfig)
 
     def architectures(self) -> list[tuple[int, ...]]:
+        """Hidden-layer widths of every architecture, depth-major (e.g. ``(32, 32)``, ``(64, 64)``, ...)."""
         return [(int(w),) * int(d) for d in self.depths for w in self.widths]
 
     def as_dict(self) -> dict:
+        """The settings as a plain dict (training settings included)."""
         d = asdict(self)
         d["train"] = self.train.as_dict()
         return d
-
-
-def grouped_holdout(n_curves: int, frac: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Seeded split of curve indices into (train, holdout); at least one curve on each side."""
-    if not 0.0 < frac < 1.0:
-        raise ValueError(f"holdout_frac must be in (0, 1), got {frac}")
-    if n_curves < 2:
-        raise ValueError(f"need at least 2 curves for a grouped holdout, got {n_curves}")
-    rng = np.random.default_rng(seed)
-    perm = rng.permutation(n_curves)
-    n_hold = min(n_curves - 1, max(1, int(round(frac * n_curves))))
-    return np.sort(perm[n_hold:]), np.sort(perm[:n_hold])
-
-
-def curve_errors(model: TrainedMLP, ts: TrainingSet) -> tuple[np.ndarray, np.ndarray]:
-    """(per-curve relative L2 errors (n,), predictions (n, m)) of ``model`` on the curves of ``ts``.
-
-    Each curve is scored on its finite points (``ts.point_mask()``): ||y_hat - y||_2 / ||y||_2. The
-    error is NaN for a curve with fewer than :data:`MIN_SCORED_POINTS` finite points (skipped; see
-    :func:`error_summary`). Predictions cover every point with a finite x (also a curve's NaN tail).
-    """
-    n, m = ts.x.shape
-    xfin = np.isfinite(ts.x)
-    u = np.concatenate([np.repeat(ts.params, m, axis=0), np.where(xfin, ts.x, 0.0).reshape(-1, 1)], axis=1)
-    y_hat = np.where(xfin, model.predict(u).reshape(n, m), np.nan)
-    valid = ts.point_mask()
-    diff = np.where(valid, y_hat - ts.y, 0.0)
-    ref = np.where(valid, ts.y, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        err = np.linalg.norm(diff, axis=1) / np.linalg.norm(ref, axis=1)
-    err[valid.sum(axis=1) < MIN_SCORED_POINTS] = np.nan
-    return err, y_hat
-
-
-def error_summary(err: np.ndarray, prefix_mask: np.ndarray | None = None) -> dict:
-    """Median / mean / p90 / max of the finite per-curve errors, with the numbers scored and skipped.
-
-    ``prefix_mask`` (n,) marks failure-truncated curves: their median and count are added
-    (``holdout_median_prefix`` is None when none was scored).
-    """
-    err = np.asarray(err, dtype=float)
-    ok = np.isfinite(err)
-    if not ok.any():
-        raise DatasetError(f"no held-out curve has >= {MIN_SCORED_POINTS} finite points to score")
-    e = err[ok]
-    out = {"holdout_median": float(np.median(e)), "holdout_mean": float(np.mean(e)),
-           "holdout_p90": float(np.quantile(e, 0.9)), "holdout_max": float(np.max(e)),
-           "holdout_n_scored": int(ok.sum()), "holdout_n_skipped": int((~ok).sum())}
-    if prefix_mask is not None:
-        pm = np.asarray(prefix_mask, bool) & ok
-        out["holdout_n_prefix"] = int(pm.sum())
-        out["holdout_median_prefix"] = float(np.median(err[pm])) if pm.any() else None
-    return out
 
 
 def _truncated(ts: TrainingSet) -> np.ndarray:
@@ -121,66 +99,17 @@ def _truncated(ts: TrainingSet) -> np.ndarray:
 
 
 def _nan_to_none(values) -> list:
+    """Floats with non-finite values as None (strict JSON)."""
     return [None if not np.isfinite(v) else float(v) for v in np.asarray(values, dtype=float)]
 
 
 def _n_params(sizes: Sequence[int]) -> int:
+    """Number of weights and biases of an MLP with these layer widths."""
     return int(sum(a * b + b for a, b in zip(sizes[:-1], sizes[1:], strict=True)))
 
 
-#: TrainConfig fields that change where and how fast a model trains, not the recipe (not part of a checkpoint key)
-_EXECUTION_FIELDS = ("threads", "device", "cuda_graphs")
-
-
-def checkpoint_key(data_hash: str, hidden: Sequence[int], config: SweepConfig) -> dict:
-    """What a saved architecture must match to be reused: data, split, architecture, seed and recipe."""
-    recipe = {k: v for k, v in config.train.as_dict().items() if k not in _EXECUTION_FIELDS}
-    return {"data_hash": data_hash, "hidden": [int(h) for h in hidden], "seed": int(config.seed),
-            "holdout_frac": float(config.holdout_frac), "recipe": recipe}
-
-
-def checkpoint_path(folder: str | Path, hidden: Sequence[int]) -> Path:
-    """File of one trained architecture in a sweep checkpoint folder."""
-    return Path(folder) / f"arch_{hidden[0]}x{len(hidden)}.npz"
-
-
-def save_checkpoint(path: str | Path, model: TrainedMLP, key: dict) -> Path:
-    """Write a trained model and its key atomically (a killed sweep leaves no half-written file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    meta = {"key": key, "hidden": list(model.hidden), "seed": model.seed, "epochs": model.epochs,
-            "stop_reason": model.stop_reason, "best_val_loss": model.best_val_loss, "wall_s": model.wall_s,
-            "config": model.config.as_dict(), "history": model.history}
-    arrays = {f"W_{i}": w for i, w in enumerate(model.weights)}
-    arrays.update({f"b_{i}": b for i, b in enumerate(model.biases)})
-    tmp = path.with_name(path.name + ".part")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, in_mean=model.in_mean, in_std=model.in_std, out_mean=model.out_mean, out_std=model.out_std,
-                 meta=np.array(json.dumps(meta)), **arrays)
-    tmp.replace(path)
-    return path
-
-
-def load_checkpoint(path: str | Path, key: dict) -> TrainedMLP | None:
-    """The saved model at ``path`` if it exists and was trained under ``key``, else None."""
-    path = Path(path)
-    if not path.is_file():
-        return None
-    with np.load(path) as z:
-        meta = json.loads(str(z["meta"]))
-        if meta.get("key") != json.loads(json.dumps(key)):
-            return None
-        n = len(meta["hidden"]) + 1
-        weights = [z[f"W_{i}"] for i in range(n)]
-        biases = [z[f"b_{i}"] for i in range(n)]
-        stats = {k: z[k] for k in ("in_mean", "in_std", "out_mean", "out_std")}
-    return TrainedMLP(hidden=tuple(meta["hidden"]), weights=weights, biases=biases, config=TrainConfig(**meta["config"]),
-                      seed=int(meta["seed"]), epochs=int(meta["epochs"]), stop_reason=meta["stop_reason"],
-                      best_val_loss=float(meta["best_val_loss"]), wall_s=float(meta["wall_s"]),
-                      history=meta["history"], **stats)
-
-
 def _train_job(args):
+    """Train one architecture (in a worker process or inline) and checkpoint it."""
     u, y, hidden, cfg, seed, progress, desc, ckpt, key = args
     model = train_mlp(u, y, hidden, cfg, seed=seed, progress=progress, desc=desc)
     if ckpt is not None:
@@ -190,7 +119,32 @@ def _train_job(args):
 
 @dataclass
 class SweepResult:
-    """Outcome of :func:`run_sweep`."""
+    """Outcome of :func:`run_sweep`: one row per architecture and the selected model.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Per architecture: ``hidden``, ``width``, ``depth``, ``n_params``, the :func:`error_summary` fields,
+        ``best_val_loss``, ``epochs``, ``stop_reason``, ``wall_s``, ``device``.
+    best_index : int
+        Index of the selected architecture.
+    best_model : TrainedMLP
+        The selected model.
+    train_set, holdout_set : TrainingSet
+        The two sides of the grouped split.
+    holdout_errors : numpy.ndarray, shape (n_holdout,)
+        Per-curve errors of the selected model.
+    holdout_pred : numpy.ndarray, shape (n_holdout, m)
+        Its predictions on the held-out curves.
+    config : SweepConfig
+        The settings.
+    data_hash : str
+        Hash of the whole (filtered) data set.
+    wall_s : float
+        Sweep wall time [s].
+    models : list of TrainedMLP
+        Every trained architecture, in row order.
+    """
 
     rows: list[dict]
     best_index: int
@@ -206,13 +160,16 @@ class SweepResult:
 
     @property
     def best(self) -> dict:
+        """The selected row."""
         return self.rows[self.best_index]
 
     @property
     def score(self) -> float:
+        """Held-out median relative L2 error of the selected model."""
         return float(self.best["holdout_median"])
 
     def as_dict(self) -> dict:
+        """Everything as plain JSON (``sweep_report.json``)."""
         return {
             "selected": self.best, "rows": self.rows, "config": self.config.as_dict(),
             "data_hash": self.data_hash, "setup": self.train_set.setup,
@@ -228,6 +185,7 @@ class SweepResult:
         }
 
     def markdown(self) -> str:
+        """The report table (``sweep_report.md``)."""
         ts = self.train_set
         lines = [
             f"# Surrogate architecture sweep: {ts.setup}, {ts.diameter_um:g} um",
@@ -242,7 +200,8 @@ class SweepResult:
             f"{self.best.get('holdout_n_skipped', 0)} curve(s) with < {MIN_SCORED_POINTS} finite points skipped)",
             f"- sweep wall time: {self.wall_s:.1f} s ({self.config.jobs} job(s), "
             f"{self.config.train.threads} torch thread(s) each); training time summed over architectures "
-            f"{sum(r['wall_s'] for r in self.rows):.0f} s on {', '.join(sorted({r.get('device', 'cpu') for r in self.rows}))}",
+            f"{sum(r['wall_s'] for r in self.rows):.0f} s on "
+            f"{', '.join(sorted({r.get('device', 'cpu') for r in self.rows}))}",
             "",
             "| hidden | params | holdout median | holdout p90 | best val MSE (std.) | epochs | stop | wall s |",
             "|---|---|---|---|---|---|---|---|",
@@ -253,7 +212,8 @@ class SweepResult:
                          f"{r['holdout_p90']:.4%} | {r['best_val_loss']:.3g} | {r['epochs']} | {r['stop_reason']} | "
                          f"{r['wall_s']:.1f} |")
         b = self.best
-        lines += ["", f"Selected: {b['width']}x{b['depth']} with held-out median relative L2 {b['holdout_median']:.4%}."]
+        lines += ["", f"Selected: {b['width']}x{b['depth']} with held-out median relative L2 "
+                      f"{b['holdout_median']:.4%}."]
         if b.get("holdout_n_prefix"):
             lines.append(f"Held-out failure-truncated prefix curves: {b['holdout_n_prefix']}, median relative L2 "
                          f"{b['holdout_median_prefix']:.4%}.")
@@ -261,13 +221,22 @@ class SweepResult:
         return "\n".join(lines)
 
     def plot(self, path: str | Path) -> Path:
-        """Plot the held-out curve nearest the median error, plus the error histogram."""
+        """Plot the held-out curve nearest the median error, plus the error histogram.
+
+        Parameters
+        ----------
+        path : str or Path
+            Output image (``heldout_curve.png`` in a report).
+
+        Returns
+        -------
+        Path
+            ``path``.
+        """
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-
-        from bubblecal.surrogates.dataset import X_INFO, Y_INFO
 
         ts = self.holdout_set
         errs = self.holdout_errors
@@ -297,6 +266,18 @@ class SweepResult:
         return path
 
     def write_report(self, out_dir: str | Path) -> dict[str, Path]:
+        """Write ``sweep_report.md``, ``sweep_report.json`` and ``heldout_curve.png`` into ``out_dir``.
+
+        Parameters
+        ----------
+        out_dir : str or Path
+            Report folder (created when missing).
+
+        Returns
+        -------
+        dict of str to Path
+            The files, keyed ``markdown``, ``json``, ``plot``.
+        """
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"markdown": out / "sweep_report.md", "json": out / "sweep_report.json",
@@ -309,15 +290,31 @@ class SweepResult:
 
 def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool = True,
               checkpoints: str | Path | None = None) -> SweepResult:
-    """Train every architecture of ``config`` on a grouped split of ``ts`` and pick the best.
+    """Train every architecture of ``config`` on a grouped split of ``ts`` and pick the best (module docstring).
 
-    ``checkpoints``: a folder where each architecture is saved as soon as it is trained; a rerun
-    reuses every saved architecture whose data, split, seed and recipe match (the device and
-    thread count may differ), so an interrupted sweep resumes where it stopped.
+    Parameters
+    ----------
+    ts : TrainingSet
+        Filtered curves (:func:`bubblecal.surrogates.training.filter_curves`; failure-truncated prefixes with NaN
+        tails are accepted: training and scores use the finite points), DPD units.
+    config : SweepConfig, optional
+        Settings (default ``SweepConfig()``).
+    progress : bool
+        Show progress bars and reuse messages.
+    checkpoints : str or Path, optional
+        Folder where each architecture is saved as soon as it is trained; a rerun reuses every saved
+        architecture whose data, split, seed and recipe match (the device and thread count may differ), so an
+        interrupted sweep resumes where it stopped.
 
-    ``ts`` must be filtered (:func:`bubblecal.surrogates.dataset.filter_curves`; failure-truncated
-    prefixes with NaN tails are accepted: training and scores use the finite points). Raises
-    :class:`DatasetError` for fewer than ``config.min_curves`` curves or untrainable data.
+    Returns
+    -------
+    SweepResult
+        Rows per architecture and the selected model.
+
+    Raises
+    ------
+    DatasetError
+        For fewer than ``config.min_curves`` curves, untrainable data, or no scorable held-out curve.
     """
     config = config or SweepConfig()
     ts.check_trainable(min_curves=config.min_curves)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.surrogates.synthetic import (
+from bubblecal.surrogates.training import (
     compression_force,
     indentation_displacement,
     make_synthetic,
@@ -33,9 +33,7 @@ def test_closed_form_laws_are_monotone_and_scaled():
 
 @pytest.mark.slow
 def test_full_sweep_reaches_noise_floor():
-    from bubblecal.surrogates.sweep import SweepConfig, run_sweep
-    from bubblecal.surrogates.synthetic import relative_l2
-    from bubblecal.surrogates.train import TrainConfig
+    from bubblecal.surrogates.training import SweepConfig, TrainConfig, relative_l2, run_sweep
 
     ts = make_synthetic(500, "compression", noise=0.01, seed=1)
     # the settings of `python benchmarks/surrogates.py sweep` (recorded run: 1.063 % vs floor 0.937 %,

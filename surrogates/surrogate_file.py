@@ -1,0 +1,228 @@
+"""The surrogate file: one ``.npz`` of plain weights per (loading protocol, diameter); save, load, validate.
+
+Format ``bubblecal-mlp-surrogate``, version 1 (docs/data-formats.md). One ``.npz`` (``numpy.savez``, no
+pickles) with the keys
+
+=================  ==============================================================================
+``format``         0-d str, ``"bubblecal-mlp-surrogate"``
+``format_version`` 0-d int, 1
+``n_layers``       0-d int L (number of affine layers = hidden layers + 1)
+``W_0..W_{L-1}``   float32 (fan_in, fan_out) weight matrices (input side first)
+``b_0..b_{L-1}``   float32 (fan_out,) biases
+``in_mean``        float64 (7,) mean of the raw inputs (ka, kb, b1, b2, a3, a4, x) in training
+``in_std``         float64 (7,) their standard deviation (all > 0)
+``out_mean``       float64 (1,) mean of the raw target
+``out_std``        float64 (1,) its standard deviation
+``metadata``       0-d str: JSON object, see below
+=================  ==============================================================================
+
+``metadata`` keys (all required, :data:`REQUIRED_METADATA`): ``setup`` ('compression'|'indentation'),
+``diameter_um`` (= 2 x 0.25 um x radius_dpd of the data; optional ``nominal_diameter_um``: the name used,
+e.g. 3.2 for data of radius 6.38), ``radius_dpd``, ``param_names`` (["ka","kb","b1","b2","a3","a4"]),
+``input_names`` (param names + the loading coordinate name), ``input_units``, ``output_name``,
+``output_units`` (:mod:`bubblecal.surrogates.axes`), ``param_ranges`` ({name: [lo, hi]} seen in training),
+``x_range`` ([lo, hi]), ``holdout_score`` (median over held-out curves of ||y_hat - y||_2/||y||_2),
+``holdout_metric``, ``data_hash`` (sha256 of the filtered training arrays,
+:meth:`bubblecal.surrogates.training.TrainingSet.data_hash`), ``architecture`` ({"hidden": [widths],
+"activation": "tanh"}), ``training`` (settings, seed), ``code_version``, ``created_utc``, ``source`` (where the
+data came from). Optional provenance written by :func:`bubblecal.surrogates.training.export_npz`:
+``n_curves_train``, ``n_points_train``, ``n_prefix_curves_train`` / ``n_prefix_points_train``
+(failure-truncated curves kept by ``filter_curves(keep_failed_prefix=True)`` and their points),
+``training_data``, ``filter``.
+
+Inputs and outputs are DPD units: compression x = imposed displacement [DPD length], y = force [DPD force];
+indentation x = applied force [DPD force], y = displacement [DPD length].
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS, code_version
+from bubblecal.surrogates.fileio import atomic_write_bytes, utc_now
+from bubblecal.surrogates.surrogate import Surrogate
+
+__all__ = ["FORMAT", "FORMAT_VERSION", "REQUIRED_METADATA", "SurrogateFormatError", "save_surrogate", "load"]
+
+#: ``format`` of a surrogate file.
+FORMAT = "bubblecal-mlp-surrogate"
+#: ``format_version`` written and read.
+FORMAT_VERSION = 1
+
+#: Metadata keys every surrogate file holds.
+REQUIRED_METADATA = (
+    "setup", "diameter_um", "radius_dpd", "param_names", "input_names", "input_units", "output_name",
+    "output_units", "param_ranges", "x_range", "holdout_score", "holdout_metric", "data_hash",
+    "architecture", "training", "code_version", "created_utc", "source",
+)
+
+
+class SurrogateFormatError(ValueError):
+    """A surrogate or bundle file is malformed; the message names the file and the field."""
+
+
+def save_surrogate(path: str | Path, weights: Iterable, biases: Iterable, in_mean, in_std, out_mean,
+                   out_std, metadata: Mapping) -> Path:
+    """Write a surrogate ``.npz`` atomically, after validating the arrays and the metadata keys.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file.
+    weights, biases : iterable of array_like
+        Layer weights (fan_in, fan_out) and biases (fan_out,), input side first; stored as float32.
+    in_mean, in_std : array_like, shape (7,)
+        Standardisation of the raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units]; stored as float64.
+    out_mean, out_std : array_like, shape (1,)
+        Standardisation of the raw output [DPD force or DPD length].
+    metadata : Mapping
+        Metadata (module docstring); ``code_version`` and ``created_utc`` are added when missing.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    SurrogateFormatError
+        For missing metadata keys, shapes that do not chain, non-finite values or a zero standard deviation.
+    """
+    path = Path(path)
+    md = dict(metadata)
+    md.setdefault("code_version", code_version())
+    md.setdefault("created_utc", utc_now())
+    missing = [k for k in REQUIRED_METADATA if k not in md]
+    if missing:
+        raise SurrogateFormatError(f"{path}: metadata lacks field(s) {', '.join(missing)}")
+    weights = [np.asarray(w, dtype=np.float32) for w in weights]
+    biases = [np.asarray(b, dtype=np.float32) for b in biases]
+    arrays: dict[str, np.ndarray] = {
+        "format": np.array(FORMAT), "format_version": np.array(FORMAT_VERSION),
+        "n_layers": np.array(len(weights)),
+        "in_mean": np.asarray(in_mean, dtype=np.float64), "in_std": np.asarray(in_std, dtype=np.float64),
+        "out_mean": np.atleast_1d(np.asarray(out_mean, dtype=np.float64)),
+        "out_std": np.atleast_1d(np.asarray(out_std, dtype=np.float64)),
+        "metadata": np.array(json.dumps(md, sort_keys=True, default=_json_default)),
+    }
+    for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
+        arrays[f"W_{i}"] = w
+        arrays[f"b_{i}"] = b
+    _check_arrays(path, arrays, md)
+    atomic_write_bytes(path, lambda fh: np.savez(fh, **arrays))
+    return path
+
+
+def _json_default(obj):
+    """JSON form of numpy scalars/arrays and paths in the metadata."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _check_arrays(path: Path, arrays: Mapping[str, np.ndarray], md: Mapping) -> None:
+    """Raise SurrogateFormatError unless the arrays chain, are finite and match the metadata."""
+    n_layers = int(arrays["n_layers"])
+    if n_layers < 1:
+        raise SurrogateFormatError(f"{path}: field 'n_layers' must be >= 1, got {n_layers}")
+    n_in = len(md["input_names"])
+    for key in ("in_mean", "in_std"):
+        if arrays[key].shape != (n_in,):
+            raise SurrogateFormatError(f"{path}: field '{key}' has shape {arrays[key].shape}, expected ({n_in},)")
+        if not np.all(np.isfinite(arrays[key])):
+            raise SurrogateFormatError(f"{path}: field '{key}' holds non-finite values")
+    for key in ("in_std", "out_std"):
+        if np.any(arrays[key] <= 0):
+            raise SurrogateFormatError(f"{path}: field '{key}' must be > 0 (a zero-variance input "
+                                       "cannot be standardised)")
+    fan_in = n_in
+    for i in range(n_layers):
+        w, b = arrays[f"W_{i}"], arrays[f"b_{i}"]
+        if w.ndim != 2 or w.shape[0] != fan_in or b.shape != (w.shape[1],):
+            raise SurrogateFormatError(f"{path}: field 'W_{i}'/'b_{i}' shapes {w.shape}/{b.shape} do not "
+                                       f"chain from fan_in {fan_in}")
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(b))):
+            raise SurrogateFormatError(f"{path}: field 'W_{i}'/'b_{i}' holds non-finite values")
+        fan_in = w.shape[1]
+    if fan_in != arrays["out_mean"].shape[0]:
+        raise SurrogateFormatError(f"{path}: last layer width {fan_in} != out_mean length "
+                                   f"{arrays['out_mean'].shape[0]}")
+    if md["setup"] not in LOADING_PROTOCOLS:
+        raise SurrogateFormatError(f"{path}: metadata field 'setup' must be one of {LOADING_PROTOCOLS}, "
+                                   f"got {md['setup']!r}")
+    if tuple(md["param_names"]) != SHELL_PARAMETERS:
+        raise SurrogateFormatError(f"{path}: metadata field 'param_names' must be {list(SHELL_PARAMETERS)}, "
+                                   f"got {md['param_names']}")
+    for name in SHELL_PARAMETERS:
+        if name not in md["param_ranges"]:
+            raise SurrogateFormatError(f"{path}: metadata field 'param_ranges' lacks '{name}'")
+
+
+def load(path: str | Path) -> Surrogate:
+    """Load a surrogate ``.npz`` (module docstring) as a JAX-callable :class:`~bubblecal.surrogates.Surrogate`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    Surrogate
+        The loaded surrogate.
+
+    Raises
+    ------
+    FileNotFoundError
+        When ``path`` is not a file.
+    SurrogateFormatError
+        For an unreadable file, a wrong format or version, or a missing or invalid field (named in the message).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"surrogate file not found: {path}")
+    try:
+        npz = np.load(path, allow_pickle=False)
+    except Exception as exc:
+        raise SurrogateFormatError(f"{path}: not a readable .npz file ({exc})") from exc
+    with npz:
+        keys = set(npz.files)
+        for key in ("format", "format_version"):
+            if key not in keys:
+                raise SurrogateFormatError(f"{path}: missing field '{key}' (not a bubblecal surrogate file)")
+        fmt = str(npz["format"])
+        if fmt != FORMAT:
+            raise SurrogateFormatError(f"{path}: field 'format' is {fmt!r}, expected {FORMAT!r}")
+        version = int(npz["format_version"])
+        if version != FORMAT_VERSION:
+            raise SurrogateFormatError(f"{path}: field 'format_version' is {version}, this code reads "
+                                       f"version {FORMAT_VERSION}")
+        for key in ("n_layers", "in_mean", "in_std", "out_mean", "out_std", "metadata"):
+            if key not in keys:
+                raise SurrogateFormatError(f"{path}: missing field '{key}'")
+        n_layers = int(npz["n_layers"])
+        for i in range(n_layers):
+            for key in (f"W_{i}", f"b_{i}"):
+                if key not in keys:
+                    raise SurrogateFormatError(f"{path}: missing field '{key}' (n_layers = {n_layers})")
+        arrays = {k: npz[k] for k in keys}
+    try:
+        md = json.loads(str(arrays["metadata"]))
+    except json.JSONDecodeError as exc:
+        raise SurrogateFormatError(f"{path}: field 'metadata' is not valid JSON ({exc})") from exc
+    missing = [k for k in REQUIRED_METADATA if k not in md]
+    if missing:
+        raise SurrogateFormatError(f"{path}: field 'metadata' lacks key(s) {', '.join(missing)}")
+    _check_arrays(path, arrays, md)
+    weights = [arrays[f"W_{i}"] for i in range(n_layers)]
+    biases = [arrays[f"b_{i}"] for i in range(n_layers)]
+    return Surrogate(weights, biases, arrays["in_mean"], arrays["in_std"], arrays["out_mean"],
+                     arrays["out_std"], md, path=path)

@@ -1,0 +1,91 @@
+"""bubblecal.surrogates.training: data, training and export of the mechanical MLP surrogates.
+
+Numpy-only parts, imported with the package: the training set (:mod:`~bubblecal.surrogates.training.dataset`),
+reading and writing data (:mod:`~bubblecal.surrogates.training.data_io`), filtering
+(:mod:`~bubblecal.surrogates.training.filtering`), known-answer data (:mod:`~bubblecal.surrogates.training.synthetic`),
+the grouped holdout (:mod:`~bubblecal.surrogates.training.holdout`) and the ONNX parity check
+(:mod:`~bubblecal.surrogates.training.onnx_check`, onnxruntime imported on use).
+
+The torch parts - :mod:`~bubblecal.surrogates.training.train`, :mod:`~bubblecal.surrogates.training.sweep`,
+:mod:`~bubblecal.surrogates.training.checkpoints`, :mod:`~bubblecal.surrogates.training.export` - are imported
+on first access to one of their names, so that reading and filtering data never imports torch::
+
+    from bubblecal.surrogates.training import filter_curves, read_dataset   # no torch
+    from bubblecal.surrogates.training import SweepConfig, run_sweep        # imports torch here
+
+Calibration code never imports this package; it loads the exported ``.npz`` with :func:`bubblecal.surrogates.load`.
+"""
+
+import importlib
+
+from bubblecal.surrogates.training.data_io import (
+    N_META,
+    PUBLISHED_META_COLUMNS,
+    PUBLISHED_POINTS,
+    read_dataset,
+    read_published,
+    read_store_dataset,
+    write_published,
+)
+from bubblecal.surrogates.training.dataset import (
+    DatasetError,
+    TrainingSet,
+    diameter_um_from_radius,
+    leading_finite,
+)
+from bubblecal.surrogates.training.filtering import PREFIX_STATUSES, FilterReport, filter_curves
+from bubblecal.surrogates.training.holdout import (
+    MIN_SCORED_POINTS,
+    curve_errors,
+    error_summary,
+    grouped_holdout,
+)
+from bubblecal.surrogates.training.onnx_check import onnx_parity, onnx_predict, scaled_max_rel_diff
+from bubblecal.surrogates.training.synthetic import (
+    DEFAULT_RANGES,
+    DEFAULT_X,
+    compression_force,
+    indentation_displacement,
+    make_synthetic,
+    noise_floor,
+    relative_l2,
+    truth,
+)
+
+#: Names of the torch modules, imported on first access (module ``__getattr__``).
+_LAZY: dict[str, str] = {
+    **dict.fromkeys(("TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"), "train"),
+    **dict.fromkeys(("SweepConfig", "SweepResult", "run_sweep", "MIN_SWEEP_CURVES"), "sweep"),
+    **dict.fromkeys(("checkpoint_key", "checkpoint_path", "save_checkpoint", "load_checkpoint"), "checkpoints"),
+    **dict.fromkeys(("surrogate_metadata", "export_npz", "export_sweep", "export_onnx", "HOLDOUT_METRIC"), "export"),
+}
+
+__all__ = [
+    # training set, data I/O, filtering
+    "TrainingSet", "DatasetError", "leading_finite", "diameter_um_from_radius", "read_dataset", "read_published",
+    "write_published", "read_store_dataset", "N_META", "PUBLISHED_POINTS", "PUBLISHED_META_COLUMNS",
+    "FilterReport", "filter_curves", "PREFIX_STATUSES",
+    # known-answer data
+    "make_synthetic", "truth", "compression_force", "indentation_displacement", "noise_floor", "relative_l2",
+    "DEFAULT_RANGES", "DEFAULT_X",
+    # grouped holdout, ONNX parity
+    "grouped_holdout", "curve_errors", "error_summary", "MIN_SCORED_POINTS", "onnx_predict", "onnx_parity",
+    "scaled_max_rel_diff",
+    # torch side (lazy)
+    *_LAZY,
+]
+
+
+def __getattr__(name: str):
+    """Import a torch-side name on first access (module docstring)."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """Every public name, the lazy ones included."""
+    return sorted(set(globals()) | set(_LAZY))

@@ -1,0 +1,125 @@
+"""The grouped parameter-set holdout of an architecture sweep and its scores (numpy only).
+
+Whole curves are held out (:func:`grouped_holdout`); a model is scored per held-out curve by the relative L2
+error over the curve's finite points (:func:`curve_errors`), and the sweep compares the median over curves
+(:func:`error_summary`). A held-out curve with fewer than :data:`MIN_SCORED_POINTS` finite points (a short
+failure-truncated prefix) is skipped and counted.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bubblecal.surrogates.training.dataset import DatasetError, TrainingSet
+
+if TYPE_CHECKING:
+    from bubblecal.surrogates.training.train import TrainedMLP
+
+__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "curve_errors", "error_summary"]
+
+#: A held-out curve needs this many finite points to be scored.
+MIN_SCORED_POINTS = 2
+
+
+def grouped_holdout(n_curves: int, frac: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded split of curve indices into (train, holdout); at least one curve on each side.
+
+    Parameters
+    ----------
+    n_curves : int
+        Number of curves (at least 2).
+    frac : float
+        Fraction held out, in (0, 1).
+    seed : int
+        Seed of the permutation.
+
+    Returns
+    -------
+    train, holdout : numpy.ndarray of int
+        Sorted curve indices.
+
+    Raises
+    ------
+    ValueError
+        For ``frac`` outside (0, 1) or fewer than 2 curves.
+    """
+    if not 0.0 < frac < 1.0:
+        raise ValueError(f"holdout_frac must be in (0, 1), got {frac}")
+    if n_curves < 2:
+        raise ValueError(f"need at least 2 curves for a grouped holdout, got {n_curves}")
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(n_curves)
+    n_hold = min(n_curves - 1, max(1, int(round(frac * n_curves))))
+    return np.sort(perm[n_hold:]), np.sort(perm[:n_hold])
+
+
+def curve_errors(model: TrainedMLP, ts: TrainingSet) -> tuple[np.ndarray, np.ndarray]:
+    """Per-curve relative L2 errors and predictions of ``model`` on the curves of ``ts``.
+
+    Each curve is scored on its finite points (``ts.point_mask()``): ||y_hat - y||_2 / ||y||_2.
+
+    Parameters
+    ----------
+    model : TrainedMLP
+        The trained network.
+    ts : TrainingSet
+        The curves to score (DPD units).
+
+    Returns
+    -------
+    err : numpy.ndarray, shape (n,)
+        Relative L2 error per curve; NaN for a curve with fewer than :data:`MIN_SCORED_POINTS` finite points
+        (skipped; see :func:`error_summary`).
+    y_hat : numpy.ndarray, shape (n, m)
+        Predictions at every point with a finite x (also a curve's NaN tail), NaN elsewhere.
+    """
+    n, m = ts.x.shape
+    xfin = np.isfinite(ts.x)
+    u = np.concatenate([np.repeat(ts.params, m, axis=0), np.where(xfin, ts.x, 0.0).reshape(-1, 1)], axis=1)
+    y_hat = np.where(xfin, model.predict(u).reshape(n, m), np.nan)
+    valid = ts.point_mask()
+    diff = np.where(valid, y_hat - ts.y, 0.0)
+    ref = np.where(valid, ts.y, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        err = np.linalg.norm(diff, axis=1) / np.linalg.norm(ref, axis=1)
+    err[valid.sum(axis=1) < MIN_SCORED_POINTS] = np.nan
+    return err, y_hat
+
+
+def error_summary(err: np.ndarray, prefix_mask: np.ndarray | None = None) -> dict:
+    """Median / mean / p90 / max of the finite per-curve errors, with the numbers scored and skipped.
+
+    Parameters
+    ----------
+    err : numpy.ndarray, shape (n,)
+        Per-curve errors from :func:`curve_errors` (NaN = skipped).
+    prefix_mask : numpy.ndarray of bool, shape (n,), optional
+        Marks failure-truncated curves: their median and count are added (``holdout_median_prefix`` is None
+        when none was scored).
+
+    Returns
+    -------
+    dict
+        ``holdout_median``, ``holdout_mean``, ``holdout_p90``, ``holdout_max``, ``holdout_n_scored``,
+        ``holdout_n_skipped`` [, ``holdout_n_prefix``, ``holdout_median_prefix``].
+
+    Raises
+    ------
+    DatasetError
+        When no curve could be scored.
+    """
+    err = np.asarray(err, dtype=float)
+    ok = np.isfinite(err)
+    if not ok.any():
+        raise DatasetError(f"no held-out curve has >= {MIN_SCORED_POINTS} finite points to score")
+    e = err[ok]
+    out = {"holdout_median": float(np.median(e)), "holdout_mean": float(np.mean(e)),
+           "holdout_p90": float(np.quantile(e, 0.9)), "holdout_max": float(np.max(e)),
+           "holdout_n_scored": int(ok.sum()), "holdout_n_skipped": int((~ok).sum())}
+    if prefix_mask is not None:
+        pm = np.asarray(prefix_mask, bool) & ok
+        out["holdout_n_prefix"] = int(pm.sum())
+        out["holdout_median_prefix"] = float(np.median(err[pm])) if pm.any() else None
+    return out
