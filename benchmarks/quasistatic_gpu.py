@@ -74,7 +74,7 @@ def _box(ref: Path, setup: str, diameter: float):
 
 def throughput(args, out: Path, ref: Path, t_start: float) -> list:
     """Curves per GPU-hour of the tier (device FIRE) for each setup and batch size R."""
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
+    from bubblecal.sim.engine.kernels.shell import ShellParams
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.protocols.loading import (
         published_compression_protocol,
@@ -167,7 +167,7 @@ def micro(args, out: Path) -> list:
     """Old (NumPy FIRE) vs new (device FIRE, float64 / float32) wall time and curve deviation."""
     import warp as wp
 
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
+    from bubblecal.sim.engine.kernels.shell import ShellParams
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.tiers.quasistatic import (
         FireSettings,

@@ -520,7 +520,7 @@ def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
                   record_every, dt, subdivisions, record_vertices, vertex_every, max_vertices, n_periods,
                   samples_per_period, health_every, progress, settings) -> RingdownBatch:
     from bubblecal.sim.engine.implicit import HealthThresholds, ImplicitShellSystem, default_vertex_friction
-    from bubblecal.sim.engine.kernels.shell_params import shell_params_from_arrays
+    from bubblecal.sim.engine.kernels.shell import shell_params_from_arrays
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.engine.particles import RHO_SHELL_KG_M3
 

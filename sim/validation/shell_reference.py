@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bubblecal.sim.engine.kernels.shell_params import ShellParams
+from bubblecal.sim.engine.kernels.shell import ShellParams
 from bubblecal.sim.engine.mesh import ShellMesh, dihedral_angles
 
 __all__ = [

@@ -178,7 +178,7 @@ def test_cuda_graph_matches_cpu():
     wp.init()
     if not wp.get_cuda_device_count():
         pytest.skip("no CUDA device")
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
+    from bubblecal.sim.engine.kernels.shell import ShellParams
     from bubblecal.sim.engine.mesh import icosphere
     from bubblecal.sim.tiers.quasistatic import quasistatic_compression, quasistatic_indentation
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.sim.engine.kernels.shell_params import ShellParams
+from bubblecal.sim.engine.kernels.shell import ShellParams
 from bubblecal.sim.engine.mesh import icosphere
 from bubblecal.sim.validation import shell_reference as sr
 
