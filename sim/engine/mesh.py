@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
+from bubblecal.sim.engine.particles import RHO_SHELL_KG_M3
 
 __all__ = [
     "ShellMesh",
@@ -39,6 +40,8 @@ __all__ = [
     "mesh_volume",
     "dihedral_angles",
     "lim_reference",
+    "pole_patches",
+    "SUBDIVISION_5_ABOVE_UM",
 ]
 
 #: Above this diameter [um] :func:`mesh_for_diameter` uses subdivision 5 (physics.md section 3).
@@ -190,7 +193,7 @@ class ShellMesh:
     def euler_characteristic(self) -> int:
         return self.n_vertices - self.n_edges + self.n_faces
 
-    def vertex_mass(self, density_kg_m3: float = 1100.0, thickness_m: float | None = None,
+    def vertex_mass(self, density_kg_m3: float = RHO_SHELL_KG_M3, thickness_m: float | None = None,
                     mass_factor: float = 1.0, units: UnitSystem = DEFAULT_UNITS) -> float:
         """Mass of one vertex [DPD mass]: rho_shell h A_mesh u_l^2 / (u_m N_v), times ``mass_factor``.
 

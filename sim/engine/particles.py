@@ -44,11 +44,13 @@ ETA_GAS_PA_S = 1.86e-5
 RHO_GAS_KG_M3 = 11.2
 #: Shell mass density [kg/m^3].
 RHO_SHELL_KG_M3 = 1100.0
+#: Published back pressure (DPD pressure, docs/physics.md section 3).
+P_BACK_DEFAULT = 91.0
 
 __all__ = [
     "WATER", "GAS", "VERTEX", "WALL", "N_TYPES", "TYPE_NAMES", "PairTable", "viscosity_to_dpd",
     "gamma_fsi", "gas_mass", "vertex_mass", "published_pair_table", "fluid_pair_table",
-    "ETA_WATER_DPD", "ETA_GAS_PA_S", "RHO_GAS_KG_M3", "RHO_SHELL_KG_M3",
+    "ETA_WATER_DPD", "ETA_GAS_PA_S", "RHO_GAS_KG_M3", "RHO_SHELL_KG_M3", "P_BACK_DEFAULT",
 ]
 
 

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bubblecal.sim.engine.kernels.shell import FORCE_MODES, ShellParams
+from bubblecal.sim.engine import FORCE_MODES, ShellParams
 from bubblecal.sim.engine.mesh import ShellMesh, pole_patches
 from bubblecal.sim.protocols.loading import validate_grid
 from bubblecal.sim.tiers.thermal_contact import (

@@ -76,7 +76,7 @@ def _wp():
 
 def _field(mesh, params, device: str, dtype=None):
     wp = _wp()
-    from bubblecal.sim.engine.kernels.shell import ShellForceField
+    from bubblecal.sim.engine import ShellForceField
 
     return ShellForceField(mesh, params if isinstance(params, list) else [params], device=device,
                            dtype=wp.float64 if dtype is None else dtype)
@@ -86,8 +86,7 @@ def _field(mesh, params, device: str, dtype=None):
 # (a) Lim force = -grad W by finite differences; zero net force and torque per triangle
 # ----------------------------------------------------------------------------------------------
 def check_lim_finite_differences(quick: bool = True, device: str = "cpu") -> CheckResult:
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
     from bubblecal.sim.validation.shell_reference import finite_difference_forces, lim_triangle_forces
 
     t0 = time.perf_counter()
@@ -125,8 +124,7 @@ def check_lim_finite_differences(quick: bool = True, device: str = "cpu") -> Che
 # ----------------------------------------------------------------------------------------------
 def check_zero_force_reference(quick: bool = True, device: str = "cpu") -> CheckResult:
     wp = _wp()
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
 
     t0 = time.perf_counter()
     sub = 3 if quick else 4
@@ -161,8 +159,7 @@ JUELICHER_EXPECTED = {3: 25.180, 4: 25.145}
 
 
 def check_bending_energies_icosphere(quick: bool = True, device: str = "cpu") -> CheckResult:
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
 
     t0 = time.perf_counter()
     subs = (3,) if quick else (3, 4)
@@ -195,8 +192,7 @@ def _to_wp(ff, x):
 # (d) energies under uniform scaling (analytic)
 # ----------------------------------------------------------------------------------------------
 def check_constraint_scaling(quick: bool = True, device: str = "cpu") -> CheckResult:
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
 
     t0 = time.perf_counter()
     mesh = icosphere(3.0, 2 if quick else 3)
@@ -239,8 +235,7 @@ def measure_kantor_kappa(subdivisions: int = 4, ell: int = 6, eps: float = 1e-3)
     """
     from scipy.special import eval_legendre
 
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
     from bubblecal.sim.validation.shell_reference import kantor_energy
 
     mesh = icosphere(1.0, subdivisions)
@@ -253,9 +248,7 @@ def reissner_point_load(subdivisions: int = 4, force: float = 20.0, ftol_rel: fl
                         device: str = "cpu", p0: float = 3.0, radius: float = R_REISSNER,
                         ka: float = KA_REISSNER, kb: float = KB_REISSNER, max_steps: int = 50_000) -> dict:
     """Relax a shell under two antipodal point forces with FIRE; return deflection and stiffness."""
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
-    from bubblecal.sim.engine.minimize import fire_minimize
+    from bubblecal.sim.engine import ShellParams, fire_minimize, icosphere
     from bubblecal.sim.validation.shell_reference import volume_gradient
 
     mesh = icosphere(radius, subdivisions)

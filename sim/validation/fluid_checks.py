@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from bubblecal.sim.engine.system import bubble_spec
+from bubblecal.sim.engine import bubble_spec
 from bubblecal.sim.validation.checks import CheckResult
 
 __all__ = ["check_eos_a25", "check_eos_a100", "check_temperature", "check_momentum",
@@ -50,8 +50,7 @@ def _wp_quiet():
 def _fluid_run(quick: bool, device: str) -> dict:
     """Replicas of a = 25 and a = 100 (gamma = 4.5, s = 0.5 / 0.25) advanced in the same launches."""
     _wp_quiet()
-    from bubblecal.sim.engine.particles import fluid_pair_table
-    from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.engine import ParticleSystem, ReplicaSpec, fluid_pair_table
 
     if quick:
         box, n_each, t_eq, t_prod, dt = (6.0, 6.0, 6.0), 1, 4.0, 10.0, 0.0025
@@ -157,10 +156,7 @@ def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckRe
     kick-drift integrator's O(gamma dt / m) bias -- reported in benchmarks/RESULTS.md.)
     """
     _wp_quiet()
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
-    from bubblecal.sim.engine.particles import GAS, published_pair_table
-    from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.engine import GAS, ParticleSystem, ReplicaSpec, ShellParams, icosphere, published_pair_table
 
     if quick:
         radius, subdiv, n_rep, t_prod, dt = 3.0, 3, 1, 6.0, 1e-3
@@ -207,8 +203,7 @@ def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckRe
 @functools.cache
 def _bubble_run(quick: bool, device: str) -> dict:
     _wp_quiet()
-    from bubblecal.sim.engine.health import HealthConfig, HealthMonitor
-    from bubblecal.sim.engine.system import ParticleSystem
+    from bubblecal.sim.engine import HealthConfig, HealthMonitor, ParticleSystem
 
     if quick:
         # 1.5 um bubble (R = 3, subdivision 3) in a 9^3 box, 3,000 steps

@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bubblecal.sim.engine.kernels.shell import ShellParams
-from bubblecal.sim.engine.mesh import ShellMesh, dihedral_angles
+from bubblecal.sim.engine import ShellMesh, ShellParams
+from bubblecal.sim.engine.mesh import dihedral_angles
 
 __all__ = [
     "ENERGY_TERMS",
