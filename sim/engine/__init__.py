@@ -2,7 +2,8 @@
 
 What lives where:
 
-* meshes and their stress-free reference: :mod:`~bubblecal.sim.engine.mesh`;
+* meshes and their stress-free reference: :mod:`~bubblecal.sim.engine.mesh` (geometry helpers in
+  :mod:`~bubblecal.sim.engine.geometry`, the indentation pole patches in :mod:`~bubblecal.sim.engine.poles`);
 * particle types, DPD pair tables and published constants: :mod:`~bubblecal.sim.engine.particles`;
 * shell forces: :mod:`~bubblecal.sim.engine.kernels.shell` (:class:`ShellForceField`, :class:`ShellParams`);
 * the explicit-solvent engine: replica descriptions (:mod:`~bubblecal.sim.engine.replicas`), the system
@@ -19,6 +20,7 @@ access.  Units: DPD (length r_c = 250 nm, energy k_BT, water bead mass 1; :mod:`
 
 import importlib
 
+from bubblecal.sim.engine.geometry import dihedral_angles, lim_reference, mesh_volume, triangle_areas
 from bubblecal.sim.engine.implicit_settings import GAS_P0_DEFAULT, default_vertex_friction
 from bubblecal.sim.engine.kernels.shell import (
     AREA_CLAMP,
@@ -35,7 +37,6 @@ from bubblecal.sim.engine.mesh import (
     icosphere,
     mesh_for_diameter,
     n_vertices_for_subdivisions,
-    pole_patches,
 )
 from bubblecal.sim.engine.minimize import (
     STATUS_CONVERGED,
@@ -58,6 +59,7 @@ from bubblecal.sim.engine.particles import (
     gamma_fsi,
     published_pair_table,
 )
+from bubblecal.sim.engine.poles import pole_patches
 from bubblecal.sim.engine.replicas import ReplicaSpec, bubble_spec, inside_convex_mesh
 
 # Warp-backed exports, imported on first access (name -> module)
@@ -81,7 +83,7 @@ _LAZY = {
 __all__ = [
     # meshes
     "ShellMesh", "icosphere", "mesh_for_diameter", "build_shell_mesh", "pole_patches", "diameter_to_radius_dpd",
-    "n_vertices_for_subdivisions",
+    "n_vertices_for_subdivisions", "triangle_areas", "mesh_volume", "dihedral_angles", "lim_reference",
     # particles and published constants
     "WATER", "GAS", "VERTEX", "WALL", "N_TYPES", "TYPE_NAMES", "PairTable", "published_pair_table",
     "fluid_pair_table", "gamma_fsi", "RHO_SHELL_KG_M3", "P_BACK_DEFAULT",

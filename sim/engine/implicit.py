@@ -1,30 +1,23 @@
 """Implicit-solvent shell system: R bubble shells without solvent particles, batched in the same launches.
 
-Each replica is a shell (exactly the :class:`~bubblecal.sim.engine.kernels.shell.ShellForceField` of the
-explicit engine) whose enclosed ideal gas and surrounding water are replaced by pressures acting on the
-enclosed volume V (docs/physics.md section 7, "implicit" tier): an ideal gas p_gas = N_g k_BT / V inside, a
-constant back pressure ``p_back`` (default 91, docs/physics.md section 3) outward and a constant ambient
-(water) pressure ``p_water`` inward, by default ``p_back + p_gas(V0)`` so that the stress-free reference is
-force-free at T = 0 (p_water = 94 with the default gas, number density 3 as in
-:func:`bubblecal.sim.engine.replicas.bubble_spec`).  The net outward force on vertex v is
-(p_gas - p_water + p_back) dV/dx_v; a constant pressure adds no stiffness, only the gas bulk modulus (p0) does
-(how this compares with the explicit water: benchmarks/RESULTS.md).
+Each replica is a shell (the :class:`~bubblecal.sim.engine.kernels.shell.ShellForceField` of the explicit
+engine) whose enclosed gas and surrounding water are replaced by pressures on the enclosed volume V
+(docs/physics.md section 7, "implicit" tier): an ideal gas p_gas = N_g k_BT / V inside, a constant back
+pressure ``p_back`` outward and a constant ambient pressure ``p_water`` inward, by default ``p_back + p_gas(V0)``
+so that the stress-free reference is force-free at T = 0.  The net outward force on vertex v is
+(p_gas - p_water + p_back) dV/dx_v; only the gas bulk modulus (p0) adds stiffness (the comparison with the
+explicit water: benchmarks/RESULTS.md).
 
-Thermostat: Langevin on every vertex (friction ``gamma``, noise at k_BT), integrated with BAOAB (one force
-evaluation per step; the O step is the exact Ornstein-Uhlenbeck update v <- c1 v + sqrt((1 - c1^2) k_BT/m) xi,
-c1 = exp(-gamma dt / m)); why Langevin: docs/decisions.md.  The default ``gamma``
-(:func:`bubblecal.sim.engine.implicit_settings.default_vertex_friction`) is the friction one vertex feels from a
-half-space of published DPD water: the same local damping, not the hydrodynamic one.  With ``pin_com`` the
-mean vertex force is removed every step and the mean velocity after the thermostat kick, so the centre of mass
-does not move (to round-off).
+Thermostat: Langevin on every vertex, integrated with BAOAB (one force evaluation per step; the O step is the
+exact Ornstein-Uhlenbeck update v <- c1 v + sqrt((1 - c1^2) k_BT/m) xi, c1 = exp(-gamma dt / m)); why
+Langevin: docs/decisions.md.  With ``pin_com`` the mean vertex force is removed every step and the mean
+velocity after the thermostat kick, so the centre of mass does not move (to round-off).
 
-Storage: all replicas' vertices in one packed array ``x`` [sum N_v] (replica r at rows
-``offsets[r]:offsets[r] + n_vertices[r]``), ``float32`` by default; per-replica tables on the device.  One
-step = ~8 launches for all R replicas, independent of R; on CUDA ``chunk`` steps are captured once as a CUDA
-graph and replayed.  Kernels: :mod:`bubblecal.sim.engine.kernels.implicit`; per-replica settings:
-:mod:`bubblecal.sim.engine.implicit_settings`; measurements and the health check (a failed replica is frozen
-while the others go on): :mod:`bubblecal.sim.engine.implicit_observables`.  Units: DPD throughout (length
-r_c = 250 nm, energy k_BT, see :mod:`bubblecal.data.units`).
+All replicas' vertices live in one packed array ``x`` [sum N_v] (replica r at rows
+``offsets[r]:offsets[r] + n_vertices[r]``); one step is ~8 launches for all R replicas, and on CUDA ``chunk``
+steps are captured once as a CUDA graph.  Kernels: :mod:`bubblecal.sim.engine.kernels.implicit`; settings:
+:mod:`bubblecal.sim.engine.implicit_settings`; measurements and health checks:
+:mod:`bubblecal.sim.engine.implicit_observables`.  Units: DPD (length r_c = 250 nm, energy k_BT).
 """
 
 import dataclasses
@@ -209,23 +202,6 @@ class ImplicitShellSystem(ImplicitObservables):
         self._need_forces = True
 
     # ------------------------------------------------------------------------------------------
-    def _remove_means(self, v: np.ndarray) -> np.ndarray:
-        """``v`` with every replica's mean row removed."""
-        out = v.copy()
-        for r in range(self.R):
-            o, n = int(self.offsets[r]), int(self.n_vertices[r])
-            out[o:o + n] -= out[o:o + n].mean(axis=0)
-        return out
-
-    def _to_packed(self, a, name: str) -> np.ndarray:
-        """[R, Nv, 3] or [sum Nv, 3] input as packed float64 rows (ValueError otherwise)."""
-        a = np.asarray(a, dtype=np.float64)
-        if a.shape == (self.N, 3):
-            return a
-        if self.uniform and a.shape == (self.R, int(self.n_vertices[0]), 3):
-            return a.reshape(-1, 3)
-        raise ValueError(f"{name} must have shape [R, Nv, 3] or [sum Nv, 3], got {a.shape}")
-
     # ------------------------------------------------------------------------------------------
     # configuration
     # ------------------------------------------------------------------------------------------
@@ -291,12 +267,28 @@ class ImplicitShellSystem(ImplicitObservables):
         self._need_forces = True
 
     def set_vertices(self, x) -> None:
-        """Replace the vertex positions ([R, Nv, 3] or packed; DPD length; ValueError on a wrong shape)."""
+        """Replace the vertex positions.
+
+        Parameters
+        ----------
+        x : array_like
+            [R, Nv, 3] or packed [sum Nv, 3] (DPD length).
+
+        Raises
+        ------
+        ValueError
+            On a wrong shape.
+        """
         self.x.assign(self._to_packed(x, "x").astype(self.np_dtype))
         self._need_forces = True
 
     def set_velocities(self, v) -> None:
-        """Replace the vertex velocities ([R, Nv, 3] or packed; DPD velocity; means removed if pinned).
+        """Replace the vertex velocities (the replica means are removed when the centre of mass is pinned).
+
+        Parameters
+        ----------
+        v : array_like
+            [R, Nv, 3] or packed [sum Nv, 3] (DPD velocity).
 
         Raises
         ------

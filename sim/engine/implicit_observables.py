@@ -1,7 +1,8 @@
 """Measurements, status and health checks of an :class:`~bubblecal.sim.engine.implicit.ImplicitShellSystem`.
 
 :class:`ImplicitObservables` is the part of the implicit system that reads its state back (positions,
-velocities, volumes, areas, gas pressure, temperature, energies, status, memory, settings);
+velocities, volumes, areas, gas pressure, temperature, energies, status, memory, settings) and holds the
+helpers between per-replica [R, Nv, 3] arrays and the packed rows;
 :meth:`~ImplicitObservables.check_health` and :meth:`~ImplicitObservables.freeze` mark failed replicas with
 :class:`~bubblecal.sim.engine.health.Status` codes (a marked replica is no longer integrated).  Every method
 synchronises with the device; results are float64, DPD units (length r_c = 250 nm, energy k_BT).
@@ -44,6 +45,23 @@ class HealthThresholds:
 class ImplicitObservables:
     """Measurement methods of :class:`~bubblecal.sim.engine.implicit.ImplicitShellSystem` (a mixin of it)."""
 
+    def _remove_means(self, v: np.ndarray) -> np.ndarray:
+        """``v`` with every replica's mean row removed."""
+        out = v.copy()
+        for r in range(self.R):
+            o, n = int(self.offsets[r]), int(self.n_vertices[r])
+            out[o:o + n] -= out[o:o + n].mean(axis=0)
+        return out
+
+    def _to_packed(self, a, name: str) -> np.ndarray:
+        """[R, Nv, 3] or [sum Nv, 3] input as packed float64 rows (ValueError otherwise)."""
+        a = np.asarray(a, dtype=np.float64)
+        if a.shape == (self.N, 3):
+            return a
+        if self.uniform and a.shape == (self.R, int(self.n_vertices[0]), 3):
+            return a.reshape(-1, 3)
+        raise ValueError(f"{name} must have shape [R, Nv, 3] or [sum Nv, 3], got {a.shape}")
+
     def _rows(self, r: int) -> slice:
         """Packed rows of replica ``r``."""
         o = int(self.offsets[r])
@@ -56,35 +74,77 @@ class ImplicitObservables:
         return [a[self._rows(r)] for r in range(self.R)]
 
     def vertices(self):
-        """Vertex positions [R, Nv, 3] (a list of [Nv_r, 3] if the meshes differ), DPD length."""
+        """Vertex positions (DPD length).
+
+        Returns
+        -------
+        numpy.ndarray or list of numpy.ndarray
+            [R, Nv, 3] float64, or a list of [Nv_r, 3] when the meshes differ.
+        """
         return self._unpack(self.x.numpy().astype(np.float64))
 
     def velocities(self):
-        """Vertex velocities [R, Nv, 3] (or a list), DPD velocity."""
+        """Vertex velocities (DPD velocity).
+
+        Returns
+        -------
+        numpy.ndarray or list of numpy.ndarray
+            [R, Nv, 3] float64, or a list of [Nv_r, 3] when the meshes differ.
+        """
         return self._unpack(self.v.numpy().astype(np.float64))
 
     def volumes(self) -> np.ndarray:
-        """Enclosed volume per replica [R] (DPD length^3)."""
+        """Enclosed volume per replica.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R] (DPD length^3).
+        """
         self.vol.zero_()
         wp.launch(self._k["volume_kernel"], dim=self.n_tri, inputs=[self.x, self.tri, self.tri_rep, self.goff,
                                                                        self.vol], device=self.device)
         return self.vol.numpy().astype(np.float64)
 
     def areas(self) -> np.ndarray:
-        """Total shell area per replica [R] (DPD length^2)."""
+        """Total shell area per replica.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R] (DPD length^2).
+        """
         return self.field.areas_volumes(self.x)[0]
 
     def gas_pressure(self) -> np.ndarray:
-        """Ideal-gas pressure N_g k_BT / V per replica [R] (DPD pressure)."""
+        """Ideal-gas pressure N_g k_BT / V per replica.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R] (DPD pressure).
+        """
         return self.nkt / self.volumes()
 
     def centers(self) -> np.ndarray:
-        """Vertex centroid per replica ([R, 3], DPD length)."""
+        """Vertex centroid per replica.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R, 3] (DPD length).
+        """
         x = self.x.numpy().astype(np.float64)
         return np.stack([x[self._rows(r)].mean(axis=0) for r in range(self.R)])
 
     def kinetic_temperature(self) -> np.ndarray:
-        """sum m v^2 / n_dof per replica ([R], k_BT units); n_dof = 3 N_v - (3 if pinned) - (anchored vertices)."""
+        """sum m v^2 / n_dof per replica, n_dof = 3 N_v - (3 if pinned) - (anchored vertices).
+
+        Returns
+        -------
+        numpy.ndarray
+            [R] (k_BT units).
+        """
         out = wp.zeros(self.R, dtype=wp.float64, device=self.device)
         wp.launch(self._k["kinetic_kernel"], dim=self.N, inputs=[self.v, self.vrep, self.tab, out], device=self.device)
         nanch = np.bincount(self.vrep_np, weights=self.anchor_np, minlength=self.R)
@@ -92,13 +152,24 @@ class ImplicitObservables:
         return out.numpy() / dof
 
     def energies(self) -> np.ndarray:
-        """Shell energy per replica and term ([R, 6], k_BT), columns of
-        :data:`bubblecal.sim.engine.kernels.shell.ENERGY_TERMS`; the back-pressure column is 0 here (the pressures
-        are the system's)."""
+        """Shell energy per replica and term.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R, 6] (k_BT), columns :data:`bubblecal.sim.engine.kernels.shell.ENERGY_TERMS`; the back-pressure column
+            is 0 here (the pressures are the system's).
+        """
         return self.field.energies(self.x)
 
     def status_names(self) -> list[str]:
-        """Per-replica :class:`Status` names ('OK', 'NAN', 'RUPTURE', ...)."""
+        """Per-replica :class:`Status` names.
+
+        Returns
+        -------
+        list of str
+            ``'OK'``, ``'NAN'``, ``'RUPTURE'``, ...
+        """
         return [Status(int(s)).name for s in self.status.numpy()]
 
     def freeze(self, replicas, code: int = int(Status.NAN)) -> None:
@@ -159,7 +230,12 @@ class ImplicitObservables:
                 "max_radius_ratio": radius}
 
     def memory_bytes(self) -> int:
-        """Device bytes held by the system and its shell field."""
+        """Device bytes held by the system and its shell field.
+
+        Returns
+        -------
+        int
+        """
         total = 0
         for obj in (self, self.field):
             for val in vars(obj).values():
@@ -168,7 +244,13 @@ class ImplicitObservables:
         return int(total)
 
     def settings(self) -> dict:
-        """The physical choices of this system (per replica where they vary), JSON-friendly (DPD units)."""
+        """The physical choices of this system (per replica where they vary), DPD units.
+
+        Returns
+        -------
+        dict
+            JSON-friendly: gas number, pressures, k_BT, friction, vertex mass, dt, pinning, thermostat, vertex counts.
+        """
         return {"gas_number": self.gas_number.tolist(), "p_back": self.p_back.tolist(),
                 "p_water": self.p_water.tolist(), "kbt": self.kbt.tolist(), "gamma": self.gamma.tolist(),
                 "vertex_mass": self.vertex_mass.tolist(), "dt": self.dt, "pin_com": self.pin_com,

@@ -38,6 +38,18 @@ __all__ = ["neighbor_kernels", "grid_for_boxes", "NeighbourLists"]
 
 @functools.cache
 def neighbor_kernels(dtype):
+    """Build (once per scalar type) the cell-list, sorting and neighbour-list kernels (module docstring).
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        Name -> ``wp.Kernel``.
+    """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "nbr")
 
@@ -232,7 +244,29 @@ def neighbor_kernels(dtype):
 
 
 def grid_for_boxes(boxes: np.ndarray, rlist: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """Cells per axis (>= 3) for each replica's box and the replicas' first global cell index."""
+    """Cells per axis of each replica's box and the replicas' first global cell index.
+
+    Parameters
+    ----------
+    boxes : numpy.ndarray
+        [R, 3] box edge lengths (DPD length).
+    rlist : float
+        Neighbour-list radius r_c + skin (DPD length); a cell is at least this wide.
+
+    Returns
+    -------
+    n_cells : numpy.ndarray
+        [R, 3] int32 cells per axis (>= 3).
+    offsets : numpy.ndarray
+        [R] int32 first global cell of each replica.
+    total : int
+        Number of cells over all replicas.
+
+    Raises
+    ------
+    ValueError
+        When a box edge is shorter than 3 rlist.
+    """
     boxes = np.asarray(boxes, dtype=float).reshape(-1, 3)
     n = np.floor(boxes / rlist).astype(np.int32)
     if np.any(n < 3):

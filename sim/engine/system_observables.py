@@ -54,7 +54,13 @@ class ParticleObservables:
         return (k + vir.numpy()) / (3.0 * vol), k / (3.0 * np.maximum(nmob, 1))
 
     def kinetic_temperature(self) -> np.ndarray:
-        """<m v^2> / 3 per replica over the mobile solvent particles ([R], k_BT units)."""
+        """<m v^2> / 3 per replica over the mobile solvent particles.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R] (k_BT units).
+        """
         v = self.v.numpy().astype(np.float64)
         m = self.mass_np[self.rep.numpy(), self.typ.numpy()]
         mob = self.typ.numpy() != WALL
@@ -66,7 +72,13 @@ class ParticleObservables:
         return e / (3.0 * np.maximum(c, 1))
 
     def total_momentum(self) -> np.ndarray:
-        """Total momentum (solvent + mobile shell vertices) per replica ([R, 3] float64, DPD mass x velocity)."""
+        """Total momentum (solvent + mobile shell vertices) per replica.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R, 3] float64 (DPD mass x DPD velocity).
+        """
         p = np.zeros((self.R, 3))
         v = self.v.numpy().astype(np.float64)
         rep, typ = self.rep.numpy(), self.typ.numpy()
@@ -92,12 +104,29 @@ class ParticleObservables:
                 "type": self.typ.numpy()[order], "replica": self.rep.numpy()[order]}
 
     def vertices_numpy(self, r: int) -> np.ndarray:
-        """Shell vertex positions of replica ``r`` ([N_v, 3] float64, DPD length, unwrapped)."""
+        """Shell vertex positions of one replica (unwrapped).
+
+        Parameters
+        ----------
+        r : int
+            Replica index.
+
+        Returns
+        -------
+        numpy.ndarray
+            [N_v, 3] float64 (DPD length).
+        """
         o, n = int(self.vertex_offset[r]), int(self.vertex_count[r])
         return self.xv.numpy().astype(np.float64)[o:o + n]
 
     def shell_area_volume(self) -> tuple[np.ndarray, np.ndarray]:
-        """Shell area (DPD length^2) and enclosed volume (DPD length^3) per replica, NaN without a shell."""
+        """Shell area and enclosed volume per replica.
+
+        Returns
+        -------
+        area, volume : numpy.ndarray
+            [R] each (DPD length^2, length^3); NaN for replicas without a shell.
+        """
         a = np.full(self.R, np.nan)
         vol = np.full(self.R, np.nan)
         if self.Nv:
@@ -107,11 +136,22 @@ class ParticleObservables:
         return a, vol
 
     def status_numpy(self) -> np.ndarray:
-        """Per-replica :class:`~bubblecal.sim.engine.health.Status` codes ([R] int32 copy)."""
+        """Per-replica :class:`~bubblecal.sim.engine.health.Status` codes.
+
+        Returns
+        -------
+        numpy.ndarray
+            [R] int32 (a copy).
+        """
         return self.status.numpy().copy()
 
     def memory_bytes(self) -> int:
-        """Bytes of the device arrays held by the system (neighbour lists included)."""
+        """Bytes of the device arrays held by the system and its shell field (neighbour lists included).
+
+        Returns
+        -------
+        int
+        """
         total = 0
         for val in vars(self).values():
             if isinstance(val, wp.array):

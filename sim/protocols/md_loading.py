@@ -49,8 +49,8 @@ import time
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.engine import pole_patches
 from bubblecal.sim.engine.kernels.common import kernel_decorator
-from bubblecal.sim.engine.mesh import pole_patches
 from bubblecal.sim.tiers import (
     DEFAULT_INDENTATION_CONVENTION,
     DISPLACEMENT_CONVENTION,
@@ -298,7 +298,7 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
 
     ``mesh``: the (shared) reference mesh, centred at the origin (DPD length); ``grid``: total
     displacements (compression, DPD length) or forces per pole (indentation, DPD force).  ``pole_patch``:
-    keyword arguments of :func:`bubblecal.sim.engine.mesh.pole_patches` (default ``{"fraction": 0.01}``).
+    keyword arguments of :func:`bubblecal.sim.engine.pole_patches` (default ``{"fraction": 0.01}``).
     """
     t0 = time.perf_counter()
     k = _kernels(adapter.dtype)

@@ -80,7 +80,7 @@ class IndentationConvention:
     """How a published indentation parameter set maps onto our kernels and loading.
 
     ``kb_scale``: published kb -> our Kantor kernel's kb.  The pole force F is shared by the vertices of
-    :func:`bubblecal.sim.engine.mesh.pole_patches`: ``loaded_fraction`` (k = max(1, floor(loaded_fraction N_v))
+    :func:`bubblecal.sim.engine.pole_patches`: ``loaded_fraction`` (k = max(1, floor(loaded_fraction N_v))
     top-most and as many bottom-most vertices) or ``loaded_cap_deg`` (every vertex within that polar angle of
     a pole, the same patch on every mesh level).
     """
@@ -92,7 +92,7 @@ class IndentationConvention:
     loaded_cap_deg: float | None = None
 
     def pole_patch(self) -> dict:
-        """Keyword arguments of :func:`bubblecal.sim.engine.mesh.pole_patches` (``fraction`` or ``cap_deg``)."""
+        """Keyword arguments of :func:`bubblecal.sim.engine.pole_patches` (``fraction`` or ``cap_deg``)."""
         return {"fraction": self.loaded_fraction, "cap_deg": self.loaded_cap_deg}
 
 

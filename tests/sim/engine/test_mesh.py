@@ -10,11 +10,11 @@ import pytest
 from bubblecal.sim.engine import (
     build_shell_mesh,
     diameter_to_radius_dpd,
+    dihedral_angles,
     icosphere,
     mesh_for_diameter,
     n_vertices_for_subdivisions,
 )
-from bubblecal.sim.engine.mesh import dihedral_angles
 
 
 @pytest.mark.parametrize("s", [0, 1, 2, 3])

@@ -6,7 +6,8 @@ families: ``lim`` (Lim in-plane triangle forces with the global constraints and 
 ``constraints`` (area / volume totals, gas pressure), ``bending`` (Kantor, Juelicher), ``gather`` (per-vertex
 Lim + Kantor), ``self_avoid`` (vertex WCA), ``viscosity`` (bond viscosity), ``diagnostics`` (health
 indicators); ``geometry`` holds the shared dihedral functions, ``layout`` the device-table columns,
-``topology`` the host-side packing and ``launch`` the launch sequence.
+``topology`` the host-side packing, ``launch`` the launch sequence and ``measure`` the field's measurement
+methods (energies, areas / volumes, health, NumPy interface).
 
 Importing this package loads no Warp: :class:`ShellForceField` is imported on first access, so configuration
 code can use :class:`ShellParams` cheaply.

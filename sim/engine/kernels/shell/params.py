@@ -90,6 +90,7 @@ class ShellParams:
     bond_viscosity: float = 0.0
 
     def __post_init__(self) -> None:
+        """Check every field and fill in mu = ka / 3 when it is None."""
         _check("ka", self.ka, 0.0, lo_open=True)
         if self.mu is None:
             object.__setattr__(self, "mu", float(self.ka) / 3.0)
@@ -105,7 +106,13 @@ class ShellParams:
             raise ValueError(f"ShellParams.self_avoid must be a bool, got {self.self_avoid!r}")
 
     def as_dict(self) -> dict:
-        """Every field by name (JSON-friendly)."""
+        """Every field by name.
+
+        Returns
+        -------
+        dict
+            JSON-friendly.
+        """
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
