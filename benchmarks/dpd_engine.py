@@ -28,8 +28,12 @@ import warp as wp
 
 wp.config.quiet = True
 
-from bubblecal.sim.engine.particles import published_pair_table  # noqa: E402
-from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec, bubble_spec  # noqa: E402
+from bubblecal.sim.engine import (  # noqa: E402
+    ParticleSystem,
+    ReplicaSpec,
+    bubble_spec,
+    published_pair_table,
+)
 
 
 def _free_mem(dev) -> int | None:

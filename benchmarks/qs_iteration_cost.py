@@ -30,15 +30,14 @@ def main(argv=None) -> int:
     ap.add_argument("--iters", type=int, default=2000)
     ap.add_argument("--active", default="all,50,5,1")
     ap.add_argument("--profile", type=int, default=0, help="iterations timed kernel by kernel (CUDA only)")
-    from bubblecal.sim.engine.kernels.shell_params import FORCE_MODES
+    from bubblecal.sim.engine import FORCE_MODES
 
     ap.add_argument("--force-mode", default="auto", choices=FORCE_MODES,
                     help="shell forces per vertex (gather, the GPU default) or per element with atomics (scatter)")
     args = ap.parse_args(argv)
     import warp as wp
 
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
-    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine import ShellParams, mesh_for_diameter
     from bubblecal.sim.protocols.loading import published_indentation_protocol
     from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas, _DeviceChain
 

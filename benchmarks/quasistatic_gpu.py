@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from tier_validation import find_reference  # sibling script (benchmarks/ is on sys.path when run)
 
-from bubblecal.sim.engine.system import resolve_dtype
+from bubblecal.sim.engine import resolve_dtype
 from bubblecal.sim.tiers import CurveRequest, get_tier
 from bubblecal.surrogates.training import filter_curves, read_published, relative_l2
 
@@ -76,8 +76,7 @@ def _box(ref: Path, setup: str, diameter: float):
 
 def throughput(args, out: Path, ref: Path, t_start: float) -> list:
     """Curves per GPU-hour of the tier (device FIRE) for each setup and batch size R."""
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
-    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine import ShellParams, mesh_for_diameter
     from bubblecal.sim.protocols.loading import (
         published_compression_protocol,
         published_indentation_protocol,
@@ -169,8 +168,7 @@ def micro(args, out: Path) -> list:
     """Old (NumPy FIRE) vs new (device FIRE, float64 / float32) wall time and curve deviation."""
     import warp as wp
 
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
-    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine import ShellParams, mesh_for_diameter
     from bubblecal.sim.tiers.quasistatic import (
         FireSettings,
         IdealGas,

@@ -32,7 +32,7 @@ EXPLICIT_PARTICLE_STEPS_PER_S = {"cuda": 1.0e9, "cpu": 2.3e5}
 
 def estimate(agent: str, diameter: float, ka: np.ndarray, tier: str, device: str, kw: dict) -> dict:
     """Steps and a rough wall-time estimate of one sweep (see the module docstring)."""
-    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine import mesh_for_diameter
     from bubblecal.sim.protocols.ringdown import auto_schedule, breathing_mode_prediction
 
     mesh = mesh_for_diameter(diameter, kw.get("subdivisions"))

@@ -16,8 +16,7 @@ import time
 import numpy as np
 import warp as wp
 
-from bubblecal.sim.engine.kernels.shell import ShellForceField, ShellParams
-from bubblecal.sim.engine.mesh import icosphere
+from bubblecal.sim.engine import ShellForceField, ShellParams, icosphere
 
 
 def bench(reps: int, device: str, self_avoid: bool = True, mode: str = "auto", iters: int = 200) -> dict:

@@ -32,8 +32,7 @@ def main(argv=None) -> int:
 
     wp.config.quiet = True
     from bubblecal.data import CampaignStore
-    from bubblecal.sim.engine.mesh import mesh_for_diameter
-    from bubblecal.sim.engine.system import resolve_dtype
+    from bubblecal.sim.engine import mesh_for_diameter, resolve_dtype
     from bubblecal.sim.tiers import CurveRequest, indentation_convention
     from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas, quasistatic_indentation
 

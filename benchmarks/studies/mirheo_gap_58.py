@@ -145,7 +145,7 @@ def compliance_exponents(y: np.ndarray, x: np.ndarray, ka: np.ndarray, kb: np.nd
 
 def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
     from bubblecal.data import SHELL_PARAMETERS
-    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.engine import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
     from bubblecal.surrogates.training import diameter_um_from_radius
 
@@ -163,7 +163,7 @@ def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
         batch = tier.run(req, device=args.device)
     wall = time.perf_counter() - t0
     mesh = mesh_for_diameter(dia, sub)
-    from bubblecal.sim.engine.mesh import pole_patches
+    from bubblecal.sim.engine import pole_patches
     from bubblecal.sim.tiers import indentation_convention
 
     patch = ({"fraction": float(spec["fraction_loaded"])} if "fraction_loaded" in spec

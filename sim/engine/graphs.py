@@ -17,11 +17,19 @@ __all__ = ["ChunkGraph"]
 class ChunkGraph:
     """Run ``step()`` (Warp launches only) ``n`` times per :meth:`run`, as a CUDA graph when ``enabled``.
 
-    The first chunk runs uncaptured (lazy allocations, e.g. a HashGrid, happen there), the second is
-    captured and then launched, later ones replay the graph.  A capture that fails disables graphs for
-    good (plain launches).  The graph holds the chunk length of its capture: call :meth:`run` with
-    ``capture=True`` only for that length, and :meth:`invalidate` after anything the launches bake in
-    changes (reallocated arrays, new callbacks).
+    The first chunk runs uncaptured (lazy allocations, e.g. a HashGrid, happen there), the second is captured and
+    then launched, later ones replay the graph.  A capture that fails disables graphs for good (plain launches).
+    The graph holds the chunk length of its capture: call :meth:`run` with ``capture=True`` only for that length,
+    and :meth:`invalidate` after anything the launches bake in changes (reallocated arrays, new callbacks).
+
+    Parameters
+    ----------
+    step : callable
+        One step: Warp launches only (no host synchronisation).
+    device : warp device
+        The device of the launches.
+    enabled : bool
+        Use CUDA graphs (only meaningful on CUDA).
     """
 
     def __init__(self, step: Callable[[], None], device, enabled: bool):
@@ -36,11 +44,20 @@ class ChunkGraph:
         self.graph = None
 
     def _plain(self, n: int) -> None:
+        """Run ``n`` steps as plain launches."""
         for _ in range(n):
             self.step()
 
     def run(self, n: int, capture: bool = True) -> None:
-        """Execute ``n`` steps (``capture=False``: plain launches, e.g. a shorter last chunk)."""
+        """Execute ``n`` steps.
+
+        Parameters
+        ----------
+        n : int
+            Number of steps.
+        capture : bool, optional
+            False: plain launches (e.g. a shorter last chunk); True: the captured graph of this chunk length.
+        """
         if not (self.enabled and capture):
             self._plain(n)
             return

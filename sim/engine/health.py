@@ -32,6 +32,8 @@ __all__ = ["Status", "HealthConfig", "HealthReport", "HealthMonitor"]
 
 
 class Status(IntEnum):
+    """Per-replica status codes written into ``system.status`` (0 = OK; any other code freezes the replica)."""
+
     OK = 0
     NAN = 1
     ESCAPE = 2
@@ -42,6 +44,24 @@ class Status(IntEnum):
 
 @dataclass
 class HealthConfig:
+    """Thresholds of :class:`HealthMonitor` (module docstring).
+
+    Parameters
+    ----------
+    rupture_strain : float, optional
+        Largest triangle area strain A/A0 - 1 (dimensionless).
+    min_area_ratio : float, optional
+        Smallest A/A0 before a triangle counts as collapsed.
+    max_speed : float, optional
+        Largest particle speed (DPD velocity).
+    max_vertex_radius_factor : float, optional
+        Largest vertex distance from the shell centroid, in units of the reference radius.
+    max_leaks : int, optional
+        Largest number of water particles inside plus gas particles outside a shell.
+    check_leaks : bool, optional
+        Count leaks at all (one pass over the solvent).
+    """
+
     rupture_strain: float = 1.0
     min_area_ratio: float = 0.02
     max_speed: float = 500.0
@@ -52,6 +72,22 @@ class HealthConfig:
 
 @dataclass
 class HealthReport:
+    """Per-replica numbers of one :meth:`HealthMonitor.check`.
+
+    Parameters
+    ----------
+    step : int
+        ``steps_done`` of the system at the check.
+    status : list of str
+        :class:`Status` names per replica.
+    water_inside, gas_outside : list of int
+        Leak counts per replica.
+    max_area_strain, min_area_ratio : list of float
+        Largest A/A0 - 1 and smallest A/A0 per replica (NaN without a shell).
+    n_inverted : list of int
+        Inverted or collapsed triangles per replica.
+    """
+
     step: int
     status: list[str]
     water_inside: list[int] = field(default_factory=list)
@@ -61,11 +97,13 @@ class HealthReport:
     n_inverted: list[int] = field(default_factory=list)
 
     def as_dict(self) -> dict:
+        """The report as a plain dict."""
         return dict(vars(self))
 
 
 @functools.cache
 def _health_kernels(dtype):
+    """Build (once per scalar type) the finite / speed and inside-count kernels."""
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "health")
 
@@ -149,13 +187,36 @@ def _point_triangle_distance_min(c: np.ndarray, tri: np.ndarray) -> float:
 
 
 class HealthMonitor:
-    """Runs the checks on a :class:`~bubblecal.sim.engine.system.ParticleSystem` and freezes failed replicas."""
+    """Runs the checks on a :class:`~bubblecal.sim.engine.system.ParticleSystem` and freezes failed replicas.
+
+    Parameters
+    ----------
+    config : HealthConfig, optional
+        Thresholds (default :class:`HealthConfig`).
+
+    Attributes
+    ----------
+    reports : list of HealthReport
+        One per :meth:`check`.
+    """
 
     def __init__(self, config: HealthConfig | None = None):
         self.config = config or HealthConfig()
         self.reports: list[HealthReport] = []
 
     def check(self, system) -> HealthReport:
+        """Check every replica, write the first failure of each live one into ``system.status`` (synchronises).
+
+        Parameters
+        ----------
+        system : ParticleSystem
+            The system to check.
+
+        Returns
+        -------
+        HealthReport
+            Also appended to :attr:`reports`.
+        """
         cfg = self.config
         R, dev = system.R, system.device
         k = _health_kernels(system.dtype)

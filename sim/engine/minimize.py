@@ -1,7 +1,8 @@
 """FIRE energy minimiser (Bitzek et al. 2006; FIRE 2.0 details from Guenole et al. 2020), batched.
 
-General on purpose: it is the core of the athermal quasi-static tier.  It knows nothing about
-shells: it takes a callback ``energy_forces(x) -> (energy, forces)`` over positions ``x [N, 3]``
+The NumPy reference of the device-resident :class:`bubblecal.sim.engine.minimize_device.DeviceFire` (same
+rules); used by the quasi-static tier's NumPy backend, the Reissner point-load check and the tests.  It knows
+nothing about shells: it takes a callback ``energy_forces(x) -> (energy, forces)`` over positions ``x [N, 3]``
 (NumPy float64; the callback may evaluate Warp kernels on any device), a replica index per row,
 and minimises every replica independently with its own FIRE state (time step, mixing, counters).
 A replica that has converged (max force norm over its free rows <= ``ftol``) is frozen while the
@@ -20,6 +21,7 @@ import numpy as np
 
 __all__ = ["FireResult", "fire_minimize", "STATUS_CONVERGED", "STATUS_MAX_STEPS", "STATUS_NONFINITE"]
 
+#: Replica statuses of :class:`FireResult`.
 STATUS_CONVERGED = "converged"
 STATUS_MAX_STEPS = "max_steps"
 STATUS_NONFINITE = "nonfinite"
@@ -27,7 +29,27 @@ STATUS_NONFINITE = "nonfinite"
 
 @dataclass
 class FireResult:
-    """Outcome of :func:`fire_minimize`; per-replica arrays have length ``n_groups``."""
+    """Outcome of :func:`fire_minimize`; per-replica arrays have length ``n_groups``.
+
+    Attributes
+    ----------
+    x : numpy.ndarray
+        [N, 3] final positions (caller's length unit).
+    status : list of str
+        :data:`STATUS_CONVERGED`, :data:`STATUS_MAX_STEPS` or :data:`STATUS_NONFINITE` per replica.
+    converged : numpy.ndarray
+        [n_groups] bool.
+    steps : numpy.ndarray
+        [n_groups] FIRE steps taken.
+    fmax : numpy.ndarray
+        [n_groups] largest per-row force norm at the last test (caller's force unit).
+    energy : numpy.ndarray
+        [n_groups] last reported energy (NaN when the callback reports none).
+    n_evaluations : int
+        Force evaluations.
+    history : list
+        (step, fmax per replica) every ``record_every`` steps.
+    """
 
     x: np.ndarray
     status: list[str]
@@ -40,15 +62,18 @@ class FireResult:
 
     @property
     def all_converged(self) -> bool:
+        """Whether every replica converged."""
         return bool(np.all(self.converged))
 
 
 def _group_sum(values: np.ndarray, groups: np.ndarray, n: int) -> np.ndarray:
+    """Sum of ``values`` per group (rows with group < 0 left out)."""
     ok = groups >= 0
     return np.bincount(groups[ok], weights=values[ok], minlength=n)
 
 
 def _group_max(values: np.ndarray, groups: np.ndarray, n: int) -> np.ndarray:
+    """Maximum of ``values`` per group (0 for an empty group; rows with group < 0 left out)."""
     out = np.zeros(n)
     ok = groups >= 0
     np.maximum.at(out, groups[ok], values[ok])
@@ -78,23 +103,42 @@ def fire_minimize(
 ) -> FireResult:
     """Minimise with FIRE; every replica (group of rows) has its own state and convergence test.
 
-    Args:
-        energy_forces: ``x [N,3] -> (E, F)``; ``E`` per replica ``[n_groups]``, a scalar or None
-            (only reported), ``F [N,3]`` = -dE/dx.
-        x0: start positions ``[N, 3]`` (not modified).
-        groups: replica index per row (``-1``: row never moves); default all rows in replica 0.
-        n_groups: number of replicas (default ``groups.max() + 1``).
-        free: ``[N, 3]`` bool mask of the components that may move (default all).
-        mass: scalar or per-row masses (FIRE's inertia; only the ratio matters).
-        ftol: convergence threshold on the largest per-row force norm, scalar or per replica.
-        max_steps: maximum number of FIRE steps (force evaluations after the first).
-        dt, dt_max, dt_min: initial, largest (default 10 dt) and smallest (default dt/50) step.
-        max_move: cap on any row's displacement per step (None: no cap).
-        n_delay, f_inc, f_dec, alpha0, f_alpha: FIRE constants.
-        record_every: if > 0, append (step, fmax per replica) to ``history`` every that many steps.
+    Parameters
+    ----------
+    energy_forces : callable
+        ``x [N, 3] -> (E, F)``; ``E`` per replica [n_groups], a scalar or None (only reported), ``F [N, 3]`` =
+        -dE/dx (caller's units).
+    x0 : numpy.ndarray
+        [N, 3] start positions (not modified).
+    groups : numpy.ndarray, optional
+        Replica index per row (-1: the row never moves); default all rows in replica 0.
+    n_groups : int, optional
+        Number of replicas (default ``groups.max() + 1``).
+    free : numpy.ndarray, optional
+        [N, 3] bool mask of the components that may move (default all).
+    mass : float or numpy.ndarray, optional
+        Scalar or per-row masses (FIRE's inertia; only the ratio matters).
+    ftol : float or numpy.ndarray, optional
+        Convergence threshold on the largest per-row force norm (force unit), scalar or per replica.
+    max_steps : int, optional
+        Maximum number of FIRE steps (force evaluations after the first).
+    dt, dt_max, dt_min : float, optional
+        Initial, largest (default 10 dt) and smallest (default dt / 50) step (caller's time unit).
+    max_move : float, optional
+        Cap on any row's displacement per step (length unit; None: no cap).
+    n_delay, f_inc, f_dec, alpha0, f_alpha : optional
+        FIRE constants (dimensionless).
+    record_every : int, optional
+        If > 0, append (step, fmax per replica) to ``history`` every that many steps.
 
-    Returns: :class:`FireResult` with ``status`` per replica (``"converged"``, ``"max_steps"``,
-    ``"nonfinite"``).
+    Returns
+    -------
+    FireResult
+
+    Raises
+    ------
+    ValueError
+        When ``groups`` or ``free`` do not match ``x0``, or there is no replica.
     """
     x = np.array(x0, dtype=np.float64, copy=True)
     n = x.shape[0]

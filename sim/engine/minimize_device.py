@@ -7,14 +7,15 @@ row, per-replica convergence test ``max_i |F_i| <= ftol`` over the free componen
 (``dt``, ``alpha``, ``n_pos``, P = sum F.v, |F|^2, |v|^2, fmax, flags) are Warp arrays, updated by
 the kernels of :mod:`bubblecal.sim.engine.kernels.fire`.  The host only reads the per-replica status
 every ``sync_every`` iterations; on CUDA those iterations are captured once as a CUDA graph and
-replayed.
+replayed.  Replica-asynchronous use (restart, export / import of replicas):
+:mod:`bubblecal.sim.engine.minimize_device_async`.
 
 Replica r owns the contiguous rows ``[row_start[r], row_start[r+1])``.  Forces come from a
 ``force_fn(x, f)`` that *adds* -dE/dx into ``f`` (zeroed before every call) with Warp launches only;
 with graph capture on, every input that changes between minimisations (loads, plate positions)
 must live in device arrays read by those kernels.  The optional mean-force removal
 (``remove_mean``, per component) pins the centre of mass: the replica's mean force is subtracted
-before the fixed components (``free``) are zeroed -- as the quasi-static tier did in NumPy.
+before the fixed components (``free``) are zeroed, as in the NumPy reference.
 
 Iteration i of a replica = force evaluation, convergence test, FIRE update; ``steps`` counts the
 updates exactly as the NumPy version does (a replica converged at its first test reports 0).
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,7 @@ import warp as wp
 
 from bubblecal.sim.engine.graphs import ChunkGraph
 from bubblecal.sim.engine.kernels.fire import ACTIVE, CONVERGED, FROZEN, MAX_STEPS, NONFINITE, fire_kernels
+from bubblecal.sim.engine.minimize_device_async import ReplicaAsyncFire
 
 __all__ = ["DeviceFire", "DeviceFireResult", "numpy_force_fn", "STATUS_NAMES", "cuda_threads_per_replica"]
 
@@ -44,10 +46,23 @@ STATUS_NAMES = {ACTIVE: "max_steps", CONVERGED: "converged", MAX_STEPS: "max_ste
 class DeviceFireResult:
     """Outcome of :meth:`DeviceFire.minimize`; per-replica arrays have length R.
 
-    ``status`` ('converged', 'max_steps', 'nonfinite', 'frozen'), ``steps`` (FIRE updates),
-    ``fmax`` (largest per-row force norm over free components at the last test; inf if nonfinite),
-    ``n_evaluations`` (force evaluations launched, incl. no-op iterations of a finished chunk),
-    ``n_syncs`` (host reads of the status), ``seconds`` (wall time).
+    Attributes
+    ----------
+    status : list of str
+        ``'converged'``, ``'max_steps'``, ``'nonfinite'`` or ``'frozen'`` per replica.
+    converged : numpy.ndarray
+        [R] bool.
+    steps : numpy.ndarray
+        [R] FIRE updates.
+    fmax : numpy.ndarray
+        [R] largest per-row force norm over the free components at the last test (force unit; inf if
+        non-finite, NaN if frozen).
+    n_evaluations : int
+        Force evaluations launched, including no-op iterations of a finished chunk.
+    n_syncs : int
+        Host reads of the status.
+    seconds : float
+        Wall time (s).
     """
 
     status: list[str]
@@ -60,15 +75,33 @@ class DeviceFireResult:
 
     @property
     def all_converged(self) -> bool:
+        """Whether every replica converged."""
         return bool(np.all(self.converged))
 
 
 def cuda_threads_per_replica(n_replicas: int, max_rows: int, min_threads: int = 64, max_threads: int = 1024,
                              target_threads: int = 16384) -> int:
-    """Threads per replica of the row passes on a GPU: 64 for big batches, doubled (up to 1,024) while the
-    launch holds fewer than ``target_threads`` threads, never more than a replica's rows.  Why: each thread
-    walks its replica's rows with stride T, so with few replicas the loop's memory latency sets the iteration
-    time (one 2,562-vertex replica at T = 64: 0.245 ms per FIRE iteration on an H100, benchmarks/RESULTS.md)."""
+    """Threads per replica of the FIRE row passes on a GPU.
+
+    64 for big batches, doubled (up to ``max_threads``) while the launch holds fewer than ``target_threads``
+    threads, never more than a replica's rows: each thread walks its replica's rows with stride T, so with few
+    replicas the loop's memory latency sets the iteration time (benchmarks/RESULTS.md).
+
+    Parameters
+    ----------
+    n_replicas : int
+        Replicas R.
+    max_rows : int
+        Rows of the largest replica.
+    min_threads, max_threads : int, optional
+        Bounds on the threads per replica.
+    target_threads : int, optional
+        Threads per launch worth reaching.
+
+    Returns
+    -------
+    int
+    """
     t = int(min_threads)
     while t < max_threads and n_replicas * t < target_threads:
         t *= 2
@@ -76,8 +109,18 @@ def cuda_threads_per_replica(n_replicas: int, max_rows: int, min_threads: int = 
 
 
 def numpy_force_fn(callback: Callable[[np.ndarray], np.ndarray]):
-    """Adapter for a host callback ``x [N,3] (float64) -> F [N,3]``: copies every evaluation (slow;
-    tests and prototypes only, never graph-captured)."""
+    """Adapter for a host callback: copies every evaluation (slow; tests and prototypes only, never graph-captured).
+
+    Parameters
+    ----------
+    callback : callable
+        ``x [N, 3] (float64) -> F [N, 3]`` forces (-dE/dx, caller's units).
+
+    Returns
+    -------
+    callable
+        ``fn(x, f)`` adding the callback's forces into the device array ``f``; ``fn.capturable`` is False.
+    """
 
     def fn(x: wp.array, f: wp.array) -> None:
         xf = x.numpy().astype(np.float64)
@@ -88,25 +131,42 @@ def numpy_force_fn(callback: Callable[[np.ndarray], np.ndarray]):
     return fn
 
 
-class DeviceFire:
+class DeviceFire(ReplicaAsyncFire):
     """Batched FIRE with device-resident state (see the module docstring).
 
-    Args:
-        row_start: ``[R + 1]`` first row of each replica (contiguous blocks; rows past
-            ``row_start[-1]`` never move).
-        force_fn: ``force_fn(x, f)`` adds forces (-dE/dx) into ``f`` with Warp launches.
-        device: Warp device; dtype: ``wp.float64`` (default) or ``wp.float32``.
-        n_rows: rows of the position arrays (default ``row_start[-1]``).
-        free: ``[N, 3]`` bool mask of the components that may move (default all).
-        mass: scalar or per-row FIRE mass.  remove_mean: per component, subtract the replica's mean force.
-        dt, dt_max, dt_min, max_move, n_delay, f_inc, f_dec, alpha0, f_alpha: FIRE constants as in
-            :func:`bubblecal.sim.engine.minimize.fire_minimize` (dt_max default 10 dt, dt_min dt/50,
-            ``max_move`` None: no cap), in the caller's time / length units.
-        sync_every: iterations between host status checks (default 25 on CUDA, 4 on CPU).
-        threads_per_replica: threads per replica of the row passes (default on CUDA
-            :func:`cuda_threads_per_replica`, 1 on CPU).
-        use_graph: capture ``sync_every`` iterations as a CUDA graph (default: on CUDA when
-            ``force_fn`` is capturable; falls back to plain launches if capture fails).
+    Parameters
+    ----------
+    row_start : sequence of int
+        [R + 1] first row of each replica (contiguous blocks; rows past ``row_start[-1]`` never move).
+    force_fn : callable
+        ``force_fn(x, f)`` adds forces (-dE/dx) into ``f`` with Warp launches only.
+    device : str, optional
+        Warp device.
+    dtype : warp scalar type, optional
+        ``wp.float64`` (default) or ``wp.float32``.
+    n_rows : int, optional
+        Rows of the position arrays (default ``row_start[-1]``).
+    free : numpy.ndarray, optional
+        [N, 3] bool mask of the components that may move (default all).
+    mass : float or numpy.ndarray, optional
+        Scalar or per-row FIRE mass.
+    remove_mean : sequence of bool, optional
+        Per component, subtract the replica's mean force.
+    dt, dt_max, dt_min, max_move, n_delay, f_inc, f_dec, alpha0, f_alpha : optional
+        FIRE constants as in :func:`bubblecal.sim.engine.minimize.fire_minimize` (dt_max default 10 dt, dt_min
+        dt / 50, ``max_move`` None: no cap), in the caller's time / length units.
+    sync_every : int, optional
+        Iterations between host status checks (default 25 on CUDA, 4 on the CPU).
+    threads_per_replica : int, optional
+        Threads per replica of the row passes (default on CUDA :func:`cuda_threads_per_replica`, 1 on the CPU).
+    use_graph : bool, optional
+        Capture ``sync_every`` iterations as a CUDA graph (default: on CUDA when ``force_fn`` is capturable;
+        plain launches if capture fails).
+
+    Raises
+    ------
+    ValueError
+        On a bad ``dtype``, ``row_start``, ``n_rows``, ``dt``, ``sync_every`` or ``free`` shape.
     """
 
     def __init__(self, row_start: Sequence[int] | np.ndarray, force_fn: Callable, *, device: str = "cpu",
@@ -176,15 +236,28 @@ class DeviceFire:
 
     # ------------------------------------------------------------------------------------------
     def set_positions(self, x: np.ndarray) -> None:
-        """Copy host positions ``[n_rows, 3]`` (caller's length unit) onto the device."""
+        """Copy host positions onto the device.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            [n_rows, 3] positions (caller's length unit).
+        """
         self.x.assign(np.ascontiguousarray(x, dtype=self._np))
 
     def positions(self) -> np.ndarray:
-        """Device positions as a float64 NumPy array ``[n_rows, 3]`` (synchronises)."""
+        """Device positions (synchronises).
+
+        Returns
+        -------
+        numpy.ndarray
+            [n_rows, 3] float64.
+        """
         return self.x.numpy().astype(np.float64)
 
     # ------------------------------------------------------------------------------------------
     def _iteration(self) -> None:
+        """One FIRE iteration of every replica: forces, projection, replica update, Euler step, mixing."""
         k, dev, c = self._k, self.device, self.consts
         T = self.dtype
         dimv = self.R * self.nthr
@@ -217,12 +290,24 @@ class DeviceFire:
                  active: np.ndarray | None = None) -> DeviceFireResult:
         """Minimise every active replica from the current device positions ``self.x``.
 
-        Args:
-            ftol: convergence threshold on the largest per-row force norm (force unit), scalar or [R].
-            max_steps: maximum FIRE updates per replica.
-            active: ``[R]`` bool, replicas taking part (others keep their rows and report 'frozen').
+        Parameters
+        ----------
+        ftol : float or numpy.ndarray, optional
+            Convergence threshold on the largest per-row force norm (force unit), scalar or [R].
+        max_steps : int, optional
+            Maximum FIRE updates per replica.
+        active : numpy.ndarray, optional
+            [R] bool, replicas taking part (the others keep their rows and report 'frozen').
 
-        Returns: :class:`DeviceFireResult`; positions stay on the device (``self.x`` / :meth:`positions`).
+        Returns
+        -------
+        DeviceFireResult
+            Positions stay on the device (``self.x`` / :meth:`positions`).
+
+        Raises
+        ------
+        ValueError
+            On a negative ``max_steps`` or a wrong ``active`` shape.
         """
         t0 = time.perf_counter()
         R, dev, c = self.R, self.device, self.consts
@@ -260,84 +345,3 @@ class DeviceFire:
         return DeviceFireResult(status=status, converged=st == CONVERGED,
                                 steps=self.steps.numpy().astype(np.int64), fmax=fmax, n_evaluations=n_eval,
                                 n_syncs=n_sync, seconds=time.perf_counter() - t0)
-
-    # ----- replica-asynchronous use: each replica is (re)started on its own and reported when it stops -----
-    def begin(self, ftol: float | np.ndarray = 1e-3, max_steps: int = 10_000) -> None:
-        """Prepare replica-asynchronous minimisation: set ``ftol`` (scalar or [R]) and ``max_steps`` (per
-        start) and freeze every replica; :meth:`restart` then starts replicas one group at a time."""
-        if int(max_steps) < 0:
-            raise ValueError(f"max_steps must be >= 0, got {max_steps!r}")
-        tol = np.broadcast_to(np.asarray(ftol, dtype=np.float64), (self.R,))
-        self.tol.assign(tol.astype(self._np))
-        self.max_steps.assign(np.array([int(max_steps)], dtype=np.int32))
-        self.v.zero_()
-        self.f.zero_()
-        self.active.zero_()
-        c, T = self.consts, self.dtype
-        wp.launch(self._k["reset_kernel"], dim=self.R,
-                  inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
-                          self.down, self.fmax_out, self.fmax_acc, self.fsq_acc, self.pow_acc, self.nonfin,
-                          self.vsq_acc, self.mean_acc, T(c["dt"]), T(c["alpha0"])], device=self.device)
-
-    def restart(self, flags: np.ndarray) -> None:
-        """Start FIRE afresh (zero velocity, initial dt / alpha, step count 0) on the replicas flagged in
-        ``flags [R]`` from their current positions; the other replicas keep their state and go on."""
-        fl = np.asarray(flags, dtype=bool)
-        if fl.shape != (self.R,):
-            raise ValueError(f"flags must hold one flag per replica ({self.R})")
-        if not fl.any():
-            return
-        self.active.assign(fl.astype(np.int32))
-        c, T, dev = self.consts, self.dtype, self.device
-        wp.launch(self._k["zero_rows_kernel"], dim=self.R * self.nthr,
-                  inputs=[self.v, self.row_start, self.active, self.nthr], device=dev)
-        wp.launch(self._k["restart_kernel"], dim=self.R,
-                  inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
-                          self.down, self.fmax_out, T(c["dt"]), T(c["alpha0"])], device=dev)
-
-    _REPLICA_STATE = ("active", "status", "iters", "steps", "npos", "down", "nonfin", "dt_r", "alpha_r", "fnorm",
-                      "fmax_out", "fmax_acc", "fsq_acc", "pow_acc", "vsq_acc", "mean_acc", "tol")
-
-    def export_rows(self, replicas: Sequence[int] | np.ndarray) -> dict:
-        """Complete FIRE state of ``replicas`` (host copies): their particle rows of x, v, f and every
-        per-replica scalar, so another DeviceFire can continue them with the same iterates
-        (:meth:`import_rows`).  Why: the last few relaxing replicas of a big batch run faster in a small one."""
-        idx = np.asarray(replicas, dtype=np.int64).reshape(-1)
-        rs = self.row_start.numpy().astype(np.int64)
-        rows = np.concatenate([np.arange(rs[r], rs[r + 1]) for r in idx]) if idx.size else np.zeros(0, np.int64)
-        out = {name: getattr(self, name).numpy()[rows] for name in ("x", "v", "f")}
-        out.update({name: getattr(self, name).numpy()[idx] for name in self._REPLICA_STATE})
-        out["max_steps"] = self.max_steps.numpy().copy()
-        out["sizes"] = (rs[idx + 1] - rs[idx]) if idx.size else np.zeros(0, np.int64)
-        return out
-
-    def import_rows(self, state: Mapping[str, np.ndarray]) -> None:
-        """Take over the state exported by :meth:`export_rows` of another DeviceFire (same dtype); this one
-        must have exactly that many replicas with the same row counts, in the same order."""
-        sizes = np.asarray(state["sizes"], dtype=np.int64)
-        rs = self.row_start.numpy().astype(np.int64)
-        if sizes.shape != (self.R,) or np.any(np.diff(rs) != sizes):
-            raise ValueError(f"import_rows: {len(sizes)} replicas of sizes {sizes.tolist()[:4]}... do not match "
-                             f"this minimiser's {self.R} replicas")
-        n = int(rs[-1])
-        for name in ("x", "v", "f"):
-            arr = getattr(self, name)
-            full = arr.numpy()
-            full[:n] = state[name]
-            arr.assign(full)
-        for name in self._REPLICA_STATE:
-            getattr(self, name).assign(np.asarray(state[name]))
-        self.max_steps.assign(np.asarray(state["max_steps"]))
-
-    def advance(self) -> np.ndarray:
-        """Run ``sync_every`` iterations (one CUDA-graph replay) and return the status codes [R]
-        (:data:`ACTIVE` while a replica still relaxes)."""
-        self._chunks.run(self.sync_every)
-        return self.status.numpy()
-
-    def replica_report(self) -> tuple[np.ndarray, np.ndarray]:
-        """FIRE updates [R] and the last convergence test's largest per-row force norm [R] (force unit;
-        inf where non-finite) of every replica's current or last minimisation."""
-        st = self.status.numpy()
-        fmax = np.where(st == NONFINITE, np.inf, self.fmax_out.numpy().astype(np.float64))
-        return self.steps.numpy().astype(np.int64), fmax

@@ -5,8 +5,8 @@ axis (at least 3); the replicas' cells are numbered consecutively (``cell_offset
 radix sort orders the whole solvent by (replica, cell) -- replicas stay contiguous, particles of a
 cell are contiguous, and nothing ever looks into another replica's cells: replicas never interact.
 
-A rebuild (done by :class:`bubblecal.sim.engine.system.ParticleSystem` when any particle or vertex may have
-moved more than ``skin / 2`` since the last one) does:
+A rebuild (:meth:`NeighbourLists.rebuild`, run by :class:`bubblecal.sim.engine.system.ParticleSystem` when any
+particle or vertex may have moved more than ``skin / 2`` since the last one) does:
 
 1. wrap solvent positions into their box, compute cell ids, radix-sort (key = global cell) and
    permute every per-particle array into cell order (locality for the force kernels);
@@ -22,17 +22,34 @@ Lists that overflow their capacity are detected at build time (one host read per
 capacity is grown and the list rebuilt.
 """
 
+# (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)
 
 import functools
+import math
+import time
 
 import numpy as np
 import warp as wp
 
 from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
 
+__all__ = ["neighbor_kernels", "grid_for_boxes", "NeighbourLists"]
+
 
 @functools.cache
 def neighbor_kernels(dtype):
+    """Build (once per scalar type) the cell-list, sorting and neighbour-list kernels (module docstring).
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        Name -> ``wp.Kernel``.
+    """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "nbr")
 
@@ -227,7 +244,29 @@ def neighbor_kernels(dtype):
 
 
 def grid_for_boxes(boxes: np.ndarray, rlist: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """Cells per axis (>= 3) for each replica's box and the replicas' first global cell index."""
+    """Cells per axis of each replica's box and the replicas' first global cell index.
+
+    Parameters
+    ----------
+    boxes : numpy.ndarray
+        [R, 3] box edge lengths (DPD length).
+    rlist : float
+        Neighbour-list radius r_c + skin (DPD length); a cell is at least this wide.
+
+    Returns
+    -------
+    n_cells : numpy.ndarray
+        [R, 3] int32 cells per axis (>= 3).
+    offsets : numpy.ndarray
+        [R] int32 first global cell of each replica.
+    total : int
+        Number of cells over all replicas.
+
+    Raises
+    ------
+    ValueError
+        When a box edge is shorter than 3 rlist.
+    """
     boxes = np.asarray(boxes, dtype=float).reshape(-1, 3)
     n = np.floor(boxes / rlist).astype(np.int32)
     if np.any(n < 3):
@@ -235,3 +274,106 @@ def grid_for_boxes(boxes: np.ndarray, rlist: float) -> tuple[np.ndarray, np.ndar
     counts = n.prod(axis=1)
     offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int32)
     return n, offsets, int(counts.sum())
+
+
+class NeighbourLists:
+    """Neighbour-list upkeep of :class:`~bubblecal.sim.engine.system.ParticleSystem` (a mixin of it).
+
+    Works on the system's solvent, vertex and list arrays: :meth:`rebuild` runs the steps of the module
+    docstring, :meth:`_schedule_rebuild` decides after each chunk whether the lists survive the next one.
+    """
+
+    def rebuild(self) -> None:
+        """Sort the solvent by cell and rebuild every neighbour / candidate list (synchronises).
+
+        Lists that overflow are grown and rebuilt; a grown list invalidates the captured CUDA graph.
+        """
+        t0 = time.perf_counter()
+        kn, dev, N = self.kn, self.device, self.N
+        wp.launch(kn["compute_cells"], dim=N, inputs=[self.x, self.rep, self.box, self.ncell, self.cell_offset,
+                                                      self._keys, self._vals], device=dev)
+        wp.utils.radix_sort_pairs(self._keys, self._vals, N)
+        perm = self._vals
+        # permute into scratch, copy back: array identities stay fixed (a captured graph stays valid)
+        for src in (self.x, self.v):
+            wp.launch(kn["permute_vec"], dim=N, inputs=[src, perm, self._x2], device=dev)
+            wp.copy(src, self._x2)
+        for src in (self.typ, self.rep, self.pid):
+            wp.launch(kn["permute_int"], dim=N, inputs=[src, perm, self._i2], device=dev)
+            wp.copy(src, self._i2)
+        self.cell_start.zero_()
+        self.cell_end.zero_()
+        wp.launch(kn["cell_ranges"], dim=N, inputs=[self._keys, N, self.cell_start, self.cell_end], device=dev)
+        rl2 = self.rlist**2
+        while True:
+            self._maxcount.zero_()
+            wp.launch(kn["build_solvent_list"], dim=N,
+                      inputs=[self.x, self.rep, self.box, self.ncell, self.cell_offset, self.cell_start,
+                              self.cell_end, rl2, self.nbr, self.ncount, self.xref, self._maxcount], device=dev)
+            if self.Nv:
+                wp.launch(kn["build_vertex_list"], dim=self.Nv,
+                          inputs=[self.xv, self.vrep, self.x, self.box, self.ncell, self.cell_offset,
+                                  self.cell_start, self.cell_end, rl2, self.vnbr, self.vcount, self.xvref,
+                                  self._maxcount], device=dev)
+            mx, mxv = (int(c) for c in self._maxcount.numpy()[:2])
+            grown = False
+            if mx > self.nbr.shape[0]:
+                self.nbr = wp.zeros((int(mx * 1.25) + 4, N), dtype=wp.int32, device=dev)
+                grown = True
+            if self.Nv and mxv > self.vnbr.shape[0]:
+                self.vnbr = wp.zeros((int(mxv * 1.25) + 4, self.Nv), dtype=wp.int32, device=dev)
+                grown = True
+            if not grown:
+                break
+            self._chunks.invalidate()
+        if self.Nv:
+            self.tri_count.zero_()
+            margin = self.skin + 1e-3
+            common = [self.xv, self.faces, self.frep, self.x, self.box, self.ncell, self.cell_offset,
+                      self.cell_start, self.cell_end, margin]
+            wp.launch(kn["triangle_candidates"], dim=self.Nf,
+                      inputs=[*common, 0, self.tri_count, self.tri_row, self.tri_cols], device=dev)
+            wp.utils.array_scan(self.tri_count, self.tri_row[0:N], inclusive=False)
+            wp.launch(kn["csr_close"], dim=1, inputs=[self.tri_count, self.tri_row, N, self._maxcount[2:3]],
+                      device=dev)
+            total = int(self._maxcount.numpy()[2])
+            if total > self.tri_cols.shape[0]:
+                self.tri_cols = wp.zeros(int(total * 1.5) + 16, dtype=wp.int32, device=dev)
+                self._chunks.invalidate()
+            self.tri_count.zero_()
+            wp.launch(kn["triangle_candidates"], dim=self.Nf,
+                      inputs=[*common, 1, self.tri_count, self.tri_row, self.tri_cols], device=dev)
+        self._need_rebuild = False
+        self.n_rebuilds += 1
+        self._timed("rebuild", t0)
+
+    def _schedule_rebuild(self) -> None:
+        """Decide from the max displacement / speed whether the lists survive another chunk."""
+        ki, dev = self.ki, self.device
+        self._disp2.zero_()
+        self._speed2.zero_()
+        wp.launch(ki["motion_stats"], dim=self.N, inputs=[self.x, self.v, self.xref, self.rep, self.status,
+                                                          self._disp2, self._speed2], device=dev)
+        if self.Nv:
+            wp.launch(ki["motion_stats"], dim=self.Nv, inputs=[self.xv, self.vv, self.xvref, self.vrep, self.status,
+                                                               self._disp2, self._speed2], device=dev)
+        disp = math.sqrt(float(self._disp2.numpy()[0]))
+        vmax = math.sqrt(float(self._speed2.numpy()[0]))
+        self._vmax = vmax
+        ov = self.overrun.numpy()
+        if ov.any():
+            self.n_overruns += 1
+            self.overrun.zero_()
+            self._need_rebuild = True
+        if disp + self.safety * vmax * self.dt * self.chunk > 0.5 * self.skin:
+            self._need_rebuild = True
+
+    def _next_chunk(self, remaining: int) -> int:
+        """Steps until the next check: the full chunk unless particles are fast enough to cross ``skin / 2``
+        sooner (large dt on CPU checks); then fewer, without the graph."""
+        vmax = getattr(self, "_vmax", None)
+        k = self.chunk
+        if vmax is not None and vmax > 0:
+            k_safe = int(0.5 * self.skin / (self.safety * vmax * self.dt))
+            k = max(1, min(k, k_safe))
+        return min(k, remaining)

@@ -1,4 +1,4 @@
-"""Particle types, per-type-pair DPD parameters and masses (physics.md section 2).
+"""Particle types, per-type-pair DPD parameters and masses (docs/physics.md section 2).
 
 Types (integers stored per particle):
 
@@ -16,7 +16,7 @@ A :class:`PairTable` holds the symmetric (a, gamma, s) matrices of one replica. 
 separates them anyway). ``s`` shapes the dissipative and random weights only; the conservative
 weight is always linear.
 
-The fluid-structure friction follows physics.md section 2:
+The fluid-structure friction follows docs/physics.md section 2:
 ``gamma_fsi = fscale 2 eta (2k+1)(2k+2)(2k+3)(2k+4) / (3 pi r_c^4 rho n_s)`` with k = s = 0.5,
 ``n_s`` the number of vertices per unit area of the membrane and ``rho`` the number density of the
 fluid on that side. Viscosities are converted with the unit system of :mod:`bubblecal.data.units`
@@ -36,33 +36,67 @@ WATER, GAS, VERTEX, WALL = 0, 1, 2, 3
 N_TYPES = 4
 TYPE_NAMES = ("water", "gas", "vertex", "wall")
 
-#: Published water viscosity in DPD units (physics.md section 2).
+#: Published water viscosity in DPD units (docs/physics.md section 2).
 ETA_WATER_DPD = 379.3
-#: Gas viscosity [Pa s] (physics.md section 2).
+#: Gas viscosity [Pa s] (docs/physics.md section 2).
 ETA_GAS_PA_S = 1.86e-5
 #: Published gas mass density [kg/m^3] of the compression set.
 RHO_GAS_KG_M3 = 11.2
 #: Shell mass density [kg/m^3].
 RHO_SHELL_KG_M3 = 1100.0
+#: Published back pressure (DPD pressure, docs/physics.md section 3).
+P_BACK_DEFAULT = 91.0
 
 __all__ = [
     "WATER", "GAS", "VERTEX", "WALL", "N_TYPES", "TYPE_NAMES", "PairTable", "viscosity_to_dpd",
     "gamma_fsi", "gas_mass", "vertex_mass", "published_pair_table", "fluid_pair_table",
-    "ETA_WATER_DPD", "ETA_GAS_PA_S", "RHO_GAS_KG_M3", "RHO_SHELL_KG_M3",
+    "ETA_WATER_DPD", "ETA_GAS_PA_S", "RHO_GAS_KG_M3", "RHO_SHELL_KG_M3", "P_BACK_DEFAULT",
 ]
 
 
 def viscosity_to_dpd(eta_pa_s: float, units: UnitSystem = DEFAULT_UNITS) -> float:
-    """Dynamic viscosity [Pa s] -> DPD units (u_e u_t / u_l^3)."""
+    """Dynamic viscosity in Pa s -> DPD units (u_e u_t / u_l^3).
+
+    Parameters
+    ----------
+    eta_pa_s : float
+        Viscosity (Pa s).
+    units : UnitSystem, optional
+        Unit system.
+
+    Returns
+    -------
+    float
+        Viscosity (DPD pressure x DPD time).
+    """
     return float(eta_pa_s) / (units.pressure_Pa * units.time_s)
 
 
 def gamma_fsi(eta_dpd: float, rho: float, n_s: float, s: float = 0.5, units: UnitSystem = DEFAULT_UNITS,
               rc: float = 1.0) -> float:
-    """Fluid-structure dissipative coefficient of physics.md section 2.
+    """Fluid-structure dissipative coefficient of docs/physics.md section 2.
 
-    ``eta_dpd``: fluid viscosity (DPD); ``rho``: fluid number density; ``n_s``: vertices per unit
-    membrane area (DPD); ``s``: the exponent k of the weight (0.5 in the published sets).
+    gamma_fsi = fscale 2 eta (2k+1)(2k+2)(2k+3)(2k+4) / (3 pi r_c^4 rho n_s).
+
+    Parameters
+    ----------
+    eta_dpd : float
+        Fluid viscosity (DPD units).
+    rho : float
+        Fluid number density (1 / DPD length^3).
+    n_s : float
+        Vertices per unit membrane area (1 / DPD length^2).
+    s : float, optional
+        The exponent k of the dissipative weight (0.5 in the published sets).
+    units : UnitSystem, optional
+        Unit system (its force scale ``fscale``).
+    rc : float, optional
+        Cut-off radius (DPD length).
+
+    Returns
+    -------
+    float
+        gamma (DPD mass / DPD time).
     """
     k = float(s)
     num = units.fscale * 2.0 * eta_dpd * (2 * k + 1) * (2 * k + 2) * (2 * k + 3) * (2 * k + 4)
@@ -70,20 +104,64 @@ def gamma_fsi(eta_dpd: float, rho: float, n_s: float, s: float = 0.5, units: Uni
 
 
 def gas_mass(rho_gas_kg_m3: float = RHO_GAS_KG_M3, units: UnitSystem = DEFAULT_UNITS) -> float:
-    """Mass of a gas bead, rho_gas / rho_water (water bead mass 1)."""
+    """Mass of a gas bead, rho_gas / rho_water (water bead mass 1).
+
+    Parameters
+    ----------
+    rho_gas_kg_m3 : float, optional
+        Gas mass density (kg/m^3).
+    units : UnitSystem, optional
+        Unit system (water density).
+
+    Returns
+    -------
+    float
+        Bead mass (DPD mass).
+    """
     return float(rho_gas_kg_m3) / units.rho_water
 
 
 def vertex_mass(area_mesh_dpd: float, n_vertices: int, rho_shell_kg_m3: float = RHO_SHELL_KG_M3,
                 mass_factor: float = 1.0, units: UnitSystem = DEFAULT_UNITS) -> float:
-    """Shell vertex mass rho_shell h A_mesh u_l^2 / (u_m N_v) x mass_factor (physics.md section 2)."""
+    """Shell vertex mass rho_shell h A_mesh u_l^2 / (u_m N_v) x mass_factor (docs/physics.md section 2).
+
+    Parameters
+    ----------
+    area_mesh_dpd : float
+        Mesh area (DPD length^2).
+    n_vertices : int
+        Number of vertices.
+    rho_shell_kg_m3 : float, optional
+        Shell density (kg/m^3).
+    mass_factor : float, optional
+        Factor on the mass.
+    units : UnitSystem, optional
+        Unit system (shell thickness h, u_l, u_m).
+
+    Returns
+    -------
+    float
+        Vertex mass (DPD mass).
+    """
     m = rho_shell_kg_m3 * units.shell_thickness_m * area_mesh_dpd * units.length_m**2 / (units.mass_kg * n_vertices)
     return float(m * mass_factor)
 
 
 @dataclass
 class PairTable:
-    """Symmetric per-type-pair DPD parameters (a, gamma, s) and per-type masses of one replica."""
+    """Symmetric per-type-pair DPD parameters and per-type masses of one replica.
+
+    Parameters
+    ----------
+    a : numpy.ndarray, optional
+        [N_TYPES, N_TYPES] conservative amplitudes (DPD force); default 0.
+    gamma : numpy.ndarray, optional
+        [N_TYPES, N_TYPES] dissipative coefficients (DPD mass / time); default 0.
+    s : numpy.ndarray, optional
+        [N_TYPES, N_TYPES] exponents of the dissipative / random weight; default 0.5.
+    mass : numpy.ndarray, optional
+        [N_TYPES] bead masses (DPD mass); default 1.
+    """
 
     a: np.ndarray = field(default_factory=lambda: np.zeros((N_TYPES, N_TYPES)))
     gamma: np.ndarray = field(default_factory=lambda: np.zeros((N_TYPES, N_TYPES)))
@@ -91,7 +169,24 @@ class PairTable:
     mass: np.ndarray = field(default_factory=lambda: np.ones(N_TYPES))
 
     def set(self, t1: int, t2: int, a: float, gamma: float, s: float) -> PairTable:
-        """Set the (a, gamma, s) of the pair of types (t1, t2) symmetrically; returns self."""
+        """Set the (a, gamma, s) of the pair of types (t1, t2), symmetrically.
+
+        Parameters
+        ----------
+        t1, t2 : int
+            Particle types (``WATER``, ``GAS``, ``VERTEX``, ``WALL``).
+        a : float
+            Conservative amplitude (DPD force).
+        gamma : float
+            Dissipative coefficient (DPD mass / time).
+        s : float
+            Weight exponent.
+
+        Returns
+        -------
+        PairTable
+            ``self``.
+        """
         for i, j in ((t1, t2), (t2, t1)):
             self.a[i, j] = a
             self.gamma[i, j] = gamma
@@ -99,9 +194,18 @@ class PairTable:
         return self
 
     def copy(self) -> PairTable:
+        """An independent copy."""
         return PairTable(self.a.copy(), self.gamma.copy(), self.s.copy(), self.mass.copy())
 
     def validate(self) -> None:
+        """Check shapes, symmetry and ranges.
+
+        Raises
+        ------
+        ValueError
+            When a matrix is not N_TYPES x N_TYPES, not symmetric or not finite, gamma < 0, s <= 0, or a water, gas
+            or vertex mass is not positive.
+        """
         for name in ("a", "gamma", "s"):
             m = np.asarray(getattr(self, name), dtype=float)
             if m.shape != (N_TYPES, N_TYPES):
@@ -116,11 +220,26 @@ class PairTable:
             raise ValueError("masses of water, gas and vertex must be > 0")
 
     def as_dict(self) -> dict:
+        """The table as nested lists (JSON-friendly)."""
         return {"a": self.a.tolist(), "gamma": self.gamma.tolist(), "s": self.s.tolist(), "mass": self.mass.tolist()}
 
 
 def fluid_pair_table(a: float = 25.0, gamma: float = 4.5, s: float = 0.5) -> PairTable:
-    """A single-component water fluid (for the EOS checks); all other pairs inert."""
+    """A single-component water fluid (the equation-of-state checks); all other pairs inert.
+
+    Parameters
+    ----------
+    a : float, optional
+        Water-water conservative amplitude (DPD force).
+    gamma : float, optional
+        Water-water dissipative coefficient (DPD mass / time).
+    s : float, optional
+        Weight exponent.
+
+    Returns
+    -------
+    PairTable
+    """
     t = PairTable()
     t.set(WATER, WATER, a, gamma, s)
     return t
@@ -137,12 +256,38 @@ def published_pair_table(
     m_vertex: float = 1.0,
     units: UnitSystem = DEFAULT_UNITS,
 ) -> PairTable:
-    """The published interaction set (physics.md section 2).
+    """The published interaction set (docs/physics.md section 2).
 
-    water-water (100, 3.5, 0.25); gas-gas (0, 11, 0.5); water-gas none; vertex-water
-    (400 compression / 40 indentation -- *choice*, overridable with ``a_vertex_water``, gamma_fsi,
-    0.5); vertex-gas (0, gamma_fsi_gas, 0.5). ``n_s`` is the number of vertices per unit area.
-    The gas number density (``rho_gas_number``, default 3 -- *choice*) enters gamma_fsi,gas.
+    water-water (100, 3.5, 0.25); gas-gas (0, 11, 0.5); water-gas none; vertex-water (400 compression / 40
+    indentation, a choice overridable with ``a_vertex_water``; gamma_fsi; 0.5); vertex-gas (0, gamma_fsi,gas, 0.5).
+
+    Parameters
+    ----------
+    n_s : float
+        Vertices per unit membrane area (1 / DPD length^2).
+    protocol : str, optional
+        ``"compression"`` or ``"indentation"``.
+    a_vertex_water : float, optional
+        Overrides the vertex-water amplitude (DPD force).
+    rho_water_number : float, optional
+        Water number density (enters gamma_fsi).
+    rho_gas_number : float, optional
+        Gas number density (a choice, default 3; enters gamma_fsi,gas).
+    rho_gas_kg_m3 : float, optional
+        Gas mass density (kg/m^3; sets the gas bead mass).
+    m_vertex : float, optional
+        Vertex mass (DPD mass).
+    units : UnitSystem, optional
+        Unit system.
+
+    Returns
+    -------
+    PairTable
+
+    Raises
+    ------
+    ValueError
+        On an unknown protocol.
     """
     if protocol not in ("compression", "indentation"):
         raise ValueError("protocol must be 'compression' or 'indentation'")

@@ -49,8 +49,8 @@ import time
 import numpy as np
 import warp as wp
 
+from bubblecal.sim.engine import pole_patches
 from bubblecal.sim.engine.kernels.common import kernel_decorator
-from bubblecal.sim.engine.mesh import pole_patches
 from bubblecal.sim.tiers import (
     DEFAULT_INDENTATION_CONVENTION,
     DISPLACEMENT_CONVENTION,
@@ -298,7 +298,7 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
 
     ``mesh``: the (shared) reference mesh, centred at the origin (DPD length); ``grid``: total
     displacements (compression, DPD length) or forces per pole (indentation, DPD force).  ``pole_patch``:
-    keyword arguments of :func:`bubblecal.sim.engine.mesh.pole_patches` (default ``{"fraction": 0.01}``).
+    keyword arguments of :func:`bubblecal.sim.engine.pole_patches` (default ``{"fraction": 0.01}``).
     """
     t0 = time.perf_counter()
     k = _kernels(adapter.dtype)
@@ -541,7 +541,7 @@ class ImplicitTier(_MDTierBase):
 
     def run(self, request: CurveRequest, device: str = "cpu") -> CurveBatch:
         """Simulate ``request`` (units: :class:`CurveRequest`) on Warp ``device``."""
-        from bubblecal.sim.engine.implicit import (
+        from bubblecal.sim.engine import (
             HealthThresholds,
             ImplicitShellSystem,
             default_vertex_friction,
@@ -565,7 +565,7 @@ class ImplicitTier(_MDTierBase):
 
 @dataclasses.dataclass
 class ExplicitTier(_MDTierBase):
-    """Explicit-solvent MD tier: R :func:`bubblecal.sim.engine.system.bubble_spec` replicas (published water,
+    """Explicit-solvent MD tier: R :func:`bubblecal.sim.engine.bubble_spec` replicas (published water,
     gas at ``gas_density``, bounce-back, per-replica shell parameters, back pressure ``p_back``) in one
     :class:`bubblecal.sim.engine.system.ParticleSystem`, under the protocols of this module.  ``box`` (None =
     (2R+5, 2R+5, 2R+10)), ``a_vertex_water`` (None = 400 compression / 40 indentation), ``water_gap``,
@@ -583,8 +583,8 @@ class ExplicitTier(_MDTierBase):
 
     def run(self, request: CurveRequest, device: str = "cpu") -> CurveBatch:
         """Simulate ``request`` (units: :class:`CurveRequest`) on Warp ``device``."""
+        from bubblecal.sim.engine import ParticleSystem, bubble_spec
         from bubblecal.sim.engine.health import HealthConfig, HealthMonitor
-        from bubblecal.sim.engine.system import ParticleSystem, bubble_spec
 
         t0 = time.perf_counter()
         mesh = self._mesh(request)

@@ -14,7 +14,7 @@ value (shell mass only) and an estimate with the water's added mass (explicit ti
 
 Tiers
 -----
-``explicit``: :class:`bubblecal.sim.engine.system.ParticleSystem` replicas (:func:`bubblecal.sim.engine.system.bubble_spec`:
+``explicit``: :class:`bubblecal.sim.engine.system.ParticleSystem` replicas (:func:`bubblecal.sim.engine.bubble_spec`:
 shell + explicit water and ideal gas, bounce-back), R replicas in the same launches.  The
 perturbation is a homothety about the shell's centroid with factor 1 + perturbation applied to the
 shell vertices, the gas inside (so its density follows the volume: p V stays the isothermal N k_BT) and
@@ -392,9 +392,9 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
                   samples_per_period, health_every, progress, settings) -> RingdownBatch:
     import warp as wp
 
+    from bubblecal.sim.engine import ParticleSystem, bubble_spec
     from bubblecal.sim.engine.health import HealthConfig, HealthMonitor
     from bubblecal.sim.engine.particles import GAS, WATER
-    from bubblecal.sim.engine.system import ParticleSystem, bubble_spec
 
     known = {"dtype", "box", "p_back", "gas_density", "rho_shell_kg_m3", "a_vertex_water", "water_layer", "pin_com",
              "max_leaks", "check_leaks", "kbt"}
@@ -519,8 +519,12 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
 def _run_implicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, equilibration_steps, record_steps,
                   record_every, dt, subdivisions, record_vertices, vertex_every, max_vertices, n_periods,
                   samples_per_period, health_every, progress, settings) -> RingdownBatch:
-    from bubblecal.sim.engine.implicit import HealthThresholds, ImplicitShellSystem, default_vertex_friction
-    from bubblecal.sim.engine.kernels.shell_params import shell_params_from_arrays
+    from bubblecal.sim.engine import (
+        HealthThresholds,
+        ImplicitShellSystem,
+        default_vertex_friction,
+        shell_params_from_arrays,
+    )
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.engine.particles import RHO_SHELL_KG_M3
 

@@ -80,7 +80,7 @@ class IndentationConvention:
     """How a published indentation parameter set maps onto our kernels and loading.
 
     ``kb_scale``: published kb -> our Kantor kernel's kb.  The pole force F is shared by the vertices of
-    :func:`bubblecal.sim.engine.mesh.pole_patches`: ``loaded_fraction`` (k = max(1, floor(loaded_fraction N_v))
+    :func:`bubblecal.sim.engine.pole_patches`: ``loaded_fraction`` (k = max(1, floor(loaded_fraction N_v))
     top-most and as many bottom-most vertices) or ``loaded_cap_deg`` (every vertex within that polar angle of
     a pole, the same patch on every mesh level).
     """
@@ -92,7 +92,7 @@ class IndentationConvention:
     loaded_cap_deg: float | None = None
 
     def pole_patch(self) -> dict:
-        """Keyword arguments of :func:`bubblecal.sim.engine.mesh.pole_patches` (``fraction`` or ``cap_deg``)."""
+        """Keyword arguments of :func:`bubblecal.sim.engine.pole_patches` (``fraction`` or ``cap_deg``)."""
         return {"fraction": self.loaded_fraction, "cap_deg": self.loaded_cap_deg}
 
 
@@ -184,10 +184,10 @@ class CurveRequest:
         return np.asarray(self.grid, dtype=np.float64)
 
     def shell_params(self, convention: str = DEFAULT_INDENTATION_CONVENTION) -> list:
-        """One :class:`bubblecal.sim.engine.kernels.shell_params.ShellParams` per replica (mu = ka / 3), with the
+        """One :class:`bubblecal.sim.engine.ShellParams` per replica (mu = ka / 3), with the
         published kb mapped to our kernel's by :data:`KB_KERNEL_SCALE` (module docstring), or for indentation
         by the named :data:`INDENTATION_CONVENTIONS` entry."""
-        from bubblecal.sim.engine.kernels.shell_params import shell_params_from_arrays
+        from bubblecal.sim.engine import shell_params_from_arrays
 
         conv = indentation_convention(convention)  # checked for compression too: a typo never passes
         scale = conv.kb_scale if self.protocol == "indentation" else KB_KERNEL_SCALE[self.protocol]
@@ -323,7 +323,7 @@ class QuasistaticTier:
         r = self.first_load_ramp
         if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 20:
             raise ValueError(f"quasistatic tier: first_load_ramp must be an integer in [0, 20], got {r!r}")
-        from bubblecal.sim.engine.kernels.shell_params import FORCE_MODES
+        from bubblecal.sim.engine import FORCE_MODES
 
         if self.force_mode not in FORCE_MODES:
             raise ValueError(f"quasistatic tier: force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")

@@ -55,8 +55,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bubblecal.sim.engine.kernels.shell_params import FORCE_MODES, ShellParams
-from bubblecal.sim.engine.mesh import ShellMesh, pole_patches
+from bubblecal.sim.engine import FORCE_MODES, ShellMesh, ShellParams, pole_patches
 from bubblecal.sim.protocols.loading import validate_grid
 from bubblecal.sim.tiers.thermal_contact import (
     ThermalContact,
@@ -973,7 +972,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         rupture_strain: max |A_t/A0_t - 1| above which a replica is 'ruptured'.
         fraction_loaded: k = max(1, floor(fraction_loaded N_v)) loaded vertices per pole (the default
             0.01 when neither this nor ``pole_patch`` is given).
-        pole_patch: keyword arguments of :func:`bubblecal.sim.engine.mesh.pole_patches` (``{"cap_deg": 4.6}``
+        pole_patch: keyword arguments of :func:`bubblecal.sim.engine.pole_patches` (``{"cap_deg": 4.6}``
             for a polar cap); excludes ``fraction_loaded``.
         minimizer: ``"device"`` (default: :class:`bubblecal.sim.engine.minimize_device.DeviceFire`, all state
             and forces on the Warp device) or ``"numpy"`` (host FIRE, the reference implementation).

@@ -1,6 +1,6 @@
-"""Fluid, gas and impermeability checks of physics.md section 6 (checks 1, 2, 6) and the bubble test.
+"""Fluid, gas and impermeability checks of docs/physics.md section 6 (checks 1, 2, 6) and the bubble test.
 
-Each ``check_xxx(quick=True, device="cpu") -> CheckResult`` (the row type of :mod:`bubblecal.sim.validation.checks`).
+Each ``check_xxx(quick=True, device="cpu") -> CheckResult`` (the row type of :mod:`bubblecal.sim.validation.result`).
 Quick versions run on one CPU core within the default test budget: small boxes and few thousand
 steps; their tolerances are the physics tolerances *plus* three standard errors of the measured mean
 (block averages), and the standard error is reported -- so a quick check is wider, not meaningless.
@@ -9,7 +9,8 @@ statistics and the published step counts (10^5 steps for leaks and the bubble sh
 
 Expected numbers: DPD fluid rho = 3, kBT = 1: p = 23.64 (a = 25) and 89.05 (a = 100), independent
 of gamma and s; <m v^2>/3 = 1 within 1 %; total momentum conserved to round-off; ideal gas in a
-closed (here frozen) shell: p = N_g kBT / V_in; no water inside / gas outside the shell.
+closed (here frozen) shell: p = N_g kBT / V_in; no water inside / gas outside the shell.  Units: DPD
+(length r_c = 250 nm, energy k_BT, pressure k_BT / r_c^3).
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ import time
 
 import numpy as np
 
-from bubblecal.sim.engine.system import bubble_spec
-from bubblecal.sim.validation.checks import CheckResult
+from bubblecal.sim.engine import bubble_spec
+from bubblecal.sim.validation.result import CheckResult
 
 __all__ = ["check_eos_a25", "check_eos_a100", "check_temperature", "check_momentum",
            "check_ideal_gas_pressure", "check_no_leaks", "check_bubble_shape", "ALL_FLUID_CHECKS",
@@ -29,7 +30,19 @@ __all__ = ["check_eos_a25", "check_eos_a100", "check_temperature", "check_moment
 
 
 def block_mean_sem(samples: np.ndarray, n_blocks: int = 10) -> tuple[float, float]:
-    """Mean and standard error from ``n_blocks`` block averages (samples along axis 0)."""
+    """Mean and standard error from block averages.
+
+    Parameters
+    ----------
+    samples : numpy.ndarray
+        Samples along axis 0 (flattened).
+    n_blocks : int, optional
+        Number of blocks (at least 2, at most half the samples).
+
+    Returns
+    -------
+    mean, sem : float
+    """
     s = np.asarray(samples, dtype=np.float64).reshape(-1)
     nb = max(2, min(n_blocks, len(s) // 2))
     blocks = np.array([b.mean() for b in np.array_split(s, nb)])
@@ -37,6 +50,7 @@ def block_mean_sem(samples: np.ndarray, n_blocks: int = 10) -> tuple[float, floa
 
 
 def _wp_quiet():
+    """Warp with its messages off."""
     import warp as wp
 
     wp.config.quiet = True
@@ -50,8 +64,7 @@ def _wp_quiet():
 def _fluid_run(quick: bool, device: str) -> dict:
     """Replicas of a = 25 and a = 100 (gamma = 4.5, s = 0.5 / 0.25) advanced in the same launches."""
     _wp_quiet()
-    from bubblecal.sim.engine.particles import fluid_pair_table
-    from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.engine import ParticleSystem, ReplicaSpec, fluid_pair_table
 
     if quick:
         box, n_each, t_eq, t_prod, dt = (6.0, 6.0, 6.0), 1, 4.0, 10.0, 0.0025
@@ -91,6 +104,7 @@ def _fluid_run(quick: bool, device: str) -> dict:
 
 
 def _eos(quick: bool, device: str, key: str, a: float, expected: float, tol: float) -> CheckResult:
+    """Equation-of-state row: block mean of the virial pressure against ``expected`` within ``tol`` + 3 SE."""
     run = _fluid_run(quick, device)
     mean, sem = block_mean_sem(run[key])
     width = tol + 3.0 * sem
@@ -102,17 +116,53 @@ def _eos(quick: bool, device: str, key: str, a: float, expected: float, tol: flo
 
 
 def check_eos_a25(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """Virial pressure (kinetic + conservative) of the a = 25 fluid: 23.64 ± 0.1."""
+    """Check 1: virial pressure (kinetic + conservative) of the a = 25 fluid, 23.64 +- 0.1 (DPD pressure).
+
+    Parameters
+    ----------
+    quick : bool, optional
+        One small replica per fluid (quick) or four larger ones.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
+    """
     return _eos(quick, device, "P25", 25.0, 23.64, 0.1)
 
 
 def check_eos_a100(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """Virial pressure of the a = 100 fluid: 89.05 ± 0.5."""
+    """Check 1: virial pressure of the a = 100 fluid, 89.05 +- 0.5 (DPD pressure).
+
+    Parameters
+    ----------
+    quick : bool, optional
+        One small replica per fluid (quick) or four larger ones.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
+    """
     return _eos(quick, device, "P100", 100.0, 89.05, 0.5)
 
 
 def check_temperature(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """<m v^2>/3 = 1 within 1 % (both fluids, kick-drift integrator at dt = 0.0025)."""
+    """Check 1: <m v^2>/3 = 1 within 1 % (both fluids, kick-drift integrator at dt = 0.0025).
+
+    Parameters
+    ----------
+    quick : bool, optional
+        One small replica per fluid (quick) or four larger ones.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
+    """
     run = _fluid_run(quick, device)
     mean, sem = block_mean_sem(run["T"])
     width = 0.01 + 3.0 * sem
@@ -124,10 +174,21 @@ def check_temperature(quick: bool = True, device: str = "cpu") -> CheckResult:
 
 
 def check_momentum(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """Total momentum of the periodic fluid conserved to round-off over the production run.
+    """Check 2: total momentum of the periodic fluid conserved to round-off over the production run.
 
-    Bound: |dP| <= 10 eps32 sqrt(N steps) v_rms per replica (a random walk of float32 rounding);
-    a non-symmetric random force would drift by ~ sigma sqrt(dt N_pairs steps), orders larger.
+    Bound: |dP| <= 10 eps32 sqrt(N steps) v_rms per replica (a random walk of float32 rounding); a non-symmetric
+    random force would drift by ~ sigma sqrt(dt N_pairs steps), orders larger.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        One small replica per fluid (quick) or four larger ones.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
     """
     run = _fluid_run(quick, device)
     eps = float(np.finfo(np.float32).eps)
@@ -146,21 +207,36 @@ def check_momentum(quick: bool = True, device: str = "cpu") -> CheckResult:
 # ideal gas in a closed, frozen shell
 # ----------------------------------------------------------------------------------------------
 def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """Mechanical pressure of the gas on a closed (frozen) shell = N_g kBT / V_in.
+    """Check 6: mechanical pressure of the gas on a closed (frozen) shell = N_g k_BT / V_in.
 
-    The pressure is the outward normal momentum the bounce-back hands to the triangles per unit
-    time and area (vertex-gas (0, gamma_fsi, 0.5) pairs have zero mean force on a resting wall).
-    The ideal-gas law does not depend on the bead mass or the friction, so the check uses a gas bead of
-    mass 0.1 and gas-gas (0, 1, 0.5) at dt = 1e-3, which resolves the gas dynamics (gamma dt / m = 0.01)
-    at a tenth of the steps. (The published gas, m = 0.0112 with gamma = 11, has gamma dt/m ~ 1 at
-    dt = 1e-3 and needs the production dt = 1e-4; at 1e-4 its kinetic temperature is ~1.05, the
-    kick-drift integrator's O(gamma dt / m) bias -- reported in benchmarks/RESULTS.md.)
+    The pressure is the outward normal momentum the bounce-back hands to the triangles per unit time and area
+    (vertex-gas (0, gamma_fsi, 0.5) pairs have zero mean force on a resting wall).  The ideal-gas law does not
+    depend on the bead mass or the friction, so the check uses a gas bead of mass 0.1 and gas-gas (0, 1, 0.5) at
+    dt = 1e-3, which resolves the gas dynamics (gamma dt / m = 0.01) at a tenth of the steps.  The published gas
+    (m = 0.0112, gamma = 11) has gamma dt / m ~ 1 at dt = 1e-3 and needs the production dt = 1e-4, where the
+    kick-drift integrator still shows an O(gamma dt / m) temperature bias (benchmarks/RESULTS.md).
+
+    Parameters
+    ----------
+    quick : bool, optional
+        One R = 3 shell for 6 time units (quick) or eight R = 4 shells for 20.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
+        Measured: p / (N_g k_BT / V_in).
     """
     _wp_quiet()
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
-    from bubblecal.sim.engine.particles import GAS, published_pair_table
-    from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.engine import (
+        GAS,
+        ParticleSystem,
+        ReplicaSpec,
+        ShellParams,
+        icosphere,
+        published_pair_table,
+    )
 
     if quick:
         radius, subdiv, n_rep, t_prod, dt = 3.0, 3, 1, 6.0, 1e-3
@@ -206,9 +282,9 @@ def check_ideal_gas_pressure(quick: bool = True, device: str = "cpu") -> CheckRe
 # ----------------------------------------------------------------------------------------------
 @functools.cache
 def _bubble_run(quick: bool, device: str) -> dict:
+    """Explicit-solvent bubble run shared by the leak and shape checks (cached per quick / device)."""
     _wp_quiet()
-    from bubblecal.sim.engine.health import HealthConfig, HealthMonitor
-    from bubblecal.sim.engine.system import ParticleSystem
+    from bubblecal.sim.engine import HealthConfig, HealthMonitor, ParticleSystem
 
     if quick:
         # 1.5 um bubble (R = 3, subdivision 3) in a 9^3 box, 3,000 steps
@@ -243,7 +319,19 @@ def _bubble_run(quick: bool, device: str) -> dict:
 
 
 def check_no_leaks(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """No water inside / gas outside the shell at any health check of the bubble run."""
+    """Check 6: no water inside and no gas outside the shell at any health check of the bubble run.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        A 1.5 um bubble for 3,000 steps (quick) or two published 3 um bubbles for 10^5 steps.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
+    """
     run = _bubble_run(quick, device)
     leaks = int(run["max_leaks"].max())
     return CheckResult(
@@ -254,8 +342,22 @@ def check_no_leaks(quick: bool = True, device: str = "cpu") -> CheckResult:
 
 
 def check_bubble_shape(quick: bool = True, device: str = "cpu") -> CheckResult:
-    """The bubble holds its shape at the published parameters: |V/V0 - 1| <= 10 % and vertex-radius
-    scatter <= 5 % of the mean radius over the second half of the run; no inversion/rupture/NaN."""
+    """The bubble holds its shape at the published parameters.
+
+    |V/V0 - 1| <= 10 % and vertex-radius scatter <= 5 % of the mean radius over the second half of the run; no
+    inversion, rupture or NaN.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        A 1.5 um bubble for 3,000 steps (quick) or two published 3 um bubbles for 10^5 steps.
+    device : str, optional
+        Warp device.
+
+    Returns
+    -------
+    CheckResult
+    """
     run = _bubble_run(quick, device)
     half = run["vol"][len(run["vol"]) // 2:]
     vdev = float(np.max(np.abs(half - 1.0)))

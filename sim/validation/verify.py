@@ -1,4 +1,4 @@
-"""``bubblecal sim verify``: the physics checks of physics.md section 6 behind one call.
+"""``bubblecal sim verify``: the physics checks of docs/physics.md section 6 behind one call.
 
 Runs the fluid / gas / impermeability checks (:mod:`bubblecal.sim.validation.fluid_checks`) and the shell
 checks (:data:`bubblecal.sim.validation.checks.ALL_SHELL_CHECKS`), prints a table (check, expected, measured,
@@ -14,14 +14,21 @@ import time
 import traceback
 from collections.abc import Callable, Sequence
 
-from bubblecal.sim.validation.checks import ALL_SHELL_CHECKS, CheckResult
+from bubblecal.sim.validation.checks import ALL_SHELL_CHECKS
 from bubblecal.sim.validation.fluid_checks import ALL_FLUID_CHECKS
+from bubblecal.sim.validation.result import CheckResult
 
 __all__ = ["all_checks", "run_checks", "render_table", "summary_json", "main"]
 
 
 def all_checks() -> list[Callable[..., CheckResult]]:
-    """Fluid checks first, then the shell helper's checks (looked up at call time)."""
+    """Every check, fluid checks first, then the shell checks (the shell list is looked up at call time).
+
+    Returns
+    -------
+    list of callable
+        ``check(quick=..., device=...) -> CheckResult``.
+    """
     from bubblecal.sim.validation import checks as shell_checks
 
     return list(ALL_FLUID_CHECKS) + list(getattr(shell_checks, "ALL_SHELL_CHECKS", ALL_SHELL_CHECKS))
@@ -29,7 +36,25 @@ def all_checks() -> list[Callable[..., CheckResult]]:
 
 def run_checks(quick: bool = True, device: str = "cpu", only: Sequence[str] | None = None,
                progress: Callable[[CheckResult, float], None] | None = None) -> list[CheckResult]:
-    """Run every check (or those whose function name contains one of ``only``)."""
+    """Run every check, or those whose function name contains one of ``only``.
+
+    A check that raises counts as failed, with the error and a short traceback in its details.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Quick versions (CPU-sized) or full ones.
+    device : str, optional
+        Warp device.
+    only : sequence of str, optional
+        Substrings of the check function names to run.
+    progress : callable, optional
+        ``progress(result, seconds)`` after each check.
+
+    Returns
+    -------
+    list of CheckResult
+    """
     results = []
     for fn in all_checks():
         if only and not any(o in fn.__name__ for o in only):
@@ -49,7 +74,19 @@ def run_checks(quick: bool = True, device: str = "cpu", only: Sequence[str] | No
 
 
 def render_table(results: Sequence[CheckResult], title: str = "bubblecal sim verify"):
-    """A rich Table of the results."""
+    """A rich Table of the results (check, expected, measured, tolerance, pass, seconds).
+
+    Parameters
+    ----------
+    results : sequence of CheckResult
+        The rows.
+    title : str, optional
+        Table title.
+
+    Returns
+    -------
+    rich.table.Table
+    """
     from rich.markup import escape
     from rich.table import Table
 
@@ -63,6 +100,23 @@ def render_table(results: Sequence[CheckResult], title: str = "bubblecal sim ver
 
 
 def summary_json(results: Sequence[CheckResult], quick: bool, device: str, wall_s: float) -> str:
+    """One JSON line summarising a run (tracebacks left out).
+
+    Parameters
+    ----------
+    results : sequence of CheckResult
+        The rows.
+    quick : bool
+        Whether the quick versions ran.
+    device : str
+        Warp device.
+    wall_s : float
+        Wall time of the run (s).
+
+    Returns
+    -------
+    str
+    """
     def clean(x):
         if isinstance(x, dict):
             return {k: clean(v) for k, v in x.items() if k != "traceback"}
@@ -81,7 +135,22 @@ def summary_json(results: Sequence[CheckResult], quick: bool, device: str, wall_
 
 
 def main(quick: bool = True, device: str = "cpu", only: Sequence[str] | None = None) -> int:
-    """Run, print the table and the JSON line; return the exit status (0 = all passed)."""
+    """Run the checks, print the table and the JSON line.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Quick versions (CPU-sized) or full ones.
+    device : str, optional
+        Warp device.
+    only : sequence of str, optional
+        Substrings of the check function names to run.
+
+    Returns
+    -------
+    int
+        Exit status: 0 when every check passed.
+    """
     from rich.console import Console
 
     console = Console()

@@ -20,8 +20,7 @@ def cuda():
 
 
 def test_graph_and_plain_launches_agree(cuda):
-    from bubblecal.sim.engine.particles import fluid_pair_table
-    from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec
+    from bubblecal.sim.engine import ParticleSystem, ReplicaSpec, fluid_pair_table
 
     spec = ReplicaSpec(box=(6.0, 6.0, 6.0), pairs=fluid_pair_table(25.0, 4.5, 0.5), seed=3)
     a = ParticleSystem([spec], dt=1e-3, device=cuda, chunk=10, use_graph=True)
@@ -33,8 +32,7 @@ def test_graph_and_plain_launches_agree(cuda):
 
 
 def test_bubble_batch_on_gpu_no_leaks(cuda):
-    from bubblecal.sim.engine.health import HealthMonitor
-    from bubblecal.sim.engine.system import ParticleSystem, bubble_spec
+    from bubblecal.sim.engine import HealthMonitor, ParticleSystem, bubble_spec
 
     specs = [bubble_spec(1.5, 3, box=(9.0, 9.0, 9.0), seed=k) for k in range(4)]
     ps = ParticleSystem(specs, dt=1e-4, device=cuda, skin=0.4, chunk=10)

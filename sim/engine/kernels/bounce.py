@@ -1,4 +1,4 @@
-"""Bounce-back of solvent particles on moving triangles (physics.md section 4).
+"""Bounce-back of solvent particles on moving triangles (docs/physics.md section 4).
 
 Called after the drift. For every solvent particle that has candidate triangles (CSR lists built with
 the neighbour lists) the step segment ``p(t) = x_old + t (x_new - x_old)`` is intersected with each
@@ -34,6 +34,18 @@ from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
 
 @functools.cache
 def bounce_kernels(dtype):
+    """Build (once per scalar type) the bounce-back kernel (module docstring).
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        ``bounce`` (name -> ``wp.Kernel``).
+    """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "bounce")
 

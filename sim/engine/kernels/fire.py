@@ -30,7 +30,18 @@ FROZEN = 4
 
 @functools.cache
 def fire_kernels(dtype):
-    """Build (once per scalar type ``wp.float32`` / ``wp.float64``) the FIRE kernels; dict name -> kernel."""
+    """Build (once per scalar type) the FIRE kernels.
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        Name -> ``wp.Kernel`` (reset, restart, row passes, replica update, Euler step, mixing).
+    """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f
     kern = kernel_decorator(T, "fire")

@@ -6,7 +6,7 @@ a shell with vertex inverse mass 0 is held fixed). A replica whose ``status`` is
 health check) is frozen: nothing of it is integrated any more.
 
 Optional per-replica centre-of-mass pinning of the shell: after the kick the mass-weighted mean
-vertex velocity is removed (the bubble's centre-of-mass velocity is pinned, physics.md section 5).
+vertex velocity is removed (the bubble's centre-of-mass velocity is pinned, docs/physics.md section 5).
 
 Every integrate kernel also records, per replica, whether any particle has moved more than
 ``skin / 2`` from its position at the last neighbour-list build (``overrun`` flag), and the maximum
@@ -23,6 +23,18 @@ from bubblecal.sim.engine.kernels.common import kernel_decorator
 
 @functools.cache
 def integrate_kernels(dtype):
+    """Build (once per scalar type) the kick-drift kernels (module docstring).
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        ``kick_drift_solvent``, ``kick_vertices``, ``drift_vertices``, ``motion_stats``, ``increment``.
+    """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "integ")
 

@@ -1,4 +1,4 @@
-"""DPD pair forces (physics.md section 2) as Warp kernels, for float32 or float64.
+"""DPD pair forces (docs/physics.md section 2) as Warp kernels, for float32 or float64.
 
 For r = |r_ij| < r_c = 1, e = r_ij / r, w = (1 - r)^s:
 
@@ -33,13 +33,37 @@ SQRT3 = 1.7320508075688772
 
 @wp.func
 def step_key(seed: wp.int32, step: wp.int32) -> wp.int32:
-    """Hash of (seed, step), computed once per thread."""
+    """Hash of (seed, step), computed once per thread.
+
+    Parameters
+    ----------
+    seed : wp.int32
+        Replica seed.
+    step : wp.int32
+        Step counter.
+
+    Returns
+    -------
+    wp.int32
+    """
     return wp.int32(wp.rand_init(seed, step))
 
 
 @wp.func
 def pair_uniform_keyed(key: wp.int32, i: wp.int32, j: wp.int32) -> float:
-    """Uniform [0, 1) number shared by the pair (i, j) at this step (symmetric in i, j)."""
+    """Uniform [0, 1) number shared by the pair (i, j) at this step (symmetric in i, j).
+
+    Parameters
+    ----------
+    key : wp.int32
+        :func:`step_key` of this step.
+    i, j : wp.int32
+        Persistent particle ids.
+
+    Returns
+    -------
+    float
+    """
     lo = wp.min(i, j)
     hi = wp.max(i, j)
     s1 = wp.rand_init(key, lo)
@@ -49,13 +73,37 @@ def pair_uniform_keyed(key: wp.int32, i: wp.int32, j: wp.int32) -> float:
 
 @wp.func
 def pair_uniform(seed: wp.int32, step: wp.int32, i: wp.int32, j: wp.int32) -> float:
-    """Uniform [0, 1) number shared by the pair (i, j) at this step: hash of (seed, step, min, max)."""
+    """Uniform [0, 1) number shared by the pair (i, j) at this step: hash of (seed, step, min, max).
+
+    Parameters
+    ----------
+    seed, step : wp.int32
+        Replica seed and step counter.
+    i, j : wp.int32
+        Persistent particle ids.
+
+    Returns
+    -------
+    float
+    """
     return pair_uniform_keyed(step_key(seed, step), i, j)
 
 
 @wp.func
 def weight_pow(wc: wp.float32, s: wp.float32) -> wp.float32:
-    """(1 - r)^s with fast paths for the published exponents 1/2 and 1/4."""
+    """(1 - r)^s with fast paths for the published exponents 1/2 and 1/4 (float32 overload).
+
+    Parameters
+    ----------
+    wc : wp.float32
+        1 - r / r_c (dimensionless).
+    s : wp.float32
+        Exponent.
+
+    Returns
+    -------
+    wp.float32
+    """
     if s == wp.float32(0.5):
         return wp.sqrt(wc)
     if s == wp.float32(0.25):
@@ -65,6 +113,7 @@ def weight_pow(wc: wp.float32, s: wp.float32) -> wp.float32:
 
 @wp.func
 def weight_pow(wc: wp.float64, s: wp.float64) -> wp.float64:  # noqa: F811 (float64 overload)
+    """(1 - r)^s with fast paths for the published exponents 1/2 and 1/4 (float64 overload)."""
     if s == wp.float64(0.5):
         return wp.sqrt(wc)
     if s == wp.float64(0.25):
@@ -74,12 +123,25 @@ def weight_pow(wc: wp.float64, s: wp.float64) -> wp.float64:  # noqa: F811 (floa
 
 @wp.func
 def wrap_delta(d: float, L: float) -> float:
+    """Minimum-image difference ``d`` in a periodic length ``L`` (DPD length)."""
     return d - L * wp.round(d / L)
 
 
 @functools.cache
 def pair_kernels(dtype):
-    """Kernels for one scalar type (``wp.float32`` or ``wp.float64``); cached."""
+    """Build (once per scalar type) the DPD pair-force kernels.
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        The kernels ``solvent_forces``, ``vertex_solvent_forces``, ``solvent_virial`` and the Warp functions
+        ``min_image`` and ``dpd_pair``.
+    """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "pairs")
 

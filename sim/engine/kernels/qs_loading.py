@@ -1,4 +1,4 @@
-"""Warp kernels of the quasi-static tier's loads and observables (physics.md section 5), batched over replicas.
+"""Warp kernels of the quasi-static tier's loads and observables (docs/physics.md section 5), batched over replicas.
 
 Used by :mod:`bubblecal.sim.tiers.quasistatic` with the device FIRE
 (:mod:`bubblecal.sim.engine.minimize_device`); all replicas share one mesh (local topology): vertex v of
@@ -34,7 +34,18 @@ AX_ZMAX, AX_ZMIN, AX_TOP, AX_BOTTOM = 0, 1, 2, 3
 
 @functools.cache
 def qs_kernels(dtype):
-    """Build (once per scalar type) the loading / observable kernels; dict name -> kernel."""
+    """Build (once per scalar type) the loading and observable kernels.
+
+    Parameters
+    ----------
+    dtype : warp scalar type
+        ``wp.float32`` or ``wp.float64``.
+
+    Returns
+    -------
+    dict
+        Name -> ``wp.Kernel``.
+    """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f
     kern = kernel_decorator(T, "qs_loading")

@@ -8,19 +8,26 @@ import pytest
 wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
-from bubblecal.sim.engine.health import HealthConfig, HealthMonitor  # noqa: E402
-from bubblecal.sim.engine.particles import GAS, WATER, published_pair_table  # noqa: E402
-from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec, inside_convex_mesh  # noqa: E402
+from bubblecal.sim.engine import (  # noqa: E402
+    GAS,
+    WATER,
+    HealthConfig,
+    HealthMonitor,
+    ParticleSystem,
+    ReplicaSpec,
+    inside_convex_mesh,
+    published_pair_table,
+)
 
 
 def _shell_params():
-    from bubblecal.sim.engine.kernels.shell import ShellParams
+    from bubblecal.sim.engine import ShellParams
 
     return ShellParams(ka=500.0, kb=50.0, self_avoid=False)
 
 
 def test_single_particle_bounces_off_frozen_shell():
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import icosphere
 
     mesh = icosphere(2.0, 2)
     tab = published_pair_table(mesh.n_vertices / mesh.area(), m_vertex=mesh.vertex_mass())
@@ -41,7 +48,7 @@ def test_single_particle_bounces_off_frozen_shell():
 
 
 def test_bounce_conserves_momentum_with_mobile_shell():
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import icosphere
 
     mesh = icosphere(2.0, 2)
     tab = published_pair_table(mesh.n_vertices / mesh.area(), m_vertex=1.0)
@@ -68,8 +75,7 @@ def test_bounce_conserves_momentum_with_mobile_shell():
 def test_momentum_round_off_in_float64_fluid_and_bubble():
     """float64 on CPU: pairs (symmetric random numbers), shell, vertex-solvent pairs and bounce-back
     together conserve each replica's total momentum to round-off."""
-    from bubblecal.sim.engine.particles import fluid_pair_table
-    from bubblecal.sim.engine.system import bubble_spec
+    from bubblecal.sim.engine import bubble_spec, fluid_pair_table
 
     specs = [ReplicaSpec(box=(5.0, 5.0, 5.0), pairs=fluid_pair_table(25.0, 4.5, 0.5), seed=1),
              bubble_spec(1.0, 2, box=(6.0, 6.0, 6.0), seed=2)]

@@ -8,14 +8,19 @@ import pytest
 wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
-from bubblecal.sim.engine.health import HealthMonitor, Status  # noqa: E402
-from bubblecal.sim.engine.particles import WATER, fluid_pair_table, published_pair_table  # noqa: E402
-from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec  # noqa: E402
+from bubblecal.sim.engine import (  # noqa: E402
+    WATER,
+    HealthMonitor,
+    ParticleSystem,
+    ReplicaSpec,
+    Status,
+    fluid_pair_table,
+    published_pair_table,
+)
 
 
 def _bubble_spec(seed=0, extra=None):
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
 
     mesh = icosphere(2.0, 2)
     tab = published_pair_table(mesh.n_vertices / mesh.area(), m_vertex=mesh.vertex_mass())

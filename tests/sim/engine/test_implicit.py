@@ -5,10 +5,14 @@ import math
 import numpy as np
 import pytest
 
-from bubblecal.sim.engine.health import Status
-from bubblecal.sim.engine.implicit import HealthThresholds, ImplicitShellSystem, default_vertex_friction
-from bubblecal.sim.engine.kernels.shell import ShellParams
-from bubblecal.sim.engine.mesh import icosphere
+from bubblecal.sim.engine import (
+    HealthThresholds,
+    ImplicitShellSystem,
+    ShellParams,
+    Status,
+    default_vertex_friction,
+    icosphere,
+)
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +42,8 @@ def test_gas_law_and_pressure_balance(mesh):
     np.testing.assert_allclose(s.p_water, 91.0 + 3.0)
     s.step(20)
     np.testing.assert_allclose(s.gas_pressure() * s.volumes(), s.gas_number * 1.0, rtol=1e-6)
-    # athermal: excess ambient pressure dp shrinks (Kantor bending is stress-free under scaling) the sphere to p_gas(V) - p_ext = dW/dV (Lim, isotropic)
+    # athermal: excess ambient pressure dp shrinks (Kantor bending is stress-free under scaling) the sphere to
+    # p_gas(V) - p_ext = dW/dV (Lim, isotropic)
     ka, dp = 1000.0, 30.0
     s = ImplicitShellSystem(mesh, ShellParams(ka=ka, kb=50.0), p0=3.0, p_water=94.0 + dp, kbt=0.0,
                             gamma=5.0, vertex_mass=0.1, dt=1e-3, dtype="float64")

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bubblecal.sim.engine.mesh import (
+from bubblecal.sim.engine import (
     build_shell_mesh,
     diameter_to_radius_dpd,
     dihedral_angles,
@@ -97,7 +97,7 @@ def test_build_rejects_bad_meshes():
 
 
 def test_pole_patches_fraction_keeps_the_top_most_vertices_and_the_cap_is_mesh_independent():
-    from bubblecal.sim.engine.mesh import pole_patches
+    from bubblecal.sim.engine import pole_patches
 
     m4 = icosphere(11.5, 4, center=(1.0, -2.0, 3.0))
     top, bottom = pole_patches(m4.vertices, fraction=0.01)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.sim.engine.minimize import fire_minimize
+from bubblecal.sim.engine import fire_minimize
 
 
 def springs(k, target):

@@ -9,8 +9,12 @@ import pytest
 wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
-from bubblecal.sim.engine.minimize import fire_minimize  # noqa: E402
-from bubblecal.sim.engine.minimize_device import DeviceFire, cuda_threads_per_replica, numpy_force_fn  # noqa: E402
+from bubblecal.sim.engine import (  # noqa: E402
+    DeviceFire,
+    cuda_threads_per_replica,
+    fire_minimize,
+    numpy_force_fn,
+)
 
 
 @wp.kernel
@@ -81,7 +85,8 @@ def test_matches_numpy_fire_exactly(max_move, remove_mean):
         # a near-tie of the capped move flips on round-off (mean removal sums in another order): same
         # minimum up to a uniform x, y translation (the zero mode the mean removal leaves free)
         np.testing.assert_allclose(res.steps, ref.steps, rtol=0.05)
-        centred = [(x.reshape(3, 4, 3) - x.reshape(3, 4, 3).mean(axis=1, keepdims=True)) for x in (d.positions(), ref.x)]
+        centred = [(x.reshape(3, 4, 3) - x.reshape(3, 4, 3).mean(axis=1, keepdims=True))
+                   for x in (d.positions(), ref.x)]
         np.testing.assert_allclose(centred[0], centred[1], rtol=0, atol=1e-5)
     assert np.all(res.fmax <= 1e-6)
     assert res.n_evaluations >= res.steps.max() + 1 and res.n_syncs >= 1
@@ -178,8 +183,7 @@ def test_cuda_graph_matches_cpu():
     wp.init()
     if not wp.get_cuda_device_count():
         pytest.skip("no CUDA device")
-    from bubblecal.sim.engine.kernels.shell_params import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
     from bubblecal.sim.tiers.quasistatic import quasistatic_compression, quasistatic_indentation
 
     mesh = icosphere(6.0, 3)

@@ -8,8 +8,7 @@ import pytest
 wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
-from bubblecal.sim.engine.particles import WATER, fluid_pair_table  # noqa: E402
-from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec  # noqa: E402
+from bubblecal.sim.engine import WATER, ParticleSystem, ReplicaSpec, fluid_pair_table  # noqa: E402  # noqa: E402
 
 
 def _two_particles(r_vec, dv, a=25.0, gamma=4.5, s=0.5, kbt=1.0, seed=3):

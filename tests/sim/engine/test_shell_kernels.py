@@ -8,8 +8,12 @@ import pytest
 wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
-from bubblecal.sim.engine.kernels.shell import ENERGY_TERMS, ShellForceField, ShellParams  # noqa: E402
-from bubblecal.sim.engine.mesh import icosphere  # noqa: E402
+from bubblecal.sim.engine import (  # noqa: E402
+    ENERGY_TERMS,
+    ShellForceField,
+    ShellParams,
+    icosphere,
+)
 from bubblecal.sim.validation import shell_reference as sr  # noqa: E402
 
 P_KANTOR = ShellParams(ka=10.0, mu=4.0, a3=-2.0, a4=8.0, b1=0.7, b2=0.75, kb=3.0, ka_tot=5.0, kv_tot=7.0,

@@ -8,8 +8,16 @@ import pytest
 wp = pytest.importorskip("warp")
 wp.config.quiet = True
 
-from bubblecal.sim.engine.particles import GAS, WATER, fluid_pair_table, gamma_fsi, published_pair_table  # noqa: E402
-from bubblecal.sim.engine.system import ParticleSystem, ReplicaSpec, inside_convex_mesh  # noqa: E402
+from bubblecal.sim.engine import (  # noqa: E402
+    GAS,
+    WATER,
+    ParticleSystem,
+    ReplicaSpec,
+    fluid_pair_table,
+    gamma_fsi,
+    inside_convex_mesh,
+    published_pair_table,
+)
 
 
 def test_replicas_never_interact():
@@ -48,8 +56,7 @@ def test_neighbour_list_matches_brute_force():
 
 
 def test_setup_places_water_outside_gas_inside():
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
 
     mesh = icosphere(2.5, 2)
     tab = published_pair_table(mesh.n_vertices / mesh.area(), m_vertex=mesh.vertex_mass())
@@ -85,8 +92,7 @@ def test_float64_selectable_and_small_box_rejected():
 
 
 def test_pinned_shell_centre_of_mass_velocity():
-    from bubblecal.sim.engine.kernels.shell import ShellParams
-    from bubblecal.sim.engine.mesh import icosphere
+    from bubblecal.sim.engine import ShellParams, icosphere
 
     mesh = icosphere(2.0, 2)
     tab = published_pair_table(mesh.n_vertices / mesh.area(), m_vertex=mesh.vertex_mass())

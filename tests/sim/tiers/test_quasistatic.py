@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("warp")
 
-from bubblecal.sim.engine.kernels.shell_params import ShellParams  # noqa: E402
+from bubblecal.sim.engine import ShellParams  # noqa: E402
 from bubblecal.sim.engine.mesh import icosphere  # noqa: E402
 from bubblecal.sim.protocols.loading import (  # noqa: E402
     CompressionProtocol,

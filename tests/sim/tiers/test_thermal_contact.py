@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from bubblecal.sim.engine.kernels.shell_params import ShellParams
+from bubblecal.sim.engine import ShellParams
 from bubblecal.sim.tiers.thermal_contact import (
     G_MIN,
     ThermalContact,

@@ -76,7 +76,7 @@ def test_indentation_conventions_map_kb_and_name_the_allowed_values():
     assert indentation_convention("mirheo").kb_scale == 1.0
     # the published patch: the pole vertex and its first ring on the subdivision-4 icosphere (2,562 vertices),
     # the same cap (two rings) at subdivision 5; bubblecal-v1: 1 % of the vertices
-    from bubblecal.sim.engine.mesh import icosphere, pole_patches
+    from bubblecal.sim.engine import icosphere, pole_patches
 
     for sub, n_mirheo, n_v1 in ((4, 7, 25), (5, 19, 102)):
         v = icosphere(11.5, sub).vertices

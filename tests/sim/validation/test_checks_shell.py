@@ -1,4 +1,4 @@
-"""The shell verification checks (physics.md section 6, checks 3-5) in quick mode on the CPU."""
+"""The shell verification checks (docs/physics.md section 6, checks 3-5) in quick mode on the CPU."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 pytest.importorskip("warp")
 
-from bubblecal.sim.validation.checks import ALL_SHELL_CHECKS, CheckResult, measure_kantor_kappa  # noqa: E402
+from bubblecal.sim.validation import ALL_SHELL_CHECKS, CheckResult, measure_kantor_kappa  # noqa: E402
 
 
 @pytest.mark.parametrize("check", ALL_SHELL_CHECKS, ids=lambda c: c.__name__)

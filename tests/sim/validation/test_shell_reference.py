@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.sim.engine.kernels.shell_params import ShellParams
-from bubblecal.sim.engine.mesh import icosphere
+from bubblecal.sim.engine import ShellParams, icosphere
 from bubblecal.sim.validation import shell_reference as sr
 
 P = ShellParams(ka=10.0, mu=4.0, a3=-2.0, a4=8.0, b1=0.7, b2=0.75, kb=3.0, c0=0.3, ka_tot=5.0, kv_tot=7.0,

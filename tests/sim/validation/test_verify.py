@@ -8,8 +8,7 @@ import pytest
 
 pytest.importorskip("warp")
 
-from bubblecal.sim.validation import fluid_checks  # noqa: E402
-from bubblecal.sim.validation.checks import CheckResult  # noqa: E402
+from bubblecal.sim.validation import CheckResult, fluid_checks  # noqa: E402
 
 
 @pytest.mark.parametrize("check", fluid_checks.ALL_FLUID_CHECKS, ids=lambda f: f.__name__)
