@@ -40,7 +40,8 @@ def main(argv=None) -> int:
     from bubblecal.sim.engine.kernels.shell_params import ShellParams
     from bubblecal.sim.engine.mesh import mesh_for_diameter
     from bubblecal.sim.protocols.loading import published_indentation_protocol
-    from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas, _DeviceChain
+    from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas
+    from bubblecal.sim.tiers.quasistatic.backends import _DeviceChain
 
     mesh = mesh_for_diameter(args.diameter, args.subdivisions)
     R, nv = args.replicas, mesh.n_vertices
