@@ -18,8 +18,15 @@ ANCHOR_BETA = 0.1
 
 
 class ImplicitAdapter:
-    """:class:`bubblecal.sim.engine.implicit.ImplicitShellSystem` seen by :func:`run_md_protocol` (``thresholds``:
-    its :class:`~bubblecal.sim.engine.implicit.HealthThresholds`); meshes are centred at the origin."""
+    """An implicit shell system seen by :func:`~bubblecal.sim.protocols.md_loading.run_md_protocol`.
+
+    Parameters
+    ----------
+    system : bubblecal.sim.engine.implicit.ImplicitShellSystem
+        R replicas of one mesh, centred at the origin.
+    thresholds : bubblecal.sim.engine.implicit.HealthThresholds
+        Its health checks.
+    """
 
     def __init__(self, system, thresholds):
         self.s = system
@@ -60,8 +67,16 @@ class ImplicitAdapter:
 
 
 class ExplicitAdapter:
-    """:class:`bubblecal.sim.engine.system.ParticleSystem` seen by :func:`run_md_protocol` (``monitor``: its
-    :class:`~bubblecal.sim.engine.health.HealthMonitor`); z anchoring through the force (package docstring)."""
+    """An explicit particle system seen by :func:`~bubblecal.sim.protocols.md_loading.run_md_protocol`; z anchoring
+    goes through the force (package docstring).
+
+    Parameters
+    ----------
+    system : bubblecal.sim.engine.system.ParticleSystem
+        R bubble replicas (shell, water, gas).
+    monitor : bubblecal.sim.engine.health.HealthMonitor
+        Its health checks.
+    """
 
     def __init__(self, system, monitor):
         from bubblecal.sim.engine.particles import VERTEX
