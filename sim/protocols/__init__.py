@@ -22,7 +22,12 @@ from bubblecal.sim.protocols.loading import (
     validate_grid,
 )
 from bubblecal.sim.protocols.md_loading import ProtocolSteps, run_md_protocol, steps_per_curve
-from bubblecal.sim.protocols.pca import BreathingModePCA, breathing_mode_pca, remove_rigid_motion, spectral_peak
+from bubblecal.sim.protocols.pca import (
+    BreathingModePCA,
+    breathing_mode_pca,
+    remove_rigid_motion,
+    spectral_peak,
+)
 from bubblecal.sim.protocols.plates import PlateContact, plate_cap_distance, plate_force_energy
 from bubblecal.sim.protocols.ringdown import (
     RINGDOWN_TIERS,

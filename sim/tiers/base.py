@@ -15,7 +15,11 @@ from typing import Protocol
 import numpy as np
 
 from bubblecal.data.names import LOADING_PROTOCOLS, SHELL_PARAMETERS, STATUSES
-from bubblecal.sim.tiers.conventions import DEFAULT_INDENTATION_CONVENTION, KB_KERNEL_SCALE, indentation_convention
+from bubblecal.sim.tiers.conventions import (
+    DEFAULT_INDENTATION_CONVENTION,
+    KB_KERNEL_SCALE,
+    indentation_convention,
+)
 
 __all__ = ["TIER_NAMES", "CurveRequest", "CurveBatch", "Tier", "register_tier", "get_tier"]
 

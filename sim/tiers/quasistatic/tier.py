@@ -117,7 +117,9 @@ class QuasistaticTier:
         r = self.first_load_ramp
         if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 20:
             raise ValueError(f"quasistatic tier: first_load_ramp must be an integer in [0, 20], got {r!r}")
-        from bubblecal.sim.engine.kernels.shell_params import FORCE_MODES  # Warp-free: construction stays cheap
+        from bubblecal.sim.engine.kernels.shell_params import (
+            FORCE_MODES,  # Warp-free: construction stays cheap
+        )
 
         if self.force_mode not in FORCE_MODES:
             raise ValueError(f"quasistatic tier: force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
