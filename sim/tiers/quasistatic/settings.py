@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 if TYPE_CHECKING:
     from bubblecal.sim.engine.kernels.shell import ShellParams
     from bubblecal.sim.engine.mesh import ShellMesh
@@ -149,8 +151,6 @@ def _check_params(params, mesh: ShellMesh, gas: IdealGas | None) -> list[ShellPa
 
 def _check_max_replicas(max_replicas, schedule: str) -> None:
     """``max_replicas``: None or an integer >= 1, with the async schedule."""
-    import numpy as np
-
     if max_replicas is None:
         return
     if isinstance(max_replicas, bool) or not isinstance(max_replicas, (int, np.integer)) or max_replicas < 1:

@@ -18,6 +18,7 @@ from bubblecal.sim.tiers.conventions import (
     indentation_convention,
 )
 from bubblecal.sim.tiers.quasistatic.settings import (
+    SCHEDULES,
     STATUS_NONFINITE,
     STATUS_NOT_CONVERGED,
     STATUS_OK,
@@ -117,13 +118,12 @@ class QuasistaticTier:
         r = self.first_load_ramp
         if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 20:
             raise ValueError(f"quasistatic tier: first_load_ramp must be an integer in [0, 20], got {r!r}")
-        from bubblecal.sim.engine.kernels.shell_params import (
-            FORCE_MODES,  # Warp-free: construction stays cheap
-        )
+        # the Warp-free module: constructing a tier imports no Warp
+        from bubblecal.sim.engine.kernels.shell_params import FORCE_MODES
 
         if self.force_mode not in FORCE_MODES:
             raise ValueError(f"quasistatic tier: force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
-        if self.schedule not in ("async", "lockstep"):
+        if self.schedule not in SCHEDULES:
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
         if self.max_replicas is not None:
             m = self.max_replicas
