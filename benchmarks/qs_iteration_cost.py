@@ -39,7 +39,8 @@ def main(argv=None) -> int:
 
     from bubblecal.sim.engine import ShellParams, mesh_for_diameter
     from bubblecal.sim.protocols.loading import published_indentation_protocol
-    from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas, _DeviceChain
+    from bubblecal.sim.tiers.quasistatic import FireSettings, IdealGas
+    from bubblecal.sim.tiers.quasistatic.backends import _DeviceChain
 
     mesh = mesh_for_diameter(args.diameter, args.subdivisions)
     R, nv = args.replicas, mesh.n_vertices

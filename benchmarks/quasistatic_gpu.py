@@ -155,13 +155,32 @@ def _run_qs(setup, params, mesh, grid, args, fire, tier, comp, ind, IdealGas, pr
             dtype=None):
     common = dict(gas=IdealGas(p0=tier.gas_p0), device=args.device,
                   dtype=resolve_dtype(args.dtype) if dtype is None else dtype, fire=fire,
-                  rupture_strain=tier.rupture_strain, minimizer=minimizer, progress=progress)
+                  rupture_strain=tier.rupture_strain, progress=progress)
     if minimizer == "device":
         common["sync_every"] = args.sync_every
         common["extrapolate"] = not getattr(args, "no_extrapolate", False)
+    else:  # "numpy": the tests' NumPy reference FIRE
+        ref = _numpy_reference()
+        comp, ind = ref.reference_compression, ref.reference_indentation
     if setup == "compression":
         return comp(params, mesh, grid, **common)
     return ind(params, mesh, grid, **common)
+
+
+def _numpy_reference():
+    """The NumPy reference FIRE of the quasi-static tier, ``tests/sim/tiers/quasistatic/qs_reference.py`` (a test
+    helper outside the package), imported by path."""
+    import importlib.util
+    import sys
+
+    name = "qs_reference"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "tests" / "sim" / "tiers" / "quasistatic" / "qs_reference.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules[name] = mod
+    return sys.modules[name]
 
 
 def micro(args, out: Path) -> list:

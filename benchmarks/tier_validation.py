@@ -291,8 +291,8 @@ def main(argv=None) -> int:
 
     wp.config.quiet = True
     from bubblecal.data import SHELL_PARAMETERS
-    from bubblecal.sim.engine import mesh_for_diameter
-    from bubblecal.sim.protocols.md_loading import ProtocolSteps, steps_per_curve
+    from bubblecal.sim.engine.mesh import mesh_for_diameter
+    from bubblecal.sim.protocols import ProtocolSteps, steps_per_curve
     from bubblecal.sim.tiers import CurveRequest, get_tier
     from bubblecal.surrogates.training import diameter_um_from_radius
 

@@ -58,7 +58,7 @@ __all__ = ["development_bundle_path", "SYNTHETIC_NOTE", "TRAINING_BOXES", "LOG_P
 
 #: The loud warning carried by the manifest and every file of the bundle.
 SYNTHETIC_NOTE = ("SYNTHETIC closed-form laws, for development/tests, not DPD: surrogates trained on "
-                  "bubblecal.surrogates.synthetic (mechanics) and the ringdown law of physics.md section 6 "
+                  "bubblecal.surrogates.training.synthetic (mechanics) and the ringdown law of docs/physics.md section 6 "
                   "check 7 (acoustics); posteriors obtained with this bundle are not physical results.")
 
 #: Training boxes [lo, hi] per agent (DPD units; b1..a4 dimensionless). Each contains the union of the
@@ -248,7 +248,7 @@ def _mechanical(folder: Path, agent: str, setup: str, nominal: float, measured: 
     y = _law(setup, params, x, radius)
     ts = TrainingSet(setup=setup, params=params, radius_dpd=np.full(n_curves, radius), x=np.tile(x, (n_curves, 1)),
                      y=y, curve_id=np.array([f"synthetic-bundle-{setup}-{nominal:g}-{i:05d}" for i in range(n_curves)]),
-                     source=f"SYNTHETIC closed-form law bubblecal.surrogates.synthetic.{setup}, seed={seed}")
+                     source=f"SYNTHETIC closed-form law bubblecal.surrogates.training.synthetic.{setup}, seed={seed}")
     u, target, _ = ts.points()
     t0 = time.perf_counter()
     w, b, im, isd, om, osd, rel = _fit_mlp(u, target, hidden, iterations, seed)

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # sibling study script
 from fire_work import load_work  # noqa: E402
 from max_steps_study import cap_curves, chains_of  # noqa: E402
 
-COMPACT_BELOW, COMPACT_MIN = 0.125, 8  # as bubblecal.sim.tiers.quasistatic
+COMPACT_BELOW, COMPACT_MIN = 0.125, 8  # as bubblecal.sim.tiers.quasistatic.schedule
 
 
 def cost_table(lines: Sequence[dict], tag: str | None = None) -> dict[int, tuple[float, float]]:

@@ -1,4 +1,4 @@
-"""Published mechanical loading grids (physics.md section 5; reference/README.md section (c)), typed.
+"""Published mechanical loading grids (docs/physics.md section 5; docs/data-formats.md), typed.
 
 All values are DPD units (length 0.25 um, shell force u_e/u_l with fscale applied, see
 :mod:`bubblecal.data.units`).
@@ -28,17 +28,39 @@ __all__ = [
     "PUBLISHED_INDENTATION_FMAX_DPD",
 ]
 
+#: Points of every published grid.
 PUBLISHED_N_POINTS = 15
+#: Step of the published compression grid (DPD length).
 PUBLISHED_DISPLACEMENT_STEP_DPD = 0.12
-# diameter [um] -> F_max [DPD force]
+#: Published indentation F_max per diameter: diameter [um] -> F_max [DPD force].
 PUBLISHED_INDENTATION_FMAX_DPD = {3.2: 6000.0, 3.4: 6000.0, 5.8: 8000.0}
 
 
 def validate_grid(values: Sequence[float] | np.ndarray, name: str, *, nonnegative: bool = True,
                   strictly_increasing: bool = True) -> np.ndarray:
-    """Check a loading grid (1-D, finite, >= 0, strictly increasing); return it as float64.
+    """Check a loading grid and return it as float64.
 
-    Raises ``ValueError`` whose message starts with ``name``.
+    Parameters
+    ----------
+    values : sequence of float
+        The grid (DPD length or DPD force).
+    name : str
+        Field name that starts every error message.
+    nonnegative : bool
+        Require values >= 0.
+    strictly_increasing : bool
+        Require strictly increasing values.
+
+    Returns
+    -------
+    numpy.ndarray
+        The grid [P] (float64).
+
+    Raises
+    ------
+    ValueError
+        If the grid is not a non-empty, finite 1-D sequence meeting the requirements (message starts with
+        ``name``).
     """
     a = np.asarray(values, dtype=np.float64)
     if a.ndim != 1 or a.size == 0:
@@ -54,9 +76,17 @@ def validate_grid(values: Sequence[float] | np.ndarray, name: str, *, nonnegativ
 
 @dataclass(frozen=True)
 class CompressionProtocol:
-    """Parallel-plate compression: imposed total displacements ``displacements_dpd`` (DPD length).
+    """Parallel-plate compression grid; the observable is the plate reaction force F(d) (DPD force).
 
-    The observable is the plate reaction force F(d) (DPD force) at each displacement.
+    Parameters
+    ----------
+    displacements_dpd : tuple of float
+        Imposed total plate displacements (DPD length; >= 0, strictly increasing).
+
+    Raises
+    ------
+    ValueError
+        If the grid is invalid (:func:`validate_grid`).
     """
 
     displacements_dpd: tuple[float, ...]
@@ -67,6 +97,7 @@ class CompressionProtocol:
 
     @property
     def n_points(self) -> int:
+        """Number of grid points P."""
         return len(self.displacements_dpd)
 
     def as_array(self) -> np.ndarray:
@@ -76,10 +107,20 @@ class CompressionProtocol:
 
 @dataclass(frozen=True)
 class IndentationProtocol:
-    """Opposed pole loads: forces ``forces_dpd`` (DPD force, total per pole) applied in order.
+    """Opposed pole loads applied in order; the observable is the reduction d(F) of the axial (pole-to-pole)
+    diameter (DPD length).
 
-    The observable is the reduction d(F) of the axial (pole-to-pole) diameter (DPD length).
-    ``diameter_um`` is informational (the bubble the grid belongs to), None if not tied to one.
+    Parameters
+    ----------
+    forces_dpd : tuple of float
+        Total force per pole at each point (DPD force; >= 0, strictly increasing).
+    diameter_um : float, optional
+        The bubble the grid belongs to (um; informational), None if not tied to one.
+
+    Raises
+    ------
+    ValueError
+        If the grid is invalid (:func:`validate_grid`) or ``diameter_um`` is not a positive finite number.
     """
 
     forces_dpd: tuple[float, ...]
@@ -93,6 +134,7 @@ class IndentationProtocol:
 
     @property
     def n_points(self) -> int:
+        """Number of grid points P."""
         return len(self.forces_dpd)
 
     def as_array(self) -> np.ndarray:
@@ -101,13 +143,35 @@ class IndentationProtocol:
 
 
 def published_compression_protocol() -> CompressionProtocol:
-    """The published Definity grid: 15 total displacements 0, 0.12, ..., 1.68 (DPD length)."""
+    """The published Definity grid.
+
+    Returns
+    -------
+    CompressionProtocol
+        15 total displacements 0, 0.12, ..., 1.68 (DPD length).
+    """
     return CompressionProtocol(tuple(round(PUBLISHED_DISPLACEMENT_STEP_DPD * i, 12)
                                      for i in range(PUBLISHED_N_POINTS)))
 
 
 def published_indentation_protocol(diameter_um: float) -> IndentationProtocol:
-    """The published SonoVue grid for ``diameter_um`` (3.2, 3.4 or 5.8 um): 15 forces 0..F_max (DPD)."""
+    """The published SonoVue grid: 15 forces 0 ... F_max (DPD force).
+
+    Parameters
+    ----------
+    diameter_um : float
+        3.2, 3.4 or 5.8 (um).
+
+    Returns
+    -------
+    IndentationProtocol
+        The grid, tied to ``diameter_um``.
+
+    Raises
+    ------
+    ValueError
+        For any other diameter.
+    """
     key = None
     for d in PUBLISHED_INDENTATION_FMAX_DPD:
         if math.isclose(float(diameter_um), d, abs_tol=1e-9):

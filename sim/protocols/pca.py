@@ -1,4 +1,4 @@
-"""PCA of shell-vertex trajectories: the breathing mode and its natural frequency (issue 6 item 1).
+"""PCA of shell-vertex trajectories: the breathing mode and its natural frequency.
 
 Given vertex positions ``x [T, Nv, 3]`` sampled uniformly in time (e.g. ``RingdownBatch.vertices[r]``):
 
@@ -36,12 +36,32 @@ HANN_HWHM = 0.72
 class BreathingModePCA:
     """Result of :func:`breathing_mode_pca` (frequencies in cycles per time unit of ``t``).
 
-    ``f_peak`` spectral peak of the breathing coordinate, ``f_0`` natural-frequency estimate,
-    ``lam`` damping rate (1/time; 0 if unresolved), ``resolution`` 1 / T_span, ``component`` index of
-    the breathing component, ``radial_overlap`` its |cos| with the uniform radial field,
-    ``explained_variance`` fraction of the displacement variance per component (first
-    ``n_components``), ``overlaps`` |cos| of each of them, ``coordinate [T]`` the breathing principal
-    coordinate (sign: positive = expansion), ``pattern [Nv, 3]`` the unit component.
+    Parameters
+    ----------
+    f_peak : float
+        Spectral peak of the breathing coordinate.
+    f_0 : float
+        Natural-frequency estimate.
+    lam : float
+        Damping rate (1 / time unit of ``t``; 0 if unresolved).
+    resolution : float
+        1 / T_span.
+    component : int
+        Index of the breathing component.
+    radial_overlap : float
+        Its abs(cos) with the uniform radial field, in [0, 1].
+    explained_variance : numpy.ndarray
+        Fraction of the displacement variance per component (first ``n_components``).
+    overlaps : numpy.ndarray
+        abs(cos) of each of them with the radial field.
+    coordinate : numpy.ndarray
+        [T] the breathing principal coordinate (positive = expansion; length unit of ``x``).
+    pattern : numpy.ndarray
+        [Nv, 3] the unit component.
+    t : numpy.ndarray
+        [T] the sample times.
+    info : dict
+        ``hwhm``, ``hwhm_window``, ``n_frames``, ``n_vertices``, ``aligned``.
     """
 
     f_peak: float
@@ -66,10 +86,27 @@ class BreathingModePCA:
 
 
 def remove_rigid_motion(x: np.ndarray, align: bool = True) -> np.ndarray:
-    """Frames [T, Nv, 3] with each frame's centroid removed and (``align``) rotated onto the mean frame.
+    """Remove each frame's centroid and, optionally, its rigid rotation.
 
     Kabsch: for each frame the proper rotation minimising sum |R y_v - m_v|^2 onto the mean centred
     frame m (two passes: the mean is recomputed after the first alignment).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Frames [T, Nv, 3] (any length unit, e.g. DPD length).
+    align : bool
+        Also rotate every frame onto the mean frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        The centred (and aligned) frames [T, Nv, 3].
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not [T, Nv, 3].
     """
     x = np.asarray(x, dtype=np.float64)
     if x.ndim != 3 or x.shape[2] != 3:
@@ -94,8 +131,26 @@ def remove_rigid_motion(x: np.ndarray, align: bool = True) -> np.ndarray:
 def spectral_peak(t: np.ndarray, a: np.ndarray, pad: int = 8) -> dict[str, float]:
     """Peak of the Hann-windowed, zero-padded power spectrum of a uniformly sampled signal.
 
-    Returns ``f_peak`` (parabolic refinement on log power), ``hwhm`` (half width at half maximum of the
-    power around the peak, interpolated), ``resolution`` = 1 / T_span, in cycles per time unit of ``t``.
+    Parameters
+    ----------
+    t : numpy.ndarray
+        [n >= 8] strictly increasing, uniform sample times (e.g. DPD time).
+    a : numpy.ndarray
+        [n] the signal.
+    pad : int
+        Zero padding: the FFT length is the power of two >= ``pad`` n.
+
+    Returns
+    -------
+    dict
+        ``f_peak`` (parabolic refinement on log power), ``hwhm`` (half width at half maximum of the power
+        around the peak, interpolated; NaN if not crossed), ``resolution`` = 1 / T_span and ``bin`` (the FFT
+        bin width), in cycles per time unit of ``t``.
+
+    Raises
+    ------
+    ValueError
+        If ``t`` and ``a`` are not 1-D of equal length >= 8, or ``t`` is not uniform and increasing.
     """
     t = np.asarray(t, dtype=np.float64)
     a = np.asarray(a, dtype=np.float64)
@@ -138,9 +193,30 @@ def spectral_peak(t: np.ndarray, a: np.ndarray, pad: int = 8) -> dict[str, float
 
 def breathing_mode_pca(x: np.ndarray, t: np.ndarray, *, n_components: int = 10, align: bool = True,
                        pad: int = 8) -> BreathingModePCA:
-    """Breathing mode of a vertex trajectory ``x [T, Nv, 3]`` (DPD length) at times ``t [T]`` (DPD time).
+    """Breathing mode of a vertex trajectory and its frequency (module docstring for the steps).
 
-    See the module docstring for the steps and the frequency estimate (cycles per DPD time).
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Vertex positions [T, Nv, 3] (DPD length), sampled uniformly in time.
+    t : numpy.ndarray
+        [T] sample times (DPD time).
+    n_components : int
+        Principal components searched for the breathing mode.
+    align : bool
+        Remove the rigid rotation of every frame (:func:`remove_rigid_motion`).
+    pad : int
+        Zero padding of the spectrum (:func:`spectral_peak`).
+
+    Returns
+    -------
+    BreathingModePCA
+        Frequencies in cycles per DPD time.
+
+    Raises
+    ------
+    ValueError
+        If the shapes disagree or there are fewer than 8 frames.
     """
     t = np.asarray(t, dtype=np.float64)
     y = remove_rigid_motion(x, align=align)

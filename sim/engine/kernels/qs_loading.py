@@ -8,7 +8,7 @@ replica r sits at row ``row_start[r] + v``.  DPD units throughout.
   the replica's first vertex), atomic per thread chunk.
 * ``pole_load_kernel``: adds the pole loads on the loaded rows only.
 * ``plate_force_kernel``: adds, per row, the capped WCA force of two analytic plates z = top_r (pushing down)
-  and z = bottom_r (pushing up), or their thermal mean force (:mod:`bubblecal.sim.tiers.thermal_contact`).
+  and z = bottom_r (pushing up), or their thermal mean force (:mod:`bubblecal.sim.tiers.quasistatic.thermal_contact`).
   The ideal-gas force rides on the shell's own triangle pass (``ShellForceField.set_gas``).
 * Observables: plate reactions and contacts, axial extent and loaded-patch heights, non-finite rows,
   and the reset of failed replicas to their reference rows.
@@ -88,7 +88,7 @@ def qs_kernels(dtype):
     @wp.func
     def thermal_force(h: T, s: T, hw: T, kT: T, cap: T, p0: T, dp0: T):
         """Mean wall force (kT / s) Psi((h - hw) / s) of a vertex at mean plate distance h fluctuating with
-        rms s (sim/tiers/thermal_contact.py); linear below g = 0.05 (``p0``, ``dp0``), capped."""
+        rms s (sim/tiers/quasistatic/thermal_contact.py); linear below g = 0.05 (``p0``, ``dp0``), capped."""
         g = (h - hw) / s
         p = T(0.0)
         if g < T(0.05):

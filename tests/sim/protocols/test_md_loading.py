@@ -4,14 +4,8 @@ import numpy as np
 import pytest
 
 from bubblecal.data import STATUSES
-from bubblecal.sim.protocols.md_loading import (
-    STATUS_MAP,
-    ExplicitTier,
-    ImplicitTier,
-    ProtocolSteps,
-    steps_per_curve,
-)
-from bubblecal.sim.tiers import CurveRequest, get_tier
+from bubblecal.sim.protocols import STATUS_MAP, ProtocolSteps, steps_per_curve
+from bubblecal.sim.tiers import CurveRequest, ExplicitTier, ImplicitTier, get_tier
 
 
 def _params(kas):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bubblecal.sim.engine.mesh import icosphere
-from bubblecal.sim.protocols.pca import breathing_mode_pca, remove_rigid_motion, spectral_peak
+from bubblecal.sim.protocols import breathing_mode_pca, remove_rigid_motion, spectral_peak
 
 
 def _trajectory(f0=1.7, lam=0.3, n=400, dt=0.01, seed=0, rotate=True):

@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from bubblecal.sim.protocols.pca import breathing_mode_pca
-from bubblecal.sim.protocols.ringdown import (
+from bubblecal.sim.protocols import (
     RingdownBatch,
     auto_schedule,
+    breathing_mode_pca,
     breathing_mode_prediction,
     ringdown_batch,
 )

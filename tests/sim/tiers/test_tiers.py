@@ -30,40 +30,6 @@ def test_bad_request_names_the_field():
         CurveRequest("shear", 3.0, (0.0, 0.5), PARAMS, (1, 2))
 
 
-def test_quasistatic_tier_self_avoidance_inert_and_dtype_checked():
-    pytest.importorskip("warp")
-    from bubblecal.sim.tiers import get_tier
-
-    req = CurveRequest("compression", 1.5, (0.0, 0.12, 0.24, 0.36), PARAMS, (1, 2), subdivisions=2)
-    off = get_tier("quasistatic").run(req)
-    on = get_tier("quasistatic", self_avoid=True).run(req)
-    assert off.info["self_avoid"] is False and on.info["self_avoid"] is True
-    assert off.status == on.status == ["ok", "ok"]
-    # the repulsion never engages in athermal plate loading: the same curves to round-off
-    np.testing.assert_allclose(off.observable, on.observable, rtol=1e-10, atol=1e-9)
-    with pytest.raises(ValueError, match="dtype must be 'float64' or 'float32'"):
-        get_tier("quasistatic", dtype="float16")
-    with pytest.raises(ValueError, match="schedule must be"):
-        get_tier("quasistatic", schedule="eager")
-
-
-def test_quasistatic_tier_slot_refill_same_curves():
-    pytest.importorskip("warp")
-    from bubblecal.sim.tiers import get_tier
-
-    req = CurveRequest("compression", 1.5, (0.0, 0.12, 0.24), PARAMS, (1, 2), subdivisions=2)
-    whole = get_tier("quasistatic").run(req)
-    one_slot = get_tier("quasistatic", max_replicas=1).run(req)
-    assert one_slot.info["settings"]["max_replicas"] == 1
-    assert one_slot.status == whole.status
-    np.testing.assert_array_equal(one_slot.observable, whole.observable)
-    for bad in (0, 2.0, True):
-        with pytest.raises(ValueError, match="max_replicas must be an integer"):
-            get_tier("quasistatic", max_replicas=bad)
-    with pytest.raises(ValueError, match="needs schedule"):
-        get_tier("quasistatic", max_replicas=4, schedule="lockstep")
-
-
 def test_indentation_conventions_map_kb_and_name_the_allowed_values():
     from bubblecal.sim.tiers import (
         DEFAULT_INDENTATION_CONVENTION,

@@ -2,8 +2,8 @@
 
 The athermal quasi-static tier relaxes the *mean* shape of the shell; in the explicit and implicit
 tiers every vertex also fluctuates along the shell normal, so vertices near a plate keep colliding
-with it: an entropic repulsion that gives F(d = 0) > 0 and an additive offset of ~2 % along the
-whole compression curve (benchmarks/RESULTS.md, 3.0 um gate), which no minimisation produces.
+with it: an entropic repulsion that gives F(d = 0) > 0 and an additive offset along the whole
+compression curve, which no minimisation produces (its size: docs/decisions.md, benchmarks/RESULTS.md).
 
 Model (statistical mechanics of one vertex against a hard wall; nothing fitted):
 
@@ -20,10 +20,12 @@ Model (statistical mechanics of one vertex against a hard wall; nothing fitted):
   therefore sits kT/f beyond h_w instead of at the WCA's 1 - f/72,000: the plates act ~0.003-0.05 earlier.
 * sigma from thin-shell theory (normal fluctuation of a closed shell, dominated by the modes at the
   elastic length): sigma^2 = kT R / (8 sqrt(kappa Y)), kappa = (sqrt 3 / 2) kb (our Kantor kernel,
-  :mod:`bubblecal.sim.validation.checks`), Y = 4 K mu / (K + mu) = ka for the Lim model with mu = ka/3.  At 3.0 um,
-  k_a 5,580, k_b 100 this gives 0.033; the implicit tier measured 0.035 (RESULTS.md, session 5).
+  :mod:`bubblecal.sim.validation.checks`), Y = 4 K mu / (K + mu) = ka for the Lim model with mu = ka/3.  At
+  3.0 um, k_a 5,580, k_b 100 this gives 0.033 DPD length.
 * below g_0 = 0.05 (a mean position within 5 % of sigma of the wall; only FIRE overshoots go there) Psi is
   continued linearly, and the force is capped like the athermal one.
+
+The Warp kernel of the same law is ``plate_force_kernel`` of :mod:`bubblecal.sim.engine.kernels.qs_loading`.
 """
 
 from __future__ import annotations
@@ -47,8 +49,18 @@ Z_ASYMPTOTIC = -8.0
 class ThermalContact:
     """Thermal (entropic) plate contact of the quasi-static tier (module docstring).
 
-    ``kT`` thermal energy (DPD energy, 1 in the DPD models); ``sigma`` rms normal fluctuation of a vertex
-    (DPD length) for every shell, or None = per shell from thin-shell theory (:func:`shell_fluctuation_sigma`).
+    Parameters
+    ----------
+    kT : float
+        Thermal energy (DPD energy; 1 in the DPD models).
+    sigma : float, optional
+        rms normal fluctuation of a vertex (DPD length) for every shell; None = per shell from thin-shell theory
+        (:func:`shell_fluctuation_sigma`).
+
+    Raises
+    ------
+    ValueError
+        If ``kT`` is not a positive finite number, or ``sigma`` is given and is not.
     """
 
     kT: float = 1.0
@@ -62,9 +74,29 @@ class ThermalContact:
 
 
 def shell_fluctuation_sigma(params: Sequence, radius_dpd: float, kT: float = 1.0) -> np.ndarray:
-    """rms normal fluctuation of a vertex [DPD length] of each shell in ``params`` (ShellParams, kernel
-    units: ``ka``, ``mu`` 2-D moduli, ``kb`` Kantor constant in DPD energy) of radius ``radius_dpd``:
-    sigma^2 = kT R / (8 sqrt(kappa Y)), kappa = (sqrt 3 / 2) kb, Y = 4 ka mu / (ka + mu)."""
+    """rms normal fluctuation of a vertex of each shell, from thin-shell theory.
+
+    sigma^2 = kT R / (8 sqrt(kappa Y)), kappa = (sqrt 3 / 2) kb, Y = 4 ka mu / (ka + mu).
+
+    Parameters
+    ----------
+    params : sequence of bubblecal.sim.engine.kernels.shell.ShellParams
+        Kernel units: ``ka``, ``mu`` 2-D moduli (DPD; mu None = ka / 3), ``kb`` Kantor constant (DPD energy).
+    radius_dpd : float
+        Shell radius R (DPD length).
+    kT : float
+        Thermal energy (DPD energy).
+
+    Returns
+    -------
+    numpy.ndarray
+        sigma per shell (DPD length).
+
+    Raises
+    ------
+    ValueError
+        If ``radius_dpd`` is not a positive finite number, or a shell has kb <= 0 or ka <= 0.
+    """
     if not (math.isfinite(radius_dpd) and radius_dpd > 0):
         raise ValueError(f"radius_dpd must be a positive finite DPD length, got {radius_dpd!r}")
     out = np.empty(len(params))
@@ -78,13 +110,25 @@ def shell_fluctuation_sigma(params: Sequence, radius_dpd: float, kT: float = 1.0
     return out
 
 
-@functools.cache  # a quadrature of ~0.7 s; PlateContact is frozen, so (contact, kT) is a key
+@functools.cache  # a slow quadrature; PlateContact is frozen, so (contact, kT) is a key
 def hard_wall_distance(contact, kT: float = 1.0) -> float:
-    """Barker-Henderson hard-wall distance [DPD length] of the capped WCA plate ``contact``
-    (:class:`bubblecal.sim.tiers.quasistatic.PlateContact`) at temperature ``kT``."""
+    """Barker-Henderson hard-wall distance of a capped WCA plate.
+
+    Parameters
+    ----------
+    contact : bubblecal.sim.protocols.PlateContact
+        The plate law.
+    kT : float
+        Thermal energy (DPD energy).
+
+    Returns
+    -------
+    float
+        h_w = int_0^{r_c} (1 - exp(-U(h)/kT)) dh (DPD length).
+    """
     from scipy.integrate import quad
 
-    from bubblecal.sim.tiers.quasistatic import plate_force_energy
+    from bubblecal.sim.protocols.plates import plate_force_energy
 
     def integrand(h):
         _, e = plate_force_energy(np.array([h]), contact)
@@ -97,8 +141,19 @@ def hard_wall_distance(contact, kT: float = 1.0) -> float:
 
 
 def inverse_mills_ratio(z: np.ndarray) -> np.ndarray:
-    """phi(z) / Phi(z) of the standard normal (dimensionless), stable for any z (asymptotic series below
-    :data:`Z_ASYMPTOTIC`, the same rule as the Warp kernel)."""
+    """Inverse Mills ratio phi(z) / Phi(z) of the standard normal, stable for any z.
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        Arguments (dimensionless).
+
+    Returns
+    -------
+    numpy.ndarray
+        phi(z) / Phi(z) (dimensionless); an asymptotic series below :data:`Z_ASYMPTOTIC` (the same rule as the
+        Warp kernel), 0 from z = 12 on.
+    """
     from scipy.special import ndtr
 
     z = np.asarray(z, dtype=np.float64)
@@ -130,15 +185,30 @@ def _psi_exact(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @functools.cache
 def psi_continuation() -> tuple[float, float]:
-    """Psi(G_MIN) and dPsi/dg at G_MIN (dimensionless): the linear continuation of Psi below :data:`G_MIN`
-    (shared by :func:`wall_force_psi` and the Warp kernel)."""
+    """The linear continuation of Psi below :data:`G_MIN` (shared by :func:`wall_force_psi` and the Warp kernel).
+
+    Returns
+    -------
+    tuple of float
+        Psi(G_MIN) and dPsi/dg at G_MIN (dimensionless).
+    """
     p0, dp0 = _psi_exact(np.array([G_MIN]))
     return float(p0[0]), float(dp0[0])
 
 
 def wall_force_psi(g: np.ndarray) -> np.ndarray:
-    """Reduced mean wall force Psi(g) (dimensionless; F = (kT/sigma) Psi) at reduced mean distance
-    g = (h - h_w) / sigma from the hard wall (module docstring); linear below :data:`G_MIN`."""
+    """Reduced mean wall force Psi(g) (module docstring); F = (kT / sigma) Psi.
+
+    Parameters
+    ----------
+    g : numpy.ndarray
+        Reduced mean distance (h - h_w) / sigma from the hard wall (dimensionless).
+
+    Returns
+    -------
+    numpy.ndarray
+        Psi(g) (dimensionless), continued linearly below :data:`G_MIN`.
+    """
     g = np.asarray(g, dtype=np.float64)
     out = np.empty_like(g)
     hi = g >= G_MIN
@@ -150,9 +220,26 @@ def wall_force_psi(g: np.ndarray) -> np.ndarray:
 
 def thermal_plate_force(h: np.ndarray, sigma: np.ndarray, h_wall: float, kT: float = 1.0,
                         force_cap: float = np.inf) -> np.ndarray:
-    """Mean plate force magnitude (>= 0, pushing the vertex away from the plate; DPD force) on vertices at
-    mean distance ``h`` (DPD length) from the plate, fluctuating with rms ``sigma`` (DPD length, broadcast
-    against ``h``), hard wall at ``h_wall``: (kT / sigma) Psi((h - h_wall) / sigma), capped at ``force_cap``."""
+    """Mean plate force on thermally fluctuating vertices: (kT / sigma) Psi((h - h_wall) / sigma), capped.
+
+    Parameters
+    ----------
+    h : numpy.ndarray
+        Mean vertex-plate distances (DPD length).
+    sigma : numpy.ndarray
+        rms normal fluctuation (DPD length), broadcast against ``h``.
+    h_wall : float
+        Hard-wall distance (DPD length; :func:`hard_wall_distance`).
+    kT : float
+        Thermal energy (DPD energy).
+    force_cap : float
+        Largest force per vertex (DPD force).
+
+    Returns
+    -------
+    numpy.ndarray
+        Force magnitude (>= 0, pushing the vertex away from the plate; DPD force).
+    """
     h = np.asarray(h, dtype=np.float64)
     s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), h.shape)
     return np.minimum(kT / s * wall_force_psi((h - h_wall) / s), force_cap)

@@ -1,4 +1,4 @@
-"""Thermal plate contact of the quasi-static tier (bubblecal.sim.tiers.thermal_contact).
+"""Thermal plate contact of the quasi-static tier (bubblecal.sim.tiers.quasistatic.thermal_contact).
 
 Analytic checks of the one-vertex model (exact integrals of a Gaussian against a hard wall), the
 Barker-Henderson wall, the thin-shell sigma, and the Warp kernels against the NumPy reference.
@@ -14,7 +14,8 @@ import pytest
 from scipy.integrate import quad
 
 from bubblecal.sim.engine import ShellParams
-from bubblecal.sim.tiers.thermal_contact import (
+from bubblecal.sim.protocols import PlateContact, plate_force_energy
+from bubblecal.sim.tiers.quasistatic import (
     G_MIN,
     ThermalContact,
     hard_wall_distance,
@@ -68,8 +69,6 @@ def test_psi_limits_and_inverse_mills_ratio():
 
 
 def test_hard_wall_distance_of_the_default_wca_plate():
-    from bubblecal.sim.tiers.quasistatic import PlateContact, plate_force_energy
-
     c = PlateContact()
     h = np.linspace(1e-3, c.cutoff, 400_001)
     _, e = plate_force_energy(h, c)
@@ -83,7 +82,8 @@ def test_hard_wall_distance_of_the_default_wca_plate():
 def test_shell_sigma_from_thin_shell_theory():
     # sigma^2 = kT R / (8 sqrt(kappa Y)), kappa = (sqrt 3 / 2) kb, Y = ka for mu = ka/3
     s = shell_fluctuation_sigma([ShellParams(ka=5580.0, kb=100.0), ShellParams(ka=27900.0, kb=1000.0)], 6.0)
-    expected = [math.sqrt(6.0 / (8.0 * math.sqrt(math.sqrt(3) / 2 * kb * ka))) for ka, kb in ((5580, 100), (27900, 1000))]
+    expected = [math.sqrt(6.0 / (8.0 * math.sqrt(math.sqrt(3) / 2 * kb * ka)))
+                for ka, kb in ((5580, 100), (27900, 1000))]
     np.testing.assert_allclose(s, expected, rtol=1e-12)
     assert s[0] == pytest.approx(0.0328, abs=2e-4)  # the implicit tier measured 0.035 (RESULTS.md)
     with pytest.raises(ValueError, match="kb > 0"):
@@ -120,9 +120,9 @@ SHELLS = [ShellParams(ka=5580.0, kb=100.0, self_avoid=False), ShellParams(ka=279
 GRID = [0.0, 0.12, 0.24, 0.48]
 
 
-def test_kernels_match_the_numpy_reference_and_add_a_contact_force(qs, mesh):
+def test_kernels_match_the_numpy_reference_and_add_a_contact_force(qs, mesh, qs_reference):
     dev = qs.quasistatic_compression(SHELLS, mesh, GRID, thermal=qs.ThermalContact())
-    ref = qs.quasistatic_compression(SHELLS, mesh, GRID, thermal=qs.ThermalContact(), minimizer="numpy")
+    ref = qs_reference.reference_compression(SHELLS, mesh, GRID, thermal=qs.ThermalContact())
     athermal = qs.quasistatic_compression(SHELLS, mesh, GRID)
     assert dev.status == ["ok"] * 3 and ref.status == ["ok"] * 3
     # same minima within the FIRE tolerance (ftol 0.05 per vertex on ~10 contact vertices)
@@ -132,7 +132,7 @@ def test_kernels_match_the_numpy_reference_and_add_a_contact_force(qs, mesh):
     assert np.all(dev.force[:, 0] > 1.0)
     assert np.all(dev.force[:, 1:] > athermal.force[:, 1:])
     tc = dev.settings["thermal_contact"]
-    assert tc["hard_wall"] == pytest.approx(hard_wall_distance(qs.PlateContact()))
+    assert tc["hard_wall"] == pytest.approx(hard_wall_distance(PlateContact()))
     assert tc["radius_dpd"] == pytest.approx(6.0, rel=1e-9)
 
 

@@ -1,0 +1,218 @@
+"""Quasi-static indentation: opposed pole loads, d(F) from the axial extent (package docstring)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bubblecal.sim.protocols.loading import validate_grid
+from bubblecal.sim.tiers.quasistatic.backends import _DeviceChain
+from bubblecal.sim.tiers.quasistatic.grids import _ramp_grid, _select_points, _sum_substeps
+from bubblecal.sim.tiers.quasistatic.results import IndentationResult
+from bubblecal.sim.tiers.quasistatic.schedule import _run_chain, _run_device_async
+from bubblecal.sim.tiers.quasistatic.settings import (
+    FireSettings,
+    IdealGas,
+    _check_common,
+    _check_max_replicas,
+    _check_params,
+    _dtype_name,
+)
+
+if TYPE_CHECKING:
+    from bubblecal.sim.engine.kernels.shell import ShellParams
+    from bubblecal.sim.engine.mesh import ShellMesh
+
+__all__ = ["quasistatic_indentation"]
+
+
+@dataclass
+class _IndentationPlan:
+    """A checked indentation run before it is relaxed: grids, loaded and anchored vertices, static settings."""
+
+    forces: np.ndarray  # the requested forces [P] (DPD force)
+    chain_forces: np.ndarray  # the forces the chain relaxes at (first-load ramp included)
+    keep: np.ndarray  # indices of the requested forces in chain_forces
+    schedule: str
+    params: list
+    z0: np.ndarray  # reference z of every vertex (DPD length)
+    top: np.ndarray  # loaded vertices of the top pole
+    bottom: np.ndarray  # loaded vertices of the bottom pole
+    h0: float  # reference axial extent (DPD length)
+    free_v: np.ndarray  # [Nv, 3] movable components (the equator is anchored in z)
+    unit: np.ndarray  # [Nv, 3] pole-load direction per unit total load
+    static_settings: dict
+
+
+def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fraction_loaded, pole_patch,
+                      dtype, extrapolate, schedule, max_replicas, first_load_ramp) -> _IndentationPlan:
+    """Check the arguments of :func:`quasistatic_indentation` and lay out the run."""
+    from bubblecal.sim.engine import pole_patches
+
+    forces = validate_grid(forces_dpd, "forces_dpd")
+    if isinstance(first_load_ramp, bool) or not isinstance(first_load_ramp, (int, np.integer)) \
+            or not 0 <= first_load_ramp <= 20:
+        raise ValueError(f"first_load_ramp must be an integer in [0, 20], got {first_load_ramp!r}")
+    # the chain runs on the grid with the ramp's sub-points; results keep the requested points only
+    chain_forces, keep = _ramp_grid(forces, int(first_load_ramp))
+    schedule = _check_common(rupture_strain, fire, schedule)
+    _check_max_replicas(max_replicas, schedule)
+    if pole_patch is not None and fraction_loaded is not None:
+        raise ValueError("give fraction_loaded or pole_patch, not both")
+    patch_kw = dict(pole_patch) if pole_patch is not None else {"fraction": 0.01 if fraction_loaded is None
+                                                                 else fraction_loaded}
+    if patch_kw.get("fraction") is not None and not (0 < patch_kw["fraction"] < 0.5):
+        raise ValueError(f"fraction_loaded must lie in (0, 0.5), got {patch_kw['fraction']!r}")
+    params = _check_params(params, mesh, gas)
+    nv = mesh.n_vertices
+    z0 = mesh.vertices[:, 2]
+    zc = float(mesh.vertices[:, 2].mean())
+    top, bottom = pole_patches(mesh.vertices, **patch_kw)
+    k = len(top)
+    h0 = float(z0.max() - z0.min())
+    equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
+    free_v = np.ones((nv, 3), dtype=bool)
+    free_v[equator, 2] = False
+    unit = np.zeros((nv, 3))
+    unit[top, 2] = -1.0 / k
+    unit[bottom, 2] = 1.0 / k
+    static_settings = {"k_loaded_per_pole": k, "n_equator_anchored": int(equator.size),
+                       "pole_patch": {key: v for key, v in patch_kw.items() if v is not None},
+                       "gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
+                       "com": "mean force removed (x, y, z)", "equator": "|z - z_c| < 0.25 l_min anchored in z",
+                       "observable": "d = H0 - H, H = max z - min z", "fire": fire.__dict__,
+                       "rupture_strain": rupture_strain, "n_vertices": nv, "minimizer": "device",
+                       "dtype": _dtype_name(dtype),
+                       "start": "linear extrapolation" if extrapolate else "previous minimum",
+                       "schedule": schedule, "max_replicas": max_replicas, "first_load_ramp": int(first_load_ramp)}
+    return _IndentationPlan(forces=forces, chain_forces=chain_forces, keep=keep, schedule=schedule, params=params,
+                            z0=z0, top=top, bottom=bottom, h0=h0, free_v=free_v, unit=unit,
+                            static_settings=static_settings)
+
+
+def _indentation_result(plan: _IndentationPlan, out: dict, t0: float) -> IndentationResult:
+    """The :class:`IndentationResult` of a finished chain (``out`` of the schedules) at the requested points."""
+    out = _select_points(out, plan.keep)
+    R, nf = len(plan.params), len(plan.forces)
+    z0, top, bottom = plan.z0, plan.top, plan.bottom
+    patch0 = float(z0[top].mean() - z0[bottom].mean())
+    H = out["obs"].get("H", np.full((R, nf), np.nan))
+    P = out["obs"].get("patch", np.full((R, nf), np.nan))
+    settings = {**plan.static_settings, "fire_evaluations": out["fire_evaluations"]}
+    return IndentationResult(forces=plan.forces, displacement=plan.h0 - H, axial_diameter=H,
+                             axial_diameter0=np.full(R, plan.h0), d_patch=patch0 - P, volume=out["volume"],
+                             max_area_strain=out["max_area_strain"], fmax=out["fmax"],
+                             fire_steps=out["fire_steps"], status=out["status"],
+                             point_status=out["point_status"], x_final=out["x"], settings=settings,
+                             seconds=time.perf_counter() - t0)
+
+
+def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: ShellMesh,
+                            forces_dpd: Sequence[float] | np.ndarray, *, gas: IdealGas | None = IdealGas(),
+                            device: str = "cpu", dtype=None, fire: FireSettings = FireSettings(),
+                            rupture_strain: float = 1.0, fraction_loaded: float | None = None,
+                            pole_patch: dict | None = None,
+                            sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
+                            max_replicas: int | None = None, first_load_ramp: int = 0,
+                            progress: Callable[[int, int, float], None] | None = None,
+                            on_curve: Callable[[int, dict], None] | None = None) -> IndentationResult:
+    """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
+
+    Parameters
+    ----------
+    params : ShellParams or sequence of ShellParams
+        One :class:`bubblecal.sim.engine.kernels.shell.ShellParams` per replica (moduli in DPD units).
+    mesh : bubblecal.sim.engine.mesh.ShellMesh
+        Stress-free reference shell (DPD length), shared by all replicas.
+    forces_dpd : sequence of float
+        Total force per pole at each load point (DPD force, >= 0, strictly increasing).
+    gas : IdealGas or None
+        Enclosed ideal gas (pressures in DPD units), or None for a shell without gas.
+    device : str
+        Warp device.
+    dtype : warp scalar type, optional
+        Float type; None = ``wp.float64``.
+    fire : FireSettings
+        FIRE controls (ftol in DPD force per vertex).
+    rupture_strain : float
+        Max triangle area strain abs(A/A0 - 1) above which a replica is 'ruptured'.
+    fraction_loaded : float, optional
+        k = max(1, floor(fraction_loaded N_v)) loaded vertices per pole, in (0, 0.5) (the default 0.01 when
+        neither this nor ``pole_patch`` is given).
+    pole_patch : dict, optional
+        Keyword arguments of :func:`bubblecal.sim.engine.pole_patches` (``{"cap_deg": 4.6}`` for a polar
+        cap); excludes ``fraction_loaded``.
+    sync_every : int, optional
+        Device FIRE iterations between host status checks (default 25 CUDA / 4 CPU).
+    extrapolate : bool
+        Start each load point from the linear extrapolation of the last two minima instead of the last one:
+        same minima (within ``fire.ftol``), fewer FIRE iterations.
+    schedule : str, optional
+        ``"async"`` (default: each replica advances to its next load point as soon as it has relaxed, so the
+        batch never waits for its slowest replica at every point; same FIRE iterates and curves as lock-step)
+        or ``"lockstep"`` (every replica at the same point).
+    max_replicas : int, optional
+        (async only) At most this many replicas relax at once; a slot whose curve is finished takes the next
+        parameter set (softest k_a first), so a large batch runs at full occupancy and its wall time follows
+        the total FIRE work, not the slowest curve.  Same curves as one slot per parameter set.  None: one slot
+        per parameter set.
+    first_load_ramp : int
+        Relax through this many geometric sub-points F1/2^n ... F1/2 before the first positive force F1, in
+        [0, 20] (the curve keeps the requested points, whose FIRE steps include their sub-points'; the curves
+        move within the FIRE tolerance).  0: none.
+    progress : callable, optional
+        ``progress(j, n_points, seconds)`` after every load point; with slot refill
+        ``progress(k, n_params, seconds)`` after every finished curve.
+    on_curve : callable, optional
+        ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (async schedule), ``row`` =
+        {"displacement" [P] (DPD length), "status", "point_status", "fire_steps" [P], "fire_steps_chain" (FIRE
+        updates per chain point, the ramp's sub-points included), "settings" (the result's, less the batch total
+        ``fire_evaluations``)}: the same numbers as the returned rows.
+
+    Returns
+    -------
+    IndentationResult
+        Displacements in DPD length.
+
+    Raises
+    ------
+    ValueError
+        If an argument is invalid (the message names it).
+    """
+    t0 = time.perf_counter()
+    plan = _indentation_plan(params, mesh, forces_dpd, gas=gas, fire=fire, rupture_strain=rupture_strain,
+                             fraction_loaded=fraction_loaded, pole_patch=pole_patch, dtype=dtype,
+                             extrapolate=extrapolate, schedule=schedule, max_replicas=max_replicas,
+                             first_load_ramp=first_load_ramp)
+    nv, chain_forces, keep = mesh.n_vertices, plan.chain_forces, plan.keep
+    tag = np.zeros(nv, dtype=np.int32)
+    tag[plan.top], tag[plan.bottom] = 1, -1
+
+    def make_chain(ps):
+        return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=plan.free_v, remove_mean=(True, True, True),
+                            unit=plan.unit, tag=tag, sync_every=sync_every,
+                            loads=chain_forces if extrapolate else None)
+
+    if plan.schedule == "async":
+        finish = None
+        if on_curve is not None:
+            def finish(i, row):
+                h = row["obs"].get("H", np.full(len(chain_forces), np.nan))[keep]
+                on_curve(i, {"displacement": plan.h0 - h, "status": row["status"],
+                             "point_status": [row["point_status"][j] for j in keep],
+                             "fire_steps": _sum_substeps(row["fire_steps"], keep),
+                             "fire_steps_chain": np.asarray(row["fire_steps"]).copy(),
+                             "settings": plan.static_settings})
+
+        out = _run_device_async(make_chain, plan.params, len(chain_forces), rupture_strain,
+                                lambda dc: (lambda jj: dc.set_load_rows(chain_forces[jj])), max_replicas,
+                                progress, on_finish=finish, stop_unstable=fire.stop_at_max_steps)
+    else:
+        dc = make_chain(plan.params)
+        out = _run_chain(dc, len(chain_forces), rupture_strain, set_point=lambda j: dc.set_load(chain_forces[j]),
+                         progress=progress, stop_unstable=fire.stop_at_max_steps)
+    return _indentation_result(plan, out, t0)
