@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.sim.campaign import (
+from bubblecal.campaigns import (
     CampaignConfig,
     make_tasks,
     run_campaign,
@@ -45,7 +45,8 @@ BOX = {"ka": (5580.0, 27900.0), "kb": (100.0, 1000.0), "b1": (0.0, 3.0), "b2": (
        "a4": (0.0, 4.0)}
 
 
-def _config(store: Path, n_tasks: int, replicas: int, device: str, subdivisions: int | None, tier: str) -> CampaignConfig:
+def _config(store: Path, n_tasks: int, replicas: int, device: str, subdivisions: int | None,
+            tier: str) -> CampaignConfig:
     return CampaignConfig(name="bench", protocol="compression", diameter_um=2.1, ranges=BOX,
                           n_samples=n_tasks * replicas, seed=1, tier=tier, replicas_per_task=replicas, device=device,
                           subdivisions=subdivisions, store=str(store))

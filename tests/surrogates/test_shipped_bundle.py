@@ -24,7 +24,7 @@ def bundle():
 
 
 def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
-    from bubblecal.workflows.campaign import load_campaign_file
+    from bubblecal.campaigns import load_campaign_file
 
     assert not is_synthetic_bundle(bundle)
     for curve in reference_curves():
@@ -32,7 +32,8 @@ def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
         md = sur.metadata
         assert not md.get("synthetic", False)
         # trained on the shipped set of the campaign of this diameter (indentation: the Mirheo convention's twin)
-        name = f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um" + ("_mirheo" if curve.kind == "indentation" else "")
+        name = (f"{curve.agent}_{curve.kind}_{curve.diameter_um:.1f}um"
+                + ("_mirheo" if curve.kind == "indentation" else ""))
         assert md["source"].endswith(f"data/training/{name}.jsonl.gz"), (name, md["source"])
         assert md["n_curves_train"] >= 4500  # 90 % of >= 5,000 valid curves (10 % held out)
         cfg = load_campaign_file(name).config
