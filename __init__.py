@@ -1,11 +1,12 @@
 """bubblecal: DPD microbubble shell models calibrated against AFM and acoustic data.
 
 Subpackages (layers point one way: workflows -> inference, models -> surrogates, priors -> data;
-sim depends on data only):
+campaigns -> sim, priors, data; sim depends on data only):
 
 - ``bubblecal.data``        units, reference curves, acoustic observations, loaders
 - ``bubblecal.priors``      prior/hyperprior TOML files and their typed loader
-- ``bubblecal.sim``         Warp DPD simulator and training-data campaigns
+- ``bubblecal.sim``         Warp DPD simulator
+- ``bubblecal.campaigns``   training-data campaigns: campaign files, designs, Dask runner, store status
 - ``bubblecal.surrogates``  MLP / acoustic surrogates (train in torch, evaluate in JAX)
 - ``bubblecal.models``      NumPyro models
 - ``bubblecal.inference``   TMCMC, NUTS, hierarchy, predictive metrics, sensitivity

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.sim.campaign import (
+from bubblecal.campaigns import (
     CampaignConfig,
     make_tasks,
     run_campaign,

@@ -31,8 +31,7 @@ def main(argv=None) -> int:
     ap.add_argument("--tier-setting", action="append", default=[], metavar="KEY=VALUE",
                     help="override one [tier] setting (a measurement: changes the design, so use a fresh store)")
     args = ap.parse_args(argv)
-    from bubblecal.sim.campaign import run_campaign
-    from bubblecal.workflows.campaign import load_campaign_file, parse_tier_settings
+    from bubblecal.campaigns import load_campaign_file, parse_tier_settings, run_campaign
 
     overrides = {} if args.max_replicas is None else {"max_replicas": args.max_replicas}
     overrides.update(parse_tier_settings(args.tier_setting))

@@ -111,12 +111,11 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
     same grid and radius; their published curve is NaN (tier-vs-tier comparison only)."""
     import dataclasses
 
+    from bubblecal.campaigns import available_campaigns, lhs_design, load_campaign_file
     from bubblecal.data import SHELL_PARAMETERS
-    from bubblecal.sim.campaign import lhs_design
-    from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
-    suffixes = (f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um")
-    names = [c for c in available_campaigns() if c.endswith(suffixes)]
+    names = [c for c in available_campaigns()
+             if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
     if not names:
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     cfg = load_campaign_file(names[0]).config
@@ -136,12 +135,12 @@ def with_lhs_rows(ts, protocol: str, diameter: float, n: int, seed: int):
 def lhs_only_rows(protocol: str, diameter: float, n: int, seed: int):
     """A diameter without published rows (e.g. 3.4 um): ``n`` LHS rows of the shipped campaign's box on its
     grid and radius (tier-vs-tier comparison only)."""
+    from bubblecal.campaigns import available_campaigns, load_campaign_file
     from bubblecal.data import SHELL_PARAMETERS, radius_dpd_from_diameter_um
     from bubblecal.surrogates.training import TrainingSet
-    from bubblecal.workflows.campaign import available_campaigns, load_campaign_file
 
-    suffixes = (f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um")
-    names = [c for c in available_campaigns() if c.endswith(suffixes)]
+    names = [c for c in available_campaigns()
+             if c.endswith((f"_{protocol}_{diameter:g}um", f"_{protocol}_{diameter:.1f}um"))]
     if not names:
         raise SystemExit(f"--lhs: no shipped {protocol} campaign for {diameter:g} um")
     grid = np.asarray(load_campaign_file(names[0]).config.grid_for(diameter), dtype=np.float64)

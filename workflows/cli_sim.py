@@ -1,6 +1,8 @@
-"""``bubblecal sim``: the Warp DPD engine's verification and training-data campaigns.
+"""``bubblecal sim``: the Warp DPD engine's verification, ringdown sweeps and training-data campaigns.
 
-Heavy libraries (Warp, Dask) are imported inside the commands.
+A thin command line over :mod:`bubblecal.sim` and :mod:`bubblecal.campaigns`; heavy libraries (Warp, Dask)
+are imported inside the commands.  A command's docstring up to the form feed (``\\f``) is its ``--help`` text;
+the numpydoc sections after it are for readers of the code.
 
 Campaigns on a SLURM cluster (dask-jobqueue is not a bubblecal dependency; ``pip install dask-jobqueue``)::
 
@@ -41,7 +43,25 @@ def verify(
     device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda (cuda:N)."),
     only: list[str] = typer.Option(None, "--only", help="Run only checks whose name contains this (repeatable)."),
 ) -> None:
-    """Run the checks of physics.md section 6; table, then one JSON line; exit 1 on any failure."""
+    """Run the checks of docs/physics.md section 6; table, then one JSON line; exit 1 on any failure.
+    \f
+
+    Parameters
+    ----------
+    quick : bool
+        Small CPU-sized versions of the checks (those of the default test suite).
+    device : str
+        Warp device: 'cpu', 'cuda' or 'cuda:N'.
+    only : list of str, optional
+        Run only the checks whose name contains one of these.
+
+    Raises
+    ------
+    typer.BadParameter
+        ``device`` is not cpu / cuda[:N].
+    typer.Exit
+        Always: code 0 when every check passes, 1 otherwise.
+    """
     if not (device == "cpu" or device.startswith("cuda")):
         raise typer.BadParameter("device must be 'cpu' or 'cuda' (or 'cuda:N')", param_hint="--device")
     import warp as wp
@@ -54,11 +74,12 @@ def verify(
 
 
 def _fmt(v: float) -> str:
+    """A number with 6 significant digits."""
     return f"{v:.6g}"
 
 
-def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: str) -> None:
-    """Print the campaign summary and the ranges table (units in the headers)."""
+def _design_tables(cf, where, store_note: str) -> None:
+    """Print the campaign summary and the ranges table (units in the headers); ``where``: a DesignProgress."""
     from bubblecal.data import PARAMETER_UNITS
     from bubblecal.workflows.cli_priors import _physical
 
@@ -75,10 +96,9 @@ def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: st
             ("loading grid", "t, R(t) [DPD time, DPD length]" if grid is None else
              f"{len(grid)} points {_fmt(grid[0])} .. {_fmt(grid[-1])} [{unit}]"),
             ("store", f"{c.store} {store_note}")]
-    if n_done is not None:
-        rows.append(("done / pending", f"{n_done} / {n_pending}"))
-        rows.append(("pending tasks", str(sum(
-            -(-n // c.replicas_per_task) for n in _pending_per_diameter(c, n_pending)))))
+    if where.n_done is not None:
+        rows.append(("done / pending", f"{where.n_done} / {where.n_pending}"))
+        rows.append(("pending tasks", str(where.n_pending_tasks)))
     for k, v in rows:
         summary.add_row(k, v)
     console.print(summary)
@@ -90,20 +110,8 @@ def _design_tables(cf, n_done: int | None, n_pending: int | None, store_note: st
     console.print(table)
 
 
-def _pending_per_diameter(c, n_pending: int) -> list[int]:
-    from bubblecal.data import CampaignStore
-    from bubblecal.sim.campaign import design_points, pending_indices
-
-    if n_pending == 0:
-        return []
-    design = design_points(c)
-    counts: dict[float, int] = {}
-    for i in pending_indices(c, CampaignStore(c.store_path)):
-        counts[float(design["diameter_um"][i])] = counts.get(float(design["diameter_um"][i]), 0) + 1
-    return list(counts.values())
-
-
 def _status_table(title: str, counts: dict[str, int]) -> None:
+    """Print counts by status and their total."""
     table = make_table(title, ("status", "samples"))
     for k, v in counts.items():
         table.add_row(k, str(v))
@@ -118,8 +126,8 @@ def campaign(
     scheduler: str = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (e.g. of a "
                                                             "dask-jobqueue SLURMCluster); 'inline' = in-process, "
                                                             "no Dask (quasi-static indentation then stores each "
-                                                            "curve when it is finished); 'local' = a LocalCluster. Default: [dask] "
-                                                            "of the file, else 'local'."),
+                                                            "curve when it is finished); 'local' = a LocalCluster. "
+                                                            "Default: [dask] of the file, else 'local'."),
     workers: int = typer.Option(None, "--workers", min=1, help="LocalCluster worker processes (default: [dask] "
                                                                "n_workers, else 1 on cuda / core count on cpu)."),
     limit: int = typer.Option(None, "--limit", min=0, help="Run at most N pending samples, then stop (resume "
@@ -139,15 +147,50 @@ def campaign(
     resumable store (one record per sample). Re-running continues where it stopped; a killed worker is
     rescheduled. On a SLURM cluster start a dask_jobqueue.SLURMCluster, cluster.scale(jobs=N), and pass
     --scheduler tcp://... (see `python -c "import bubblecal.workflows.cli_sim as m; print(m.__doc__)"`).
-    Exit 1 on a bad configuration."""
-    from bubblecal.data import CampaignStore, StoreError
-    from bubblecal.sim.campaign import (
+    Exit 1 on a bad configuration.
+    \f
+
+    Prints the run's and the store's status counts, the wall / compute seconds, and last one JSON line
+    (:meth:`bubblecal.campaigns.CampaignSummary.as_dict`); ``--dry-run`` prints the design tables only.
+
+    Parameters
+    ----------
+    config : str
+        Campaign TOML file or shipped campaign name (:func:`bubblecal.campaigns.available_campaigns`).
+    scheduler : str, optional
+        Dask scheduler address, 'inline' or 'local' (default: the file's [dask], else 'local').
+    workers : int, optional
+        LocalCluster worker processes.
+    limit : int, optional
+        Run at most this many pending samples.
+    dry_run : bool
+        Print the design and what is pending; simulate nothing.
+    device : str, optional
+        Overrides [campaign].device ('cpu', 'cuda' or 'cuda:N').
+    store : Path, optional
+        Overrides [campaign].store (campaign store directory).
+    progress : bool
+        Show the progress bar.
+    diameter : list of float, optional
+        Run only these diameters [um] of a multi-diameter design.
+    tier_setting : list of str, optional
+        ``KEY=VALUE`` [tier] overrides (a different design).
+
+    Raises
+    ------
+    typer.Exit
+        Code 1 on an invalid file, option or store, or a campaign that stops on task errors.
+    """
+    from bubblecal.campaigns import (
         CampaignConfigError,
         CampaignError,
-        pending_indices,
+        CampaignFileError,
+        design_progress,
+        load_campaign_file,
+        parse_tier_settings,
         run_campaign,
     )
-    from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file, parse_tier_settings
+    from bubblecal.data import StoreError
 
     try:
         overrides = parse_tier_settings(tier_setting or [])
@@ -167,29 +210,19 @@ def campaign(
         # the tiers' default predates the Mirheo convention; a new design most likely wants the shipped one
         from rich.markup import escape
 
-        console.print(f"[yellow]note[/]: {escape(str(cf.path))}: \\[tier].indentation_convention is not set, so this indentation "
-                      "campaign uses the tiers' default 'bubblecal-v1' (1 % of the vertices loaded per pole, kernel "
-                      "k_b x 2/3); the published Mirheo curves and the shipped SonoVue sets and surrogates use "
-                      "'mirheo' (set indentation_convention = \"mirheo\" under \\[tier])", highlight=False)
+        console.print(f"[yellow]note[/]: {escape(str(cf.path))}: \\[tier].indentation_convention is not set, so "
+                      "this indentation campaign uses the tiers' default 'bubblecal-v1' (1 % of the vertices loaded "
+                      "per pole, kernel k_b x 2/3); the published Mirheo curves and the shipped SonoVue sets and "
+                      "surrogates use 'mirheo' (set indentation_convention = \"mirheo\" under \\[tier])",
+                      highlight=False)
     if dry_run:
-        n_done = n_pending = None
-        note = "(not created yet)"
-        st = CampaignStore(c.store_path)
-        bare = st.header_path is None and st.records_path.exists()  # a bare .jsonl store (no header)
-        if bare or (st.header_path is not None and st.header_path.exists()):
-            try:
-                meta = st.header().get("meta", {})
-                if meta.get("design_hash") not in (None, c.design_hash()):
-                    note = "(EXISTS WITH ANOTHER DESIGN: a run would refuse it)"
-                else:
-                    pend = pending_indices(c, st)
-                    n_done, n_pending = c.n_design - len(pend), len(pend)
-                    note = "(exists)"
-            except StoreError as exc:
-                raise fail(str(exc)) from None
-        else:
-            n_done, n_pending = 0, c.n_design
-        _design_tables(cf, n_done, n_pending, note)
+        try:
+            where = design_progress(c)
+        except StoreError as exc:
+            raise fail(str(exc)) from None
+        note = {"new": "(not created yet)", "exists": "(exists)",
+                "other_design": "(EXISTS WITH ANOTHER DESIGN: a run would refuse it)"}[where.state]
+        _design_tables(cf, where, note)
         console.print("[dim]dry run: nothing simulated[/]")
         return
     try:
@@ -217,10 +250,26 @@ def campaign_status(store: Path = typer.Argument(..., help="Campaign store direc
                     config: str = typer.Option(None, "--config", help="Campaign TOML or shipped name whose "
                                                "retry_statuses define 'pending' (default: the store's own)."),
                     ) -> None:
-    """Counts by status (latest record per sample) and what is still pending; exit 1 if STORE is unreadable."""
+    """Counts by status (latest record per sample) and what is still pending; exit 1 if STORE is unreadable.
+    \f
+
+    Prints the status table, the pending count, and last one JSON line
+    (:meth:`bubblecal.campaigns.StoreStatus.as_dict`).
+
+    Parameters
+    ----------
+    store : Path
+        Campaign store directory or bare .jsonl file.
+    config : str, optional
+        Campaign TOML or shipped name whose retry statuses (and unstable-retry rule) define 'pending'.
+
+    Raises
+    ------
+    typer.Exit
+        Code 1 when the store is missing or unreadable, or the config is invalid.
+    """
+    from bubblecal.campaigns import CampaignFileError, load_campaign_file, pending_indices, store_status
     from bubblecal.data import CampaignStore, StoreError
-    from bubblecal.sim.campaign import pending_indices, store_status
-    from bubblecal.workflows.campaign import CampaignFileError, load_campaign_file
 
     if not store.exists():
         raise fail(f"{store}: no such campaign store")
@@ -259,7 +308,49 @@ def ringdown(
     record_every: int = typer.Option(None, "--record-every", help="Steps between R(t) samples."),
     perturbation: float = typer.Option(0.015, "--perturbation", help="Relative radial scaling at t = 0."),
 ) -> None:
-    """Ringdown sweep over k_a at one diameter: fit R(t), f_res in MHz, f_res^2(k_a) quadratic + LOO errors."""
+    """Ringdown sweep over k_a at one diameter: fit R(t), f_res in MHz, f_res^2(k_a) quadratic + LOO errors.
+    \f
+
+    Writes CSV, JSON, PNG and the traces (.npz) to ``out``, prints the per-k_a table and last one JSON line.
+
+    Parameters
+    ----------
+    agent : str
+        'definity' or 'sonovue' (sets k_b and the k_a range of the agent's acoustic prior).
+    diameter : float
+        Bubble diameter [um].
+    out : Path
+        Output folder.
+    n_ka : int
+        Number of k_a values (>= 3).
+    ka_min, ka_max : float, optional
+        k_a range [DPD 2-D modulus] (default: the prior range).
+    tier : str
+        'implicit' (shell-mass-only inertia, docs/physics.md section 6, check 7) or 'explicit' (water + gas particles).
+    device : str
+        Warp device: 'cpu', 'cuda' or 'cuda:N'.
+    mass_factor : float
+        Shell mass multiplier (dimensionless).
+    subdivisions : int, optional
+        Icosphere level.
+    batch : int, optional
+        Replicas per launch.
+    seed : int
+        Seed of the first replica (replica i: seed + i).
+    dt : float, optional
+        Time step [DPD time].
+    equilibration_steps, record_steps, record_every : int, optional
+        Steps before the perturbation, steps recorded after it, steps between R(t) samples.
+    perturbation : float
+        Relative radial scaling at t = 0 (dimensionless).
+
+    Raises
+    ------
+    typer.BadParameter
+        An option is out of range.
+    typer.Exit
+        Code 1 on an invalid sweep or fewer than 3 valid rows (no quadratic).
+    """
     import numpy as np
 
     if not (device == "cpu" or device.startswith("cuda")):

@@ -22,8 +22,8 @@ def test_training_folder_documents_every_set():
 
 @pytest.mark.parametrize("path", SETS, ids=[p.name for p in SETS])
 def test_shipped_set_matches_its_campaign_config(path):
+    from bubblecal.campaigns import load_campaign_file
     from bubblecal.surrogates.training import filter_curves, read_dataset
-    from bubblecal.workflows.campaign import load_campaign_file
 
     name = path.name.removesuffix(".jsonl.gz")
     cfg = load_campaign_file(name).config

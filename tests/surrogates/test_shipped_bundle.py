@@ -22,7 +22,7 @@ def bundle():
 
 
 def test_every_reference_curve_has_a_dpd_surrogate_with_provenance(bundle):
-    from bubblecal.workflows.campaign import load_campaign_file
+    from bubblecal.campaigns import load_campaign_file
 
     assert not is_synthetic_bundle(bundle)
     for curve in reference_curves():

@@ -1,4 +1,4 @@
-"""Campaigns: designs, task chunking, resumable execution (interrupted runs, a killed Dask worker), real tiny run."""
+"""Campaign runs: resumable execution (interrupted runs, a killed Dask worker), streaming, real tiny runs."""
 
 from __future__ import annotations
 
@@ -16,16 +16,11 @@ import cloudpickle
 import numpy as np
 import pytest
 
-from bubblecal.data import CampaignStore
-from bubblecal.sim.campaign import (
+from bubblecal.campaigns import (
     CampaignConfig,
     CampaignConfigError,
     CampaignError,
     TaskResult,
-    design_points,
-    grid_design,
-    lhs_design,
-    make_tasks,
     pending_indices,
     run_campaign,
     sample_ids,
@@ -33,6 +28,7 @@ from bubblecal.sim.campaign import (
     store_status,
     synthetic_simulate,
 )
+from bubblecal.data import CampaignStore
 
 # test-local simulate functions travel to the Dask workers by value (the test module is not importable there)
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -55,70 +51,6 @@ def lines_per_sample(store_path) -> Counter:
     for line in (store_path / "records.jsonl").read_text().splitlines():
         counts[json.loads(line)["sample_id"]] += 1
     return counts
-
-
-# ------------------------------------------------------------------------------------------------
-# configuration and design
-# ------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("change, field, text", [
-    ({"protocol": "shear"}, "protocol", "compression, indentation, ringdown"),
-    ({"n_samples": 0}, "n_samples", ">= 1"),
-    ({"design": "sobol"}, "design", "lhs, grid"),
-    ({"diameter_um": 40.0}, "diameter_um", "[0.5, 20]"),
-    ({"diameter_um": (2.1, 2.9)}, "diameter_um", "only with design = 'grid'"),
-    ({"ranges": {**BOX, "ka": (10.0, 5.0)}}, "ranges.ka", "lo <= hi"),
-    ({"ranges": {**BOX, "ka": (0.0, 5.0)}}, "ranges.ka", "> 0"),
-    ({"ranges": {k: v for k, v in BOX.items() if k != "a4"}}, "ranges.a4", "missing"),
-    ({"ranges": {**BOX, "mu": (1.0, 2.0)}}, "ranges.mu", "allowed: ka, kb"),
-    ({"tier": "fast"}, "tier", "explicit, implicit, quasistatic"),
-    ({"device": "gpu"}, "device", "'cpu', 'cuda' or 'cuda:N'"),
-    ({"replicas_per_task": 0}, "replicas_per_task", ">= 1"),
-    ({"loading_grid": (0.0, 0.5, 0.4)}, "loading_grid", "strictly increasing"),
-    ({"protocol": "indentation", "diameter_um": 4.0}, "loading_grid", "give loading_grid explicitly"),
-    ({"design": "grid"}, "ranges.kb", "fix every other parameter"),
-    ({"retry_statuses": ("ok",)}, "retry_statuses", "choose from"),
-])
-def test_config_errors_name_the_field(tmp_path, change, field, text):
-    with pytest.raises(CampaignConfigError) as info:
-        cfg(tmp_path, **change)
-    assert info.value.field == field
-    assert text in str(info.value)
-
-
-def test_lhs_design_is_deterministic_stratified_and_in_range(tmp_path):
-    box = {**BOX, "kb": (500.0, 500.0)}  # kb fixed
-    c = cfg(tmp_path, ranges=box, n_samples=50)
-    d1, d2 = lhs_design(c), lhs_design(cfg(tmp_path, ranges=box, n_samples=50))
-    for k in BOX:
-        np.testing.assert_array_equal(d1[k], d2[k])  # a restart regenerates the same design
-    assert np.all(d1["kb"] == 500.0)
-    for k in ("ka", "b1", "b2", "a3", "a4"):
-        lo, hi = box[k]
-        u = (d1[k] - lo) / (hi - lo)
-        assert np.all((u >= 0) & (u <= 1))
-        assert sorted(np.floor(u * 50).astype(int).tolist()) == list(range(50))  # one point per stratum
-    assert not np.array_equal(lhs_design(cfg(tmp_path, ranges=box, n_samples=50, seed=8))["ka"], d1["ka"])
-    ids = sample_ids(c)
-    assert ids[0] == "t-000000" and ids[-1] == "t-000049"
-    seeds = design_points(c)["seed"]
-    assert len(set(seeds.tolist())) == 50 and seeds[3] == sample_seed(7, 3) and 0 <= seeds.min()
-
-
-def test_grid_design_over_diameters_and_tasks(tmp_path):
-    fixed = {**{k: (v[0], v[0]) for k, v in BOX.items()}, "ka": (1000.0, 28000.0), "kb": (389.23, 389.23)}
-    c = cfg(tmp_path, protocol="ringdown", design="grid", diameter_um=(4.68, 5.18), ranges=fixed, n_samples=28,
-            replicas_per_task=10)
-    d = grid_design(c)
-    assert c.n_design == 56 and c.n_tasks == 6
-    np.testing.assert_allclose(d["ka"][:28], np.linspace(1000.0, 28000.0, 28))
-    assert np.all(d["kb"] == 389.23) and d["diameter_um"][27] == 4.68 and d["diameter_um"][28] == 5.18
-    tasks = make_tasks(c, range(56))
-    assert [t.n_replicas for t in tasks] == [10, 10, 8, 10, 10, 8]
-    assert all(len({d["diameter_um"][i] for i in t.indices}) == 1 for t in tasks)  # never mixed
-    assert tasks[0].grid is None and tasks[3].diameter_um == 5.18
-    explicit = cfg(tmp_path, protocol="ringdown", design="grid", diameter_um=4.68, ranges=fixed, n_samples=None,
-                   ka_values=(2000.0, 3000.0, 5000.0))
-    assert explicit.n_samples == 3 and grid_design(explicit)["ka"].tolist() == [2000.0, 3000.0, 5000.0]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -290,16 +222,6 @@ def test_real_tiny_quasistatic_campaign_on_local_cluster(tmp_path):
     assert recs[0]["provenance"]["info"]["mesh_subdivisions"] == 1 and recs[0]["x"] == [0.0, 0.12, 0.24]
 
 
-def test_scheduling_settings_leave_the_design_hash(tmp_path):
-    # slot refill / schedule give the same curves, so a store started without them resumes with them
-    base = cfg(tmp_path, tier="quasistatic", tier_settings={"ftol": 0.05})
-    same = cfg(tmp_path, tier="quasistatic", tier_settings={"ftol": 0.05, "max_replicas": 500, "schedule": "async"})
-    other = cfg(tmp_path, tier="quasistatic", tier_settings={"ftol": 0.02})
-    assert same.design_hash() == base.design_hash() != other.design_hash()
-    assert same.design_dict()["tier_settings"] == {"ftol": 0.05}
-    assert same.to_dict()["tier_settings"]["max_replicas"] == 500  # the store header keeps every setting
-
-
 def test_diameter_filter_runs_only_that_diameter(tmp_path):
     fixed = {**{k: (v[0], v[0]) for k, v in BOX.items()}, "ka": (1000.0, 28000.0), "kb": (389.23, 389.23)}
     c = cfg(tmp_path, design="grid", diameter_um=(2.1, 3.0), ranges=fixed, n_samples=4, replicas_per_task=3)
@@ -344,7 +266,7 @@ class _Killed(BaseException):
 
 def _killed_after(n_curves: int):
     """A simulate function that runs the real task and dies once ``n_curves`` curves have been streamed."""
-    from bubblecal.sim.campaign import simulate_task
+    from bubblecal.campaigns import simulate_task
 
     def simulate(task, on_curve=None):
         seen = []
@@ -383,7 +305,8 @@ def test_inline_indentation_streams_finished_curves_and_a_killed_task_keeps_them
     assert lines_per_sample(c.store_path) == Counter({sid: 1 for sid in sample_ids(c)})  # none twice
     for r in CampaignStore(c.store_path).read():
         want = ref_recs[r["sample_id"]]
-        assert (r["status"], r["seed"], r["params"], r["x"]) == (want["status"], want["seed"], want["params"], want["x"])
+        assert (r["status"], r["seed"], r["params"], r["x"]) == (want["status"], want["seed"], want["params"],
+                                                                   want["x"])
         np.testing.assert_array_equal(r["y"], want["y"])  # the same FIRE iterates: identical curves
         assert r["provenance"]["info"]["fire_steps"] == want["provenance"]["info"]["fire_steps"]
         chain = r["provenance"]["info"]["fire_steps_chain"]  # per chain point: sums to the curve's FIRE updates

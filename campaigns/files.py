@@ -1,4 +1,4 @@
-"""Campaign configuration files (TOML) -> :class:`bubblecal.sim.campaign.CampaignConfig`.
+"""Campaign files (TOML) -> :class:`~bubblecal.campaigns.CampaignConfig`, and the shipped campaign files.
 
 Format (every key is checked; an error names the file, the field and the allowed values)::
 
@@ -15,7 +15,7 @@ Format (every key is checked; an error names the file, the field and the allowed
     store = "stores/def21"               # campaign store directory; relative = against this file's folder;
                                          # absent: ./<name>.store in the current directory
     # optional: subdivisions = 4 (icosphere level), loading_grid = [...] (default: the published grid),
-    #           ka_values = [...] (grid design), retry_statuses = ["failed", "timeout"]
+    #           ka_values = [...] (grid design), retry_statuses = ["failed", "timeout"], description = "..."
 
     [ranges]                             # DPD units: ka 2-D modulus, kb energy, b1..a4 dimensionless
     priors = "definity_full"             # shipped workflow name or a priors TOML path: its shell box; a list
@@ -28,7 +28,7 @@ Format (every key is checked; an error names the file, the field and the allowed
     scheduler_address = ""               # "" or "local" = LocalCluster; "tcp://host:8786"; "inline" = no Dask
     n_workers = 1                        # LocalCluster workers (default: 1 on cuda, core count on cpu)
 
-The shipped configurations (:func:`available_campaigns`) live in ``bubblecal/workflows/campaigns``.
+The shipped campaign files (:func:`available_campaigns`) are package data in ``bubblecal/campaigns/shipped``.
 """
 
 from __future__ import annotations
@@ -38,12 +38,17 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from bubblecal.data import PROTOCOLS, SHELL_PARAMETERS
-from bubblecal.sim.campaign import DESIGNS, CampaignConfig, CampaignConfigError
+from bubblecal.campaigns.config import DESIGNS, CampaignConfig
+from bubblecal.campaigns.errors import CampaignConfigError, CampaignFileError
+from bubblecal.campaigns.ranges import _ranges
+from bubblecal.data import PROTOCOLS
 from bubblecal.sim.tiers import TIER_NAMES
 
-__all__ = ["CampaignFileError", "CampaignFile", "available_campaigns", "campaign_path", "load_campaign_file",
-           "load_campaign_config"]
+__all__ = ["CampaignFile", "available_campaigns", "campaign_path", "load_campaign_file",
+           "load_campaign_config", "parse_tier_settings"]
+
+#: The package and folder of the shipped campaign files.
+_SHIPPED_PACKAGE, _SHIPPED_FOLDER = "bubblecal.campaigns", "shipped"
 
 _CAMPAIGN_KEYS = {
     "name": "a string of letters, digits, '.', '_', '-'",
@@ -69,18 +74,27 @@ _SECTIONS = ("campaign", "ranges", "tier", "dask")
 _FIELD_KEY = {"tier_settings": "[tier]", "ranges": "[ranges]"}
 
 
-class CampaignFileError(ValueError):
-    """A campaign TOML file is invalid; the message names the file, the field and the allowed values."""
-
-    def __init__(self, path: str | Path, key: str, message: str):
-        self.path = str(path)
-        self.key = key
-        super().__init__(f"campaign file {self.path}: {key}: {message}")
-
-
 @dataclass(frozen=True)
 class CampaignFile:
-    """A loaded campaign file: the config plus the execution settings of ``[dask]``."""
+    """A loaded campaign file: the config plus the execution settings of ``[dask]``.
+
+    Parameters
+    ----------
+    path : str
+        The campaign file.
+    config : CampaignConfig
+        The validated campaign.
+    scheduler_address : str, optional
+        ``[dask].scheduler_address`` (None when empty: a LocalCluster).
+    n_workers : int, optional
+        ``[dask].n_workers``.
+    priors : str, optional
+        The ``[ranges].priors`` workflow(s) of the box, comma-separated.
+    description : str
+        ``[campaign].description``.
+    raw : dict
+        The parsed TOML.
+    """
 
     path: str
     config: CampaignConfig
@@ -91,93 +105,59 @@ class CampaignFile:
     raw: dict = field(default_factory=dict)
 
 
+def _shipped_folder():
+    """The folder of the shipped campaign files (an importlib.resources Traversable)."""
+    return resources.files(_SHIPPED_PACKAGE) / _SHIPPED_FOLDER
+
+
 def available_campaigns() -> list[str]:
-    """Names of the shipped campaign configurations (without .toml)."""
-    folder = resources.files("bubblecal.workflows.campaigns")
+    """Names of the shipped campaign files.
+
+    Returns
+    -------
+    list of str
+        Sorted names without ``.toml``, e.g. ``definity_compression_2.1um``.
+    """
+    folder = _shipped_folder()
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
 def campaign_path(name_or_path: str | Path) -> Path:
-    """A TOML path, or the shipped configuration called ``name_or_path`` (see :func:`available_campaigns`)."""
+    """The path of a campaign file given by path or by shipped name.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A ``.toml`` path or an existing file (returned as given), or a shipped campaign name
+        (:func:`available_campaigns`).
+
+    Returns
+    -------
+    Path
+        The campaign file.
+
+    Raises
+    ------
+    CampaignFileError
+        Neither an existing file nor a shipped name (key ``path``; the message lists the shipped names).
+    """
     candidate = Path(name_or_path)
     if candidate.suffix == ".toml" or candidate.exists():
         return candidate
     key = str(name_or_path)
     if key in available_campaigns():
-        return Path(str(resources.files("bubblecal.workflows.campaigns") / f"{key}.toml"))
+        return Path(str(_shipped_folder() / f"{key}.toml"))
     raise CampaignFileError(name_or_path, "path", f"no such file or shipped campaign; shipped: "
                                                   f"{', '.join(available_campaigns())}")
 
 
 def _key_for(fld: str) -> str:
+    """The TOML key of a CampaignConfig field (for error messages)."""
     if fld.startswith("ranges."):
         return f"[ranges].{fld.split('.', 1)[1]}"
     if fld in _FIELD_KEY:
         return _FIELD_KEY[fld]
     return f"[campaign].{fld}"
-
-
-def _prior_box(path: Path, priors: str) -> dict[str, tuple[float, float]]:
-    """The shell-parameter box {param: (lo, hi)} of one workflow prior (fixed values as lo = hi)."""
-    from bubblecal.priors import PriorError, available_priors, load_priors
-
-    target = priors
-    if (priors.endswith(".toml") or "/" in priors) and not Path(priors).is_absolute():
-        target = str(path.parent / priors)
-    try:
-        spec = load_priors(target)
-    except PriorError as exc:
-        raise CampaignFileError(path, "[ranges].priors", f"{priors!r}: {exc} (shipped workflows: "
-                                                         f"{', '.join(available_priors())})") from None
-    box = {}
-    for k in SHELL_PARAMETERS:
-        if k in spec.parameters:
-            box[k] = spec.parameters[k].prior.as_tuple()
-        elif k in spec.fixed:
-            box[k] = (spec.fixed[k], spec.fixed[k])
-    return box
-
-
-def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
-    """The [ranges] table -> {param: (lo, hi)} (priors box, then explicit overrides)."""
-    if not isinstance(raw, dict):
-        raise CampaignFileError(path, "[ranges]", "must be a table")
-    allowed = ("priors",) + SHELL_PARAMETERS
-    for key in raw:
-        if key not in allowed:
-            raise CampaignFileError(path, f"[ranges].{key}", f"unknown key (allowed: {', '.join(allowed)})")
-    ranges: dict[str, tuple[float, float]] = {}
-    priors = raw.get("priors")
-    if priors is not None:
-        names = priors if isinstance(priors, list) else [priors]
-        if not names or not all(isinstance(n, str) and n for n in names):
-            from bubblecal.priors import available_priors
-
-            raise CampaignFileError(path, "[ranges].priors", f"must be a shipped workflow name "
-                                                             f"({', '.join(available_priors())}), a TOML path, or a "
-                                                             f"list of them (union box); got {priors!r}")
-        # a list: the union box, so that every listed workflow's prior lies inside the training domain
-        for name in names:
-            for k, (lo, hi) in _prior_box(path, name).items():
-                ranges[k] = (min(lo, ranges[k][0]), max(hi, ranges[k][1])) if k in ranges else (lo, hi)
-        priors = ", ".join(names)
-    for k in SHELL_PARAMETERS:
-        if k not in raw:
-            continue
-        v = raw[k]
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            ranges[k] = (float(v), float(v))
-        elif isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                           for x in v):
-            ranges[k] = (float(v[0]), float(v[1]))
-        else:
-            raise CampaignFileError(path, f"[ranges].{k}", f"must be [lo, hi] (lo <= hi) or one number (fixed), "
-                                                           f"DPD units; got {v!r}")
-    missing = [k for k in SHELL_PARAMETERS if k not in ranges]
-    if missing:
-        raise CampaignFileError(path, f"[ranges].{missing[0]}", "missing: give priors = '<workflow>' or "
-                                                                f"{missing[0]} = [lo, hi] / a fixed number")
-    return ranges, priors
 
 
 def _check_tier_settings(path: Path, tier: str, protocol: str, settings: dict) -> None:
@@ -206,8 +186,23 @@ def _check_tier_settings(path: Path, tier: str, protocol: str, settings: dict) -
 
 
 def parse_tier_settings(items: list[str]) -> dict:
-    """``KEY=VALUE`` strings (command-line ``--tier-setting``) -> {key: value}, each value read as a TOML value
-    (bare words as strings); ValueError names the malformed item."""
+    """Parse command-line ``--tier-setting KEY=VALUE`` items into ``[tier]`` overrides.
+
+    Parameters
+    ----------
+    items : list of str
+        ``KEY=VALUE`` strings; each value is read as a TOML value, a bare word (e.g. ``mirheo``) as a string.
+
+    Returns
+    -------
+    dict
+        ``{key: value}``.
+
+    Raises
+    ------
+    ValueError
+        An item is not ``KEY=VALUE`` with an identifier key; the message names it.
+    """
     out = {}
     for item in items:
         key, sep, value = item.partition("=")
@@ -221,11 +216,8 @@ def parse_tier_settings(items: list[str]) -> dict:
     return out
 
 
-def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = None,
-                       tier_overrides: dict | None = None) -> CampaignFile:
-    """Read and validate a campaign TOML (path or shipped name); ``store`` overrides ``[campaign].store``;
-    ``tier_overrides`` set ``[tier]`` keys on top of the file's (validated like them; a different design)."""
-    path = campaign_path(name_or_path)
+def _read(path: Path) -> dict:
+    """The parsed TOML with known sections only."""
     try:
         with open(path, "rb") as fh:
             raw = tomllib.load(fh)
@@ -236,27 +228,30 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
     for key in raw:
         if key not in _SECTIONS:
             raise CampaignFileError(path, f"[{key}]", f"unknown section (allowed: {', '.join(_SECTIONS)})")
+    return raw
+
+
+def _campaign_table(path: Path, raw: dict) -> dict:
+    """The [campaign] table: known keys, the required ones present."""
     camp = raw.get("campaign")
     if not isinstance(camp, dict):
-        raise CampaignFileError(path, "[campaign]", "missing section (name, protocol, diameter_um, tier, n_samples, "
-                                                    "seed, ...)")
+        raise CampaignFileError(path, "[campaign]", "missing section (name, protocol, diameter_um, tier, "
+                                                    "n_samples, seed, ...)")
     for key in camp:
         if key not in _CAMPAIGN_KEYS:
-            raise CampaignFileError(path, f"[campaign].{key}", f"unknown key (allowed: {', '.join(_CAMPAIGN_KEYS)})")
+            raise CampaignFileError(path, f"[campaign].{key}", f"unknown key (allowed: "
+                                                               f"{', '.join(_CAMPAIGN_KEYS)})")
     for key in ("name", "protocol", "diameter_um"):
         if key not in camp:
             raise CampaignFileError(path, f"[campaign].{key}", f"missing; must be {_CAMPAIGN_KEYS[key]}")
     design = camp.get("design", "lhs")
     if "n_samples" not in camp and not (design == "grid" and "ka_values" in camp):
         raise CampaignFileError(path, "[campaign].n_samples", f"missing; must be {_CAMPAIGN_KEYS['n_samples']}")
-    if "ranges" not in raw:
-        raise CampaignFileError(path, "[ranges]", "missing section: priors = '<workflow>' and/or ka = [lo, hi], ...")
-    ranges, priors = _ranges(path, raw["ranges"])
-    tier_settings = raw.get("tier", {})
-    if not isinstance(tier_settings, dict):
-        raise CampaignFileError(path, "[tier]", "must be a table of setting = value")
-    if tier_overrides:
-        tier_settings = {**tier_settings, **tier_overrides}
+    return camp
+
+
+def _dask_table(path: Path, raw: dict) -> tuple[str, int | None]:
+    """The [dask] table -> (scheduler_address, n_workers)."""
     dask = raw.get("dask", {})
     if not isinstance(dask, dict):
         raise CampaignFileError(path, "[dask]", "must be a table (scheduler_address, n_workers)")
@@ -269,20 +264,62 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
     n_workers = dask.get("n_workers")
     if n_workers is not None and (isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1):
         raise CampaignFileError(path, "[dask].n_workers", f"must be {_DASK_KEYS['n_workers']}, got {n_workers!r}")
+    return address, n_workers
 
-    name = camp["name"]
+
+def _store_path(path: Path, camp: dict, store: str | Path | None) -> Path:
+    """``store`` if given, else [campaign].store (relative to the file's folder), else ./<name>.store."""
     if store is not None:
-        store_path = Path(store)
-    elif "store" in camp:
+        return Path(store)
+    if "store" in camp:
         if not isinstance(camp["store"], str) or not camp["store"]:
             raise CampaignFileError(path, "[campaign].store", f"must be {_CAMPAIGN_KEYS['store']}")
         store_path = Path(camp["store"]).expanduser()
         if not store_path.is_absolute():
             store_path = path.resolve().parent / store_path
-    else:
-        store_path = Path.cwd() / f"{name}.store"
-    kwargs = dict(name=name, protocol=camp["protocol"], ranges=ranges, tier_settings=tier_settings,
-                  store=str(store_path))
+        return store_path
+    return Path.cwd() / f"{camp['name']}.store"
+
+
+def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = None,
+                       tier_overrides: dict | None = None) -> CampaignFile:
+    """Read and validate a campaign TOML file.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A campaign file, or a shipped campaign name (:func:`available_campaigns`).
+    store : str or Path, optional
+        Overrides ``[campaign].store`` (campaign store directory).
+    tier_overrides : dict, optional
+        ``[tier]`` keys set on top of the file's, validated like them (a different design).
+
+    Returns
+    -------
+    CampaignFile
+        The validated config and the ``[dask]`` settings.
+
+    Raises
+    ------
+    CampaignFileError
+        The file is missing, not TOML, or a key is invalid; the message names the file, the key and the
+        allowed values.
+    """
+    path = campaign_path(name_or_path)
+    raw = _read(path)
+    camp = _campaign_table(path, raw)
+    if "ranges" not in raw:
+        raise CampaignFileError(path, "[ranges]", "missing section: priors = '<workflow>' and/or ka = [lo, hi], ...")
+    ranges, priors = _ranges(path, raw["ranges"])
+    tier_settings = raw.get("tier", {})
+    if not isinstance(tier_settings, dict):
+        raise CampaignFileError(path, "[tier]", "must be a table of setting = value")
+    if tier_overrides:
+        tier_settings = {**tier_settings, **tier_overrides}
+    address, n_workers = _dask_table(path, raw)
+
+    kwargs = dict(name=camp["name"], protocol=camp["protocol"], ranges=ranges, tier_settings=tier_settings,
+                  store=str(_store_path(path, camp, store)))
     d = camp["diameter_um"]
     kwargs["diameter_um"] = tuple(d) if isinstance(d, list) else d
     for key in ("tier", "design", "n_samples", "seed", "replicas_per_task", "device", "subdivisions"):
@@ -293,7 +330,8 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
     for key in ("loading_grid", "ka_values", "retry_statuses"):
         if key in camp:
             if not isinstance(camp[key], list):
-                raise CampaignFileError(path, f"[campaign].{key}", f"must be {_CAMPAIGN_KEYS[key]}, got {camp[key]!r}")
+                raise CampaignFileError(path, f"[campaign].{key}", f"must be {_CAMPAIGN_KEYS[key]}, got "
+                                                                   f"{camp[key]!r}")
             kwargs[key] = tuple(camp[key])
     try:
         config = CampaignConfig(**kwargs)
@@ -307,5 +345,21 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
 
 
 def load_campaign_config(path: str | Path) -> CampaignConfig:
-    """The :class:`CampaignConfig` of a campaign TOML (path or shipped name); errors: :class:`CampaignFileError`."""
+    """The config of a campaign TOML file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A campaign file or a shipped campaign name.
+
+    Returns
+    -------
+    CampaignConfig
+        ``load_campaign_file(path).config``.
+
+    Raises
+    ------
+    CampaignFileError
+        As :func:`load_campaign_file`.
+    """
     return load_campaign_file(path).config

@@ -1,0 +1,351 @@
+"""The campaign loop: run the pending part of a design on Dask (or in-process) and append the records.
+
+The client process is the store's only writer: each task's records go out in one atomic, fsync'ed append as
+the task completes (``as_completed``), so a killed worker (Dask reschedules its task) or an interrupted client
+(the next run skips what is stored) loses and duplicates nothing.  In-process runs (``scheduler_address=
+'inline'``) also write each curve as soon as a streaming tier finishes it (provenance ``streamed``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import socket
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bubblecal.campaigns.config import CampaignConfig, _is_int
+from bubblecal.campaigns.design import design_points
+from bubblecal.campaigns.errors import CampaignConfigError, CampaignError
+from bubblecal.campaigns.progress import _Progress
+from bubblecal.campaigns.records import task_records
+from bubblecal.campaigns.tasks import (
+    CampaignTask,
+    TaskResult,
+    _execute_task,
+    _takes_on_curve,
+    make_tasks,
+    pending_indices,
+    simulate_task,
+)
+from bubblecal.data import RECORD_STATUSES, RETRY_STATUSES, CampaignStore, code_version
+
+__all__ = ["CampaignSummary", "run_campaign"]
+
+_MAX_CONSECUTIVE_TASK_ERRORS = 10
+
+
+@dataclass
+class CampaignSummary:
+    """Outcome of one :func:`run_campaign` call.
+
+    Parameters
+    ----------
+    name, store : str
+        Campaign name and store path.
+    n_design : int
+        Design points of the campaign.
+    n_done_before : int
+        Design points final before this call (``n_design - n_pending``).
+    n_pending : int
+        Design points pending before this call (of the selected diameters).
+    n_submitted, n_tasks : int
+        Samples and tasks this call ran (``limit`` applied).
+    n_written : int
+        Samples written by this call.
+    counts : dict of str to int
+        Statuses written by this call.
+    store_counts : dict of str to int
+        The store's latest status per sample after it.
+    wall_seconds : float
+        First submit to last record written [s] (cluster start-up excluded).
+    startup_seconds : float
+        Cluster start-up [s] (0 in-process).
+    compute_seconds : float
+        Sum of the per-task compute times measured inside the tasks [s].
+    task_seconds : list of float
+        Per-task compute times [s].
+    n_workers : int
+        Dask workers (1 in-process).
+    scheduler : str
+        Scheduler address, or 'inline'.
+    task_errors : list of str
+        One line per task that raised.
+    retry_statuses : tuple of str
+        The config's retry statuses (for :attr:`n_remaining`).
+    """
+
+    name: str
+    store: str
+    n_design: int
+    n_done_before: int
+    n_pending: int
+    n_submitted: int
+    n_tasks: int
+    n_written: int
+    counts: dict[str, int]
+    store_counts: dict[str, int]
+    wall_seconds: float
+    startup_seconds: float
+    compute_seconds: float
+    task_seconds: list[float]
+    n_workers: int
+    scheduler: str
+    task_errors: list[str] = field(default_factory=list)
+    retry_statuses: tuple[str, ...] = RETRY_STATUSES
+
+    @property
+    def n_remaining(self) -> int:
+        """Design points still pending after this call."""
+        return self.n_pending - sum(v for s, v in self.counts.items() if s not in self.retry_statuses)
+
+    @property
+    def efficiency(self) -> float:
+        """compute / (wall x workers); NaN when nothing ran."""
+        denom = self.wall_seconds * max(self.n_workers, 1)
+        return self.compute_seconds / denom if denom > 0 else float("nan")
+
+    @property
+    def overhead_fraction(self) -> float:
+        """1 - :attr:`efficiency`: the share of worker time not spent inside tasks."""
+        return 1.0 - self.efficiency
+
+    def as_dict(self) -> dict:
+        """The summary as JSON-able dict (``task_seconds`` left out)."""
+        return {"name": self.name, "store": self.store, "n_design": self.n_design, "n_done_before": self.n_done_before,
+                "n_pending": self.n_pending, "n_submitted": self.n_submitted, "n_tasks": self.n_tasks,
+                "n_written": self.n_written, "n_remaining": self.n_remaining, "counts": dict(self.counts),
+                "store_counts": dict(self.store_counts), "wall_seconds": self.wall_seconds,
+                "startup_seconds": self.startup_seconds, "compute_seconds": self.compute_seconds,
+                "n_workers": self.n_workers, "scheduler": self.scheduler, "efficiency": self.efficiency,
+                "overhead_fraction": self.overhead_fraction, "task_errors": list(self.task_errors)}
+
+
+def _open_store(config: CampaignConfig) -> CampaignStore:
+    """Create or open the store; refuse one written by a different design."""
+    store = CampaignStore.create(config.store_path, description=f"bubblecal campaign {config.name}",
+                                 meta={"campaign": config.to_dict(), "design_hash": config.design_hash()})
+    meta = store.header().get("meta", {})
+    if meta.get("design_hash") not in (None, config.design_hash()):
+        old = meta.get("campaign", {})
+        new = config.design_dict()
+        diff = [k for k in new if json.dumps(old.get(k), sort_keys=True) != json.dumps(new[k], sort_keys=True)]
+        raise CampaignError(f"{config.store_path}: the store holds campaign {old.get('name')!r} of another design "
+                            f"(differs in: {', '.join(diff) or '?'}); use a new store path or restore the settings")
+    return store
+
+
+class _RecordWriter:
+    """The client-side bookkeeping of one run: turns finished tasks and streamed curves into store appends."""
+
+    def __init__(self, config: CampaignConfig, store: CampaignStore, on_error: str):
+        self.config, self.store, self.on_error = config, store, on_error
+        self.counts = dict.fromkeys(RECORD_STATUSES, 0)
+        self.written: set[str] = set()
+        self.task_seconds: list[float] = []
+        self.task_errors: list[str] = []
+        self.design_hash = config.design_hash()
+        self.version = code_version()
+        self.consecutive_errors = 0
+
+    def task_done(self, task: CampaignTask, res: TaskResult | None, error: BaseException | None) -> int:
+        """Append a finished task's records ('failed' ones when it raised); returns the samples written."""
+        config = self.config
+        if error is not None:
+            self.consecutive_errors += 1
+            msg = f"task {task.index} ({task.sample_ids[0]} ...): {type(error).__name__}: {error}"
+            self.task_errors.append(msg)
+            if self.on_error == "raise" or self.consecutive_errors >= _MAX_CONSECUTIVE_TASK_ERRORS:
+                why = "" if self.on_error == "raise" else f" ({self.consecutive_errors} consecutive tasks raised)"
+                raise CampaignError(f"campaign {config.name} stopped{why}: {msg}") from error
+            recs = task_records(config, task, None, code_version=self.version, design_hash=self.design_hash,
+                                error=f"{type(error).__name__}: {error}"[:2000])
+        else:
+            self.consecutive_errors = 0
+            self.task_seconds.append(res.compute_seconds)
+            recs = task_records(config, task, res, code_version=self.version, design_hash=self.design_hash)
+        recs = [r for r in recs if r["sample_id"] not in self.written]  # never twice in one run
+        self.store.append_many(recs)
+        for r in recs:
+            self.written.add(r["sample_id"])
+            self.counts[r["status"]] += 1
+        return len(recs)
+
+    def curve_done(self, task: CampaignTask, t_task: float, r: int, y_row, status: str, info: Mapping) -> int:
+        """Append one finished curve of a running task at once (an interrupted task keeps it); returns 0 or 1."""
+        sid = task.sample_ids[r]
+        if sid in self.written:
+            return 0
+        one = dataclasses.replace(task, indices=(task.indices[r],), sample_ids=(sid,), seeds=(task.seeds[r],),
+                                  params={k: np.asarray(v)[r:r + 1] for k, v in task.params.items()})
+        res = TaskResult(x=np.asarray(task.grid, dtype=np.float64), y=np.asarray(y_row, dtype=np.float64)[None, :],
+                         status=[status], info=dict(info), compute_seconds=time.perf_counter() - t_task,
+                         host=socket.gethostname(), pid=os.getpid())
+        recs = task_records(self.config, one, res, code_version=self.version, design_hash=self.design_hash,
+                            provenance={"task": task.index, "replicas_in_task": task.n_replicas, "streamed": True})
+        self.store.append_many(recs)
+        self.written.add(sid)
+        self.counts[recs[0]["status"]] += 1
+        return 1
+
+
+def _run_inline(tasks: list[CampaignTask], simulate: Callable, writer: _RecordWriter, bar: _Progress) -> None:
+    """Run the tasks one after another in this process, streaming finished curves where ``simulate`` can."""
+    streams = _takes_on_curve(simulate)
+    for task in tasks:
+        t_task = time.perf_counter()
+
+        def on_curve(r, y_row, status, info, task=task, t_task=t_task):
+            """Write replica ``r``'s finished curve at once."""
+            bar.update(writer.curve_done(task, t_task, r, y_row, status, info), writer.counts)
+
+        try:
+            res, err = _execute_task(simulate, task, on_curve if streams else None), None
+        except Exception as exc:  # recorded or re-raised by task_done()
+            res, err = None, exc
+        bar.update(writer.task_done(task, res, err), writer.counts)
+
+
+def _run_dask(client, tasks: list[CampaignTask], simulate: Callable, writer: _RecordWriter, bar: _Progress,
+              name: str) -> None:
+    """Submit every task to ``client`` and write each result as it completes; cancel the rest on any error."""
+    from distributed import as_completed
+
+    token = hashlib.sha256(f"{time.time_ns()}-{os.getpid()}".encode()).hexdigest()[:8]
+    futures = {}
+    for task in tasks:
+        fut = client.submit(_execute_task, simulate, task, key=f"{name}-t{task.index:05d}-{token}", pure=False)
+        futures[fut.key] = (fut, task)
+    try:
+        for fut in as_completed([f for f, _ in futures.values()]):
+            task = futures[fut.key][1]
+            try:
+                res, err = fut.result(), None
+            except Exception as exc:  # recorded or re-raised by task_done()
+                res, err = None, exc
+            bar.update(writer.task_done(task, res, err), writer.counts)
+            fut.release()
+    except BaseException:
+        client.cancel([f for f, _ in futures.values()])
+        raise
+
+
+def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str | None = None,
+                 n_workers: int | None = None, progress: bool = True, limit: int | None = None,
+                 simulate: Callable[[CampaignTask], TaskResult] | None = None,
+                 on_error: str = "record", diameters: Sequence[float] | None = None) -> CampaignSummary:
+    """Run the pending part of a campaign's design and append one record per sample to its store.
+
+    Parameters
+    ----------
+    config : CampaignConfig
+        The campaign; its store is created, or opened when it holds the same design.
+    client : distributed.Client, optional
+        A Dask client to use (not closed here).
+    scheduler_address : str, optional
+        Without ``client``: 'tcp://host:port' of any Dask scheduler (e.g. a dask-jobqueue SLURMCluster);
+        'inline' = in-process, no Dask; None, '' or 'local' = a ``LocalCluster(processes=True,
+        threads_per_worker=1)`` started and closed here.
+    n_workers : int, optional
+        LocalCluster workers (default: 1 for a CUDA device, the core count for CPU).
+    progress : bool
+        Show a progress bar.
+    limit : int, optional
+        Run at most this many pending samples (a partial run; the next call continues).
+    simulate : callable, optional
+        Task function ``simulate(task) -> TaskResult`` (default :func:`~bubblecal.campaigns.simulate_task`;
+        picklable for Dask).
+    on_error : {'record', 'raise'}
+        A task that raises writes 'failed' records (re-run by the next call) with 'record', or stops the
+        campaign with 'raise' (records already written stay); 10 consecutive raising tasks stop it either way.
+    diameters : Sequence[float], optional
+        Run only the pending samples of these diameters [um] of a multi-diameter design (e.g. one process
+        per diameter: the store takes whole-line appends from several processes).
+
+    Returns
+    -------
+    CampaignSummary
+        Counts by status, wall vs compute seconds.
+
+    Raises
+    ------
+    ValueError
+        ``on_error`` or ``limit`` is invalid.
+    CampaignConfigError
+        A diameter in ``diameters`` is not in the design (field ``diameter_um``).
+    CampaignError
+        The store holds another design, or the campaign stopped on task errors.
+    """
+    if on_error not in ("record", "raise"):
+        raise ValueError(f"on_error must be 'record' or 'raise', got {on_error!r}")
+    if limit is not None and (not _is_int(limit) or limit < 0):
+        raise ValueError(f"limit must be an integer >= 0 (samples), got {limit!r}")
+    simulate = simulate or simulate_task
+    if scheduler_address in ("", "local"):
+        scheduler_address = None
+    store = _open_store(config)
+    design = design_points(config)
+    pending = pending_indices(config, store)
+    if diameters is not None:
+        wanted = [float(d) for d in diameters]
+        unknown = [d for d in wanted if not any(abs(d - c) < 1e-9 for c in config.diameters)]
+        if unknown:
+            raise CampaignConfigError("diameter_um", f"{unknown} not in the design's diameters "
+                                                     f"{list(config.diameters)}")
+        keep = np.isin(np.round(design["diameter_um"], 9), np.round(wanted, 9))
+        pending = [i for i in pending if keep[i]]
+    n_pending = len(pending)
+    todo = pending[:limit] if limit is not None else pending
+    tasks = make_tasks(config, todo, design)
+    writer = _RecordWriter(config, store, on_error)
+
+    bar = _Progress(False, 0, config.name)
+    t_start = time.perf_counter()
+    startup = 0.0
+    own_client = own_cluster = None
+    workers = 1
+    scheduler = "inline"
+    try:
+        if not tasks:
+            pass
+        elif client is None and scheduler_address == "inline":
+            bar = _Progress(progress, len(todo), config.name)
+            _run_inline(tasks, simulate, writer, bar)
+        else:
+            from distributed import Client, LocalCluster
+
+            if client is None:
+                if scheduler_address:
+                    own_client = client = Client(scheduler_address)
+                else:
+                    import logging
+
+                    nw = n_workers or (1 if config.device.startswith("cuda") else (os.cpu_count() or 1))
+                    own_cluster = LocalCluster(n_workers=nw, processes=True, threads_per_worker=1,
+                                               dashboard_address=":0", silence_logs=logging.ERROR)
+                    own_client = client = Client(own_cluster)
+            workers = max(len(client.scheduler_info().get("workers", {})), 1)
+            scheduler = str(client.scheduler_info().get("address", "?"))
+            startup = time.perf_counter() - t_start
+            bar = _Progress(progress, len(todo), config.name)
+            t_start = time.perf_counter()  # the wall time counts from the first submit
+            _run_dask(client, tasks, simulate, writer, bar, config.name)
+    finally:
+        bar.close()
+        wall = time.perf_counter() - t_start
+        if own_client is not None:
+            own_client.close()
+        if own_cluster is not None:
+            own_cluster.close()
+    return CampaignSummary(
+        name=config.name, store=str(config.store_path), n_design=config.n_design,
+        n_done_before=config.n_design - n_pending, n_pending=n_pending, n_submitted=len(todo), n_tasks=len(tasks),
+        n_written=len(writer.written), counts=writer.counts, store_counts=store.counts(), wall_seconds=wall,
+        startup_seconds=startup, compute_seconds=float(sum(writer.task_seconds)), task_seconds=writer.task_seconds,
+        n_workers=workers, scheduler=scheduler, task_errors=writer.task_errors,
+        retry_statuses=config.retry_statuses)
