@@ -255,6 +255,7 @@ class FlatModel:
     # -- arguments: traced data and fixed rest --------------------------------------------------
 
     def _split_arguments(self, traced: bool) -> None:
+        """Split the arguments' leaves into traced data (numeric arrays) and fixed values."""
         leaves, self._treedef = jax.tree_util.tree_flatten((self.args, self.kwargs))
         use = [traced and _is_data(v) for v in leaves]
         #: the traced arguments (numeric array leaves of args/kwargs), in tree order

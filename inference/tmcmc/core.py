@@ -249,6 +249,7 @@ def step(
 
 
 def _empty_infos(max_stages: int, dtype) -> StageInfo:
+    """Stage records of a whole run before it starts (NaN floats, zero ints)."""
     f = jnp.full((max_stages,), jnp.nan, dtype)
     i = jnp.zeros((max_stages,), jnp.int32)
     return StageInfo(f, f, f, f, f, f, f, f, f, f, i, i, i)

@@ -64,6 +64,7 @@ PRESETS = ("robust", "korali")
 
 
 def _check_int(name, value, minimum):
+    """``value`` as an int >= ``minimum``, else ValueError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     if value < minimum:
@@ -72,6 +73,7 @@ def _check_int(name, value, minimum):
 
 
 def _check_positive(name, value):
+    """``value`` as a positive finite float, else ValueError naming ``name``."""
     try:
         v = float(value)
     except (TypeError, ValueError):
