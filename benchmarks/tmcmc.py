@@ -61,7 +61,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
-from bubblecal.inference import tmcmc_core as core  # noqa: E402
+from bubblecal.inference import tmcmc as core  # noqa: E402
 
 D = 8
 NAMES = ("ka", "kb", "b1", "b2", "a3", "a4", "d0", "sigma")
@@ -173,7 +173,7 @@ def bubblecal_runner(log_prior, log_lik, n, steps, move_name, chunk_size, hmc_st
     if move_name in ("rw", "rw-u"):
         move = core.RandomWalk(num_steps=steps, init_scale2=0.04, adapt=True)
     elif move_name == "hmc":
-        from bubblecal.inference.moves import hmc_move
+        from bubblecal.inference import hmc_move
 
         move = hmc_move(num_steps=hmc_steps, trajectory_length=1.5)
     else:

@@ -1,1 +1,63 @@
-"""bubblecal.inference."""
+"""bubblecal.inference: samplers and what is computed from samples; knows no physics.
+
+Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain arrays::
+
+    from bubblecal.inference import TMCMC, run_nuts, compare_posteriors
+
+- :class:`TMCMC` — transitional MCMC with log evidence (``docs/inference.md`` section 5), its moves
+  (:class:`RandomWalk`, :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`) and
+  :func:`clear_program_cache`; the pure core is in :mod:`bubblecal.inference.tmcmc`;
+- :func:`run_nuts` — the NUTS cross-check; :func:`compare_posteriors` — agreement of two samplers;
+- :func:`run_staged` and the staged (Korali-style) hierarchy (section 4);
+- posterior-predictive metrics (section 7): :func:`predictive_band`, :func:`coverage`,
+  :func:`predictive_crps`, :func:`map_index`, ...;
+- :func:`sobol_along` — Sobol sensitivity along a loading coordinate (section 8; SALib is imported
+  only when it runs).
+"""
+
+from bubblecal.inference.compare import Comparison, compare_posteriors
+from bubblecal.inference.crps import CRPSResult, crps_ensemble, gaussian_crps, predictive_crps
+from bubblecal.inference.hierarchical import (
+    ESS_PREFIX,
+    Dataset,
+    PhaseResult,
+    StagedResult,
+    compare_staged_joint,
+    ess_table,
+    run_phase,
+    run_staged,
+)
+from bubblecal.inference.nuts import NUTSResult, run_nuts
+from bubblecal.inference.predictive import (
+    PredictiveBand,
+    coverage,
+    map_estimate,
+    map_index,
+    mixture_cdf,
+    mixture_quantile,
+    predictive_band,
+)
+from bubblecal.inference.sensitivity import SobolResult, saltelli_design, sobol_along, sobol_indices
+from bubblecal.inference.tmcmc import (
+    TMCMC,
+    KernelMove,
+    RandomWalk,
+    clear_program_cache,
+    hmc_move,
+    nuts_move,
+)
+
+__all__ = [
+    # TMCMC
+    "TMCMC", "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "clear_program_cache",
+    # NUTS and sampler comparison
+    "run_nuts", "NUTSResult", "compare_posteriors", "Comparison",
+    # staged hierarchy
+    "Dataset", "PhaseResult", "StagedResult", "run_phase", "run_staged", "ess_table", "compare_staged_joint",
+    "ESS_PREFIX",
+    # posterior-predictive metrics
+    "PredictiveBand", "CRPSResult", "mixture_cdf", "mixture_quantile", "predictive_band", "coverage",
+    "gaussian_crps", "crps_ensemble", "predictive_crps", "map_index", "map_estimate",
+    # sensitivity
+    "SobolResult", "saltelli_design", "sobol_indices", "sobol_along",
+]

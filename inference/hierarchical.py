@@ -1,5 +1,7 @@
 """Staged (Korali-style) hierarchical inference driven by TMCMC, and its comparison with a joint run.
 
+The method is ``docs/inference.md`` section 4.
+
 Physics-free: the caller supplies NumPyro models (``bubblecal.models`` builds them).
 
 * Phase 1: every dataset's posterior under its own uniform prior — :class:`Dataset` entries.
@@ -36,7 +38,19 @@ ESS_PREFIX = "is_ess_"
 
 @dataclass(frozen=True)
 class Dataset:
-    """One dataset's phase-1 model: ``model(*args, **kwargs)`` under its uniform prior."""
+    """One dataset's phase-1 model: ``model(*args, **kwargs)`` under its uniform prior.
+
+    Parameters
+    ----------
+    name : str
+        Dataset name (unique; the phases are named ``phase1_<name>``, ``phase3_<name>``).
+    model : callable
+        NumPyro model.
+    args : tuple
+        Positional arguments of the model.
+    kwargs : mapping
+        Keyword arguments of the model.
+    """
 
     name: str
     model: Callable
@@ -46,7 +60,23 @@ class Dataset:
 
 @dataclass
 class PhaseResult:
-    """Outcome of one TMCMC run: samples (constrained, incl. deterministic sites), evidence, diagnostics."""
+    """Outcome of one TMCMC run of a phase.
+
+    Parameters
+    ----------
+    name : str
+        Phase name (``phase1_<dataset>``, ``phase2``, ``phase3_<dataset>``).
+    samples : dict of str to numpy.ndarray
+        Constrained samples, deterministic sites included.
+    log_evidence, log_evidence_se : float
+        Log evidence (mean over replicas) and its standard error.
+    status : str
+        TMCMC status.
+    seconds : float
+        Wall time of the run.
+    sampler : TMCMC or None
+        The sampler (None for a result loaded from disk).
+    """
 
     name: str
     samples: dict[str, np.ndarray]
@@ -57,7 +87,12 @@ class PhaseResult:
     sampler: TMCMC | None = None
 
     def to_inference_data(self):
-        """ArviZ InferenceData of the run (stage table and evidence in attrs)."""
+        """The run as ArviZ InferenceData (stage table and evidence in the attrs).
+
+        Returns
+        -------
+        arviz.InferenceData
+        """
         if self.sampler is not None:
             return self.sampler.to_inference_data()
         import arviz as az
@@ -70,12 +105,23 @@ class PhaseResult:
 
 @dataclass
 class StagedResult:
-    """Phases 1, 2 and 3 of a staged hierarchy."""
+    """Phases 1, 2 and 3 of a staged hierarchy.
+
+    Parameters
+    ----------
+    phase1 : list of PhaseResult
+        One per dataset.
+    phase2 : PhaseResult
+        The hyperparameters ψ.
+    phase3 : list of PhaseResult
+        One per dataset.
+    phase3_ess : dict of str to float
+        Importance ESS of the phase-3 re-weighting per dataset (empty for the published phase 3).
+    """
 
     phase1: list[PhaseResult]
     phase2: PhaseResult
     phase3: list[PhaseResult]
-    #: importance ESS of the phase-3 re-weighting per dataset (empty for the published phase 3)
     phase3_ess: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -84,16 +130,48 @@ class StagedResult:
         return {k: v for k, v in self.phase2.samples.items() if k.startswith(("m_", "tau_"))}
 
     def ess(self):
-        """Per-dataset importance-sampling ESS summary (see :func:`ess_table`)."""
+        """Per-dataset importance-sampling ESS summary.
+
+        Returns
+        -------
+        pandas.DataFrame
+            See :func:`ess_table`.
+        """
         return ess_table(self.phase2.samples, {r.name: _num_draws(r) for r in self.phase1})
 
 
 def _num_draws(result: PhaseResult) -> int:
+    """Number of draws of a phase."""
     return int(next(iter(result.samples.values())).shape[0])
 
 
 def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key, tmcmc_options: Mapping) -> PhaseResult:
-    """Run TMCMC on ``model(*args, **kwargs)``; returns a :class:`PhaseResult` (raises if it did not finish)."""
+    """Run TMCMC on one phase's model.
+
+    Parameters
+    ----------
+    name : str
+        Phase name.
+    model : callable
+        NumPyro model, run as ``model(*args, **kwargs)``.
+    args : tuple
+        Positional arguments of the model.
+    kwargs : mapping
+        Keyword arguments of the model.
+    rng_key : jax.Array
+        PRNG key of the run.
+    tmcmc_options : mapping
+        Keyword arguments of :class:`~bubblecal.inference.tmcmc.TMCMC`.
+
+    Returns
+    -------
+    PhaseResult
+
+    Raises
+    ------
+    RuntimeError
+        If TMCMC did not reach β = 1.
+    """
     start = time.perf_counter()
     sampler = TMCMC(model, **dict(tmcmc_options))
     sampler.run(rng_key, *args, **dict(kwargs))
@@ -123,19 +201,49 @@ def run_staged(
 ) -> StagedResult:
     """Run phases 1 → 2 → 3 with TMCMC (see the module docstring).
 
-    ``phase2_factory(samples, names)`` receives each dataset's phase-1 samples (optionally thinned to
-    ``phase2_max_samples`` draws: phase 2 costs Σ_i N_i population densities per ψ) and returns the
-    phase-2 model; ``phase3_factory(i, m_samples, tau_samples)`` (dicts parameter -> (S,) draws of
-    ψ) returns dataset i's phase-3 model with the dataset's data bound. ``*_options`` are :class:`TMCMC` keyword arguments (published:
-    N = 50,000, target CoV 0.8 in phase 1, 0.6 in phases 2 and 3). ``load(name)`` may return a stored
-    result to reuse and ``save(result)`` persists each finished phase; ``progress(message)`` reports.
+    Parameters
+    ----------
+    datasets : sequence of Dataset
+        The phase-1 models (unique names).
+    phase2_factory : callable
+        ``phase2_factory(samples, names) -> model``: receives each dataset's phase-1 samples (thinned
+        to ``phase2_max_samples`` draws) and returns the phase-2 model.
+    phase3_factory : callable
+        ``phase3_factory(i, m_samples, tau_samples) -> model`` (dicts parameter -> (S,) draws of ψ):
+        dataset i's phase-3 model with the dataset's data bound.
+    rng_key : jax.Array
+        PRNG key (split into one key per phase).
+    phase1_options, phase2_options, phase3_options : mapping or None
+        :class:`~bubblecal.inference.tmcmc.TMCMC` keyword arguments of each phase (published:
+        N = 50,000, target CoV 0.8 in phase 1, 0.6 in phases 2 and 3).
+    phase2_max_samples : int or None
+        Thin each phase-1 sample set to at most this many draws (deterministic, evenly spaced): phase 2
+        costs Σ_i N_i population densities per ψ.
+    phase3_reweight : callable or None
+        ``phase3_reweight(i, phase1_samples_i, m_samples, tau_samples) -> (S,)`` normalised log
+        weights of the phase-2 draws: phase 3 of dataset i then uses the draws resampled by those
+        weights. With :func:`bubblecal.models.leave_one_out_log_weights` they are draws of
+        p(ψ | D_{-i}), so Θ_i's posterior is the joint model's marginal rather than the published
+        Korali phase 3, which counts D_i twice (importance ESS per dataset in
+        ``StagedResult.phase3_ess``; the phase names stay ``phase3_<name>``, so a ``load`` that reuses
+        phases must tell the two variants apart). None (default): the published phase 3.
+    load : callable or None
+        ``load(name) -> PhaseResult | None``: a stored result to reuse.
+    save : callable or None
+        ``save(result)``: persists each finished phase.
+    progress : callable or None
+        ``progress(message)``: reports.
 
-    ``phase3_reweight(i, phase1_samples_i, m_samples, tau_samples)`` -> (S,) normalised log weights of the
-    phase-2 draws: phase 3 of dataset i then uses the draws resampled by those weights.  With
-    :func:`bubblecal.models.staged.leave_one_out_log_weights` they are draws of p(ψ | D_{-i}), so Θ_i's
-    posterior is the joint model's marginal rather than the published Korali phase 3, which counts D_i
-    twice (importance ESS per dataset in ``StagedResult.phase3_ess``; the phase names stay ``phase3_<name>``, so
-    a ``load`` that reuses phases must tell the two variants apart).  None (default): the published phase 3.
+    Returns
+    -------
+    StagedResult
+
+    Raises
+    ------
+    ValueError
+        For no datasets or duplicate names.
+    RuntimeError
+        If a phase's TMCMC did not reach β = 1.
     """
     if not datasets:
         raise ValueError("run_staged needs at least one dataset")
@@ -187,6 +295,7 @@ def run_staged(
 
 
 def _thin(samples: Mapping[str, np.ndarray], max_samples: int | None) -> dict[str, np.ndarray]:
+    """At most ``max_samples`` evenly spaced draws."""
     n = int(next(iter(samples.values())).shape[0])
     if max_samples is None or n <= max_samples:
         return dict(samples)
@@ -195,8 +304,22 @@ def _thin(samples: Mapping[str, np.ndarray], max_samples: int | None) -> dict[st
 
 
 def ess_table(phase2_samples: Mapping[str, np.ndarray], num_draws: Mapping[str, int] | None = None):
-    """Per dataset: IS effective sample size over the phase-2 posterior (min, 5 %, median), and as a
-    fraction of the phase-1 draws. A collapse (ESS ≈ 1) means phase 1 did not cover what ψ proposes."""
+    """Per dataset: importance-sampling effective sample size over the phase-2 posterior.
+
+    A collapse (ESS ≈ 1) means phase 1 did not cover what ψ proposes.
+
+    Parameters
+    ----------
+    phase2_samples : mapping of str to array_like
+        Phase-2 samples; the sites ``is_ess_<dataset>`` are read.
+    num_draws : mapping of str to int or None
+        Phase-1 draws per dataset (keys ``phase1_<dataset>`` or ``<dataset>``), for the fraction.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns dataset, ess_min, ess_p05, ess_median, ess_median_fraction (NaN without ``num_draws``).
+    """
     import pandas as pd
 
     rows = []
@@ -216,9 +339,21 @@ def compare_staged_joint(staged: StagedResult, joint_samples: Mapping[str, np.nd
                          dataset_sites: Mapping[str, Mapping[str, tuple[str, int | None]]] | None = None):
     """Compare staged and joint marginals: ψ (m_*, tau_*) and each dataset's Θ_i.
 
-    ``dataset_sites[name]`` maps a phase-3 site (e.g. 'ka') to the joint model's (site, index) holding
-    that dataset's value (e.g. ('ka', 2) for the third curve of a plate). Returns
-    ``{'psi': comparison, name: comparison, ...}`` from :func:`compare_posteriors`.
+    Parameters
+    ----------
+    staged : StagedResult
+        The staged run.
+    joint_samples : mapping of str to array_like
+        Samples of the joint model.
+    dataset_sites : mapping or None
+        ``dataset_sites[name]`` maps a phase-3 site (e.g. 'ka') to the joint model's (site, index)
+        holding that dataset's value (e.g. ('ka', 2) for the third curve of a plate; index None for a
+        site of its own).
+
+    Returns
+    -------
+    dict
+        ``{'psi': Comparison, name: Comparison, ...}`` from :func:`compare_posteriors`.
     """
     out = {}
     psi_staged = staged.psi_samples

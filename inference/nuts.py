@@ -15,10 +15,20 @@ from numpyro.infer import MCMC, NUTS, init_to_uniform
 class NUTSResult:
     """Samples of a NUTS run and its convergence diagnostics.
 
-    ``samples``: dict name -> array (num_chains * num_samples, ...) (chains concatenated);
-    ``samples_by_chain``: the same with a leading chain axis; ``summary``: numpyro's per-site
-    dict (mean, std, median, quantiles, n_eff, r_hat); ``max_r_hat`` / ``min_n_eff`` over every
-    component; ``num_divergences``; ``mcmc``: the NumPyro MCMC object.
+    Parameters
+    ----------
+    samples : dict of str to numpy.ndarray
+        Site name -> (num_chains * num_samples, ...) draws, chains concatenated.
+    samples_by_chain : dict of str to numpy.ndarray
+        The same with a leading chain axis.
+    summary : dict
+        NumPyro's per-site summary (mean, std, median, quantiles, n_eff, r_hat).
+    max_r_hat, min_n_eff : float
+        Largest r_hat and smallest bulk ESS over every component.
+    num_divergences : int
+        Divergent transitions after warm-up.
+    mcmc : numpyro.infer.MCMC
+        The NumPyro MCMC object.
     """
 
     samples: dict
@@ -30,6 +40,7 @@ class NUTSResult:
     mcmc: MCMC = field(repr=False)
 
     def get_samples(self) -> dict:
+        """The chains-concatenated samples (as ``MCMC.get_samples``)."""
         return self.samples
 
     @property
@@ -55,10 +66,40 @@ def run_nuts(
 ) -> NUTSResult:
     """Run NumPyro NUTS on ``model(*args, **kwargs)`` with ``num_chains`` chains.
 
-    ``chain_method`` is passed to ``numpyro.infer.MCMC`` ('vectorized' works on one device;
-    'parallel' needs one device per chain).  Deterministic sites are included in the samples.
-    ``init_strategy``: a NumPyro init strategy (default ``init_to_uniform``), e.g.
-    ``init_to_value(values=...)`` to start chains away from a flat region of the likelihood.
+    Parameters
+    ----------
+    model : callable
+        NumPyro model.
+    *args, **kwargs
+        Arguments of the model.
+    rng_key : jax.Array or None
+        PRNG key (default ``PRNGKey(0)``).
+    num_warmup, num_samples, num_chains : int
+        Warm-up and kept draws per chain, and the number of chains.
+    chain_method : str
+        Passed to ``numpyro.infer.MCMC`` ('vectorized' works on one device; 'parallel' needs one device
+        per chain).
+    target_accept_prob : float
+        NUTS target acceptance.
+    dense_mass : bool
+        Dense mass matrix adaptation.
+    max_tree_depth : int
+        NUTS maximum tree depth.
+    progress_bar : bool
+        NumPyro's progress bar.
+    init_strategy : callable or None
+        A NumPyro init strategy (default ``init_to_uniform``), e.g. ``init_to_value(values=...)`` to
+        start chains away from a flat region of the likelihood.
+
+    Returns
+    -------
+    NUTSResult
+        Samples (deterministic sites included) and diagnostics.
+
+    Raises
+    ------
+    ValueError
+        If a draw count is not an integer of the allowed range.
     """
     for name, value, minimum in (
         ("num_warmup", num_warmup, 0),

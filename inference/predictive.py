@@ -1,4 +1,6 @@
-"""Posterior-predictive metrics over arrays: mixture bands, coverage, CRPS, MAP (``inference.md`` §7).
+"""Posterior-predictive metrics over arrays: mixture quantiles, bands, coverage, MAP.
+
+The metrics of ``docs/inference.md`` section 7; the CRPS is :mod:`bubblecal.inference.crps`.
 
 Knows no physics: every function takes plain arrays. The pointwise predictive at P points from S
 posterior samples is the Gaussian mixture
@@ -11,19 +13,6 @@ mixture CDF in float64 (NumPy/SciPy), vectorised over points and levels: a safeg
 iteration inside a bisection bracket [min_k Q_k(q), max_k Q_k(q)] (component quantiles), which
 provably contains the mixture quantile.
 
-CRPS estimator
---------------
-For each replicate r, one draw z_kp ~ N(μ_kp, s_kp²) per posterior sample k and point p forms an
-ensemble of M = S members per point, and the CRPS of the observation y_p is estimated by the
-ensemble ("energy", NRG) form
-
-    CRPS_p = (1/M) Σ_k |z_kp − y_p| − 1/(2 M²) Σ_k Σ_l |z_kp − z_lp|,
-
-the exact CRPS of the ensemble's empirical CDF (the estimator of ``properscoring.crps_ensemble``);
-``fair=True`` uses 1/(2 M (M − 1)) instead, an unbiased estimator of the mixture's CRPS (the two differ
-by O(spread / M)). The score is averaged over the points, then over ``replicates`` (default 5)
-independent draws; the spread over replicates is reported as its Monte-Carlo error. Units: those of y.
-
 MAP: the posterior sample with the largest (finite) log posterior density.
 """
 
@@ -35,24 +24,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-__all__ = [
-    "PredictiveBand",
-    "CRPSResult",
-    "mixture_cdf",
-    "mixture_quantile",
-    "predictive_band",
-    "coverage",
-    "gaussian_crps",
-    "crps_ensemble",
-    "predictive_crps",
-    "map_index",
-    "map_estimate",
-]
+__all__ = ["PredictiveBand", "mixture_cdf", "mixture_quantile", "predictive_band", "coverage", "map_index",
+           "map_estimate"]
 
 
 @dataclass(frozen=True)
 class PredictiveBand:
-    """Pointwise predictive median and central band (arrays of shape (P,), units of y)."""
+    """Pointwise predictive median and central band.
+
+    Parameters
+    ----------
+    median, lower, upper : numpy.ndarray
+        (P,) arrays in the units of y.
+    level : float
+        Probability mass of the central band.
+    """
 
     median: np.ndarray
     lower: np.ndarray
@@ -60,32 +46,17 @@ class PredictiveBand:
     level: float
 
     def contains(self, y) -> np.ndarray:
-        """Boolean mask: lower <= y <= upper."""
+        """Boolean mask lower <= y <= upper of observations ``y`` (P,)."""
         y = np.asarray(y, dtype=float)
         return (y >= self.lower) & (y <= self.upper)
 
     def coverage(self, y) -> float:
-        """Fraction of the observations inside the band."""
+        """Fraction of the observations ``y`` (P,) inside the band."""
         return coverage(y, self.lower, self.upper)
 
 
-@dataclass(frozen=True)
-class CRPSResult:
-    """CRPS averaged over points and replicates (``mean``), per replicate, per point, and its MC error."""
-
-    mean: float
-    replicates: np.ndarray
-    per_point: np.ndarray
-    fair: bool
-
-    @property
-    def mc_error(self) -> float:
-        """Standard error of ``mean`` over the replicates (0 for a single replicate)."""
-        r = self.replicates
-        return float(np.std(r, ddof=1) / np.sqrt(r.size)) if r.size > 1 else 0.0
-
-
 def _prepare(means, sds, weights):
+    """Validated (S, P) means and sds and normalised (S,) weights."""
     mu, sd = np.broadcast_arrays(np.asarray(means, dtype=float), np.asarray(sds, dtype=float))
     if mu.ndim == 1:  # S samples at a single point
         mu, sd = mu[:, None], sd[:, None]
@@ -105,22 +76,45 @@ def _prepare(means, sds, weights):
 
 
 def _component_cdf(z, mu, sd):
+    """CDF of each Gaussian component (a step where sd = 0)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         c = ndtr((z - mu) / np.where(sd > 0, sd, 1.0))
     return np.where(sd > 0, c, (z >= mu).astype(float))
 
 
 def mixture_cdf(z, means, sds, weights=None) -> np.ndarray:
-    """Mixture CDF F_p(z_p) at ``z`` (..., P) for means/sds (S, P): shape of ``z``."""
+    """Mixture CDF F_p(z_p) of the pointwise Gaussian mixture.
+
+    Parameters
+    ----------
+    z : array_like
+        (..., P) evaluation points (units of y).
+    means, sds : array_like
+        (S, P) component means and standard deviations (units of y).
+    weights : array_like or None
+        (S,) component weights (default equal).
+
+    Returns
+    -------
+    numpy.ndarray
+        CDF values, shape of ``z``.
+
+    Raises
+    ------
+    ValueError
+        For badly shaped or non-finite inputs or invalid weights.
+    """
     mu, sd, w = _prepare(means, sds, weights)
     return _mixture_cdf(np.asarray(z, dtype=float), mu, sd, w)
 
 
 def _mixture_cdf(z, mu, sd, w):
+    """Mixture CDF of validated inputs."""
     return np.einsum("s,...sp->...p", w, _component_cdf(z[..., None, :], mu, sd))
 
 
 def _mixture_pdf(z, mu, sd, w):
+    """Mixture density of validated inputs."""
     with np.errstate(divide="ignore", invalid="ignore"):
         safe = np.where(sd > 0, sd, 1.0)
         u = (z[..., None, :] - mu) / safe
@@ -129,12 +123,35 @@ def _mixture_pdf(z, mu, sd, w):
 
 
 def mixture_quantile(means, sds, q, weights=None, *, tol: float = 1e-10, max_iter: int = 200) -> np.ndarray:
-    """Quantile(s) ``q`` of the pointwise Gaussian mixture: shape (P,) for scalar q, else (len(q), P).
+    """Quantile(s) of the pointwise Gaussian mixture.
 
     Safeguarded Newton on the mixture CDF inside a bisection bracket: the quantile lies between the
     smallest and the largest component quantile (the mixture CDF is a weighted mean of the component
     CDFs), each step shrinks the bracket, and a Newton step that leaves it is replaced by bisection.
     Stops when the bracket is below ``tol`` times its initial width or |F(z) − q| < 1e-13.
+
+    Parameters
+    ----------
+    means, sds : array_like
+        (S, P) component means and standard deviations (units of y).
+    q : float or array_like
+        Level(s) in (0, 1).
+    weights : array_like or None
+        (S,) component weights (default equal).
+    tol : float
+        Relative bracket width at which to stop.
+    max_iter : int
+        Iteration cap.
+
+    Returns
+    -------
+    numpy.ndarray
+        (P,) for a scalar ``q``, else (len(q), P), units of y.
+
+    Raises
+    ------
+    ValueError
+        For a level outside (0, 1) or invalid inputs.
     """
     mu, sd, w = _prepare(means, sds, weights)
     qs = np.atleast_1d(np.asarray(q, dtype=float))
@@ -164,7 +181,28 @@ def mixture_quantile(means, sds, q, weights=None, *, tol: float = 1e-10, max_ite
 
 
 def predictive_band(means, sds, level: float = 0.9, weights=None, **kwargs) -> PredictiveBand:
-    """Median and central ``level`` band of the pointwise mixture (default 90%: 5% and 95% quantiles)."""
+    """Median and central band of the pointwise mixture.
+
+    Parameters
+    ----------
+    means, sds : array_like
+        (S, P) component means and standard deviations (units of y).
+    level : float
+        Mass of the central band (default 0.9: the 5% and 95% quantiles).
+    weights : array_like or None
+        (S,) component weights (default equal).
+    **kwargs
+        Passed to :func:`mixture_quantile`.
+
+    Returns
+    -------
+    PredictiveBand
+
+    Raises
+    ------
+    ValueError
+        For a level outside (0, 1) or invalid inputs.
+    """
     if not 0.0 < level < 1.0:
         raise ValueError(f"level must lie in (0, 1), got {level}")
     a = 0.5 * (1.0 - level)
@@ -173,67 +211,39 @@ def predictive_band(means, sds, level: float = 0.9, weights=None, **kwargs) -> P
 
 
 def coverage(y, lower, upper) -> float:
-    """Fraction of observations ``y`` inside [lower, upper] (pointwise arrays of equal shape)."""
+    """Fraction of observations inside a pointwise band.
+
+    Parameters
+    ----------
+    y, lower, upper : array_like
+        Observations and band limits, arrays of equal shape (units of y).
+
+    Returns
+    -------
+    float
+    """
     y = np.asarray(y, dtype=float)
     inside = (y >= np.asarray(lower)) & (y <= np.asarray(upper))
     return float(np.mean(inside))
 
 
-def gaussian_crps(mu, sd, y) -> np.ndarray:
-    """Closed-form CRPS of N(mu, sd²) at y: sd [z (2Φ(z) − 1) + 2φ(z) − 1/√π], z = (y − mu)/sd."""
-    mu, sd, y = (np.asarray(a, dtype=float) for a in (mu, sd, y))
-    z = (y - mu) / sd
-    pdf = np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
-    return sd * (z * (2.0 * ndtr(z) - 1.0) + 2.0 * pdf - 1.0 / np.sqrt(np.pi))
-
-
-def crps_ensemble(draws, y, *, fair: bool = False) -> np.ndarray:
-    """Ensemble CRPS per point: ``draws`` (M, P) members, ``y`` (P,) observations -> (P,).
-
-    (1/M) Σ|z_k − y| − c Σ_k Σ_l |z_k − z_l| with c = 1/(2M²) (``fair=False``, empirical-CDF CRPS) or
-    1/(2M(M−1)) (``fair=True``); the double sum uses the sorted form 2 Σ_k (2k − M − 1) z_(k).
-    """
-    z = np.asarray(draws, dtype=float)
-    if z.ndim == 1:
-        z = z[:, None]
-    y = np.broadcast_to(np.asarray(y, dtype=float), z.shape[1:])
-    M = z.shape[0]
-    if fair and M < 2:
-        raise ValueError("the fair CRPS needs at least 2 ensemble members")
-    term1 = np.mean(np.abs(z - y[None, :]), axis=0)
-    zs = np.sort(z, axis=0)
-    k = np.arange(1, M + 1, dtype=float)[:, None]
-    pair_sum = 2.0 * np.sum((2.0 * k - M - 1.0) * zs, axis=0)
-    denom = 2.0 * M * (M - 1) if fair else 2.0 * M * M
-    return term1 - pair_sum / denom
-
-
-def predictive_crps(means, sds, y, *, replicates: int = 5, seed: int | np.random.Generator = 0,
-                    fair: bool = False) -> CRPSResult:
-    """CRPS of the Gaussian-mixture predictive at the observations ``y`` (P,), Monte Carlo (module doc).
-
-    Each replicate draws one z_kp ~ N(μ_kp, s_kp²) per posterior sample and point; the per-point
-    ensemble CRPS is averaged over points; ``mean`` averages the ``replicates`` independent values.
-    """
-    mu, sd, _ = _prepare(means, sds, None)
-    y = np.asarray(y, dtype=float)
-    if y.shape != (mu.shape[1],):
-        raise ValueError(f"y must have shape ({mu.shape[1]},), got {y.shape}")
-    if replicates < 1:
-        raise ValueError("replicates must be >= 1")
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    per_rep = np.empty(replicates)
-    per_point = np.zeros(mu.shape[1])
-    for r in range(replicates):
-        draws = mu + sd * rng.standard_normal(mu.shape)
-        c = crps_ensemble(draws, y, fair=fair)
-        per_rep[r] = c.mean()
-        per_point += c / replicates
-    return CRPSResult(mean=float(per_rep.mean()), replicates=per_rep, per_point=per_point, fair=fair)
-
-
 def map_index(log_posterior) -> int:
-    """Index of the sample with the largest finite log posterior (ValueError if none is finite)."""
+    """Index of the sample with the largest finite log posterior.
+
+    Parameters
+    ----------
+    log_posterior : array_like
+        (S,) log posterior densities.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        If no value is finite.
+    """
     lp = np.asarray(log_posterior, dtype=float).reshape(-1)
     finite = np.isfinite(lp)
     if not finite.any():
@@ -242,7 +252,25 @@ def map_index(log_posterior) -> int:
 
 
 def map_estimate(samples: Mapping[str, Sequence] | np.ndarray, log_posterior):
-    """The MAP sample: a dict {name: value} for dict-of-arrays input, or the row of an (S, D) array."""
+    """The MAP sample (largest finite log posterior).
+
+    Parameters
+    ----------
+    samples : mapping of str to array_like or array_like
+        Dict of (S, ...) arrays, or an (S, D) array.
+    log_posterior : array_like
+        (S,) log posterior densities.
+
+    Returns
+    -------
+    dict or numpy.ndarray
+        {name: value} for dict input, else the row of the array.
+
+    Raises
+    ------
+    ValueError
+        If no log posterior is finite.
+    """
     i = map_index(log_posterior)
     if isinstance(samples, Mapping):
         return {k: np.asarray(v)[i] for k, v in samples.items()}

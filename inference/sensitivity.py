@@ -1,7 +1,8 @@
-"""Variance-based (Sobol) sensitivity of a vectorised map along a loading coordinate (``inference.md`` §8).
+"""Variance-based (Sobol) sensitivity of a vectorised map along a loading coordinate.
 
-Knows no physics. For a function ``fn(params[..., D], x[...]) -> y[...]`` (e.g. a surrogate, params in
-its input order) and a box of D parameter ranges, :func:`sobol_along`
+The analysis of ``docs/inference.md`` section 8. Knows no physics. For a function
+``fn(params[..., D], x[...]) -> y[...]`` (e.g. a surrogate, params in its input order) and a box of D
+parameter ranges, :func:`sobol_along`
 
 1. draws SALib's Saltelli design (``SALib.sample.sobol.sample``, scrambled Sobol' sequence) with
    base sample size N (default 2,048, a power of two), N (D + 2) rows without second-order terms;
@@ -32,9 +33,27 @@ __all__ = ["SobolResult", "saltelli_design", "sobol_indices", "sobol_along"]
 class SobolResult:
     """Sobol indices along a loading coordinate.
 
-    ``S1``, ``S1_conf``, ``ST``, ``ST_conf``: arrays (P, D) at the loading coordinates ``x`` (P,)
-    (conf = half-width of the ``conf_level`` bootstrap interval); ``*_mean``: (D,) averages over the
-    points selected by ``in_range`` (inside ``x_range`` and with non-zero output variance).
+    Parameters
+    ----------
+    names : tuple of str
+        The D varied inputs.
+    x : numpy.ndarray
+        (P,) loading coordinates (units of the map's x).
+    S1, S1_conf, ST, ST_conf : numpy.ndarray
+        (P, D) first-order and total indices and the half-widths of their ``conf_level`` bootstrap
+        intervals (NaN where the output has no variance).
+    x_range : tuple of float
+        The averaging range of x.
+    in_range : numpy.ndarray
+        (P,) booleans: inside ``x_range`` and with non-zero output variance.
+    S1_mean, S1_conf_mean, ST_mean, ST_conf_mean : numpy.ndarray
+        (D,) averages over the points selected by ``in_range``.
+    N : int
+        Saltelli base sample size.
+    n_evaluations : int
+        Design rows, i.e. evaluations per point.
+    conf_level : float
+        Confidence level of the intervals.
     """
 
     names: tuple[str, ...]
@@ -54,13 +73,23 @@ class SobolResult:
     conf_level: float
 
     def table(self) -> list[dict]:
-        """One row per parameter: name, S1, S1_conf, ST, ST_conf (averaged over the x-range)."""
+        """One row per parameter: name, S1, S1_conf, ST, ST_conf (averaged over the x-range).
+
+        Returns
+        -------
+        list of dict
+        """
         return [{"parameter": n, "S1": float(self.S1_mean[j]), "S1_conf": float(self.S1_conf_mean[j]),
                  "ST": float(self.ST_mean[j]), "ST_conf": float(self.ST_conf_mean[j])}
                 for j, n in enumerate(self.names)]
 
     def summary(self) -> str:
-        """Plain-text table of the averaged indices."""
+        """Plain-text table of the averaged indices.
+
+        Returns
+        -------
+        str
+        """
         lines = [f"Sobol indices (Saltelli N = {self.N}, {self.n_evaluations} evaluations per point, "
                  f"x in [{self.x_range[0]:g}, {self.x_range[1]:g}], {int(self.in_range.sum())} points, "
                  f"{100 * self.conf_level:g}% CI)",
@@ -72,6 +101,7 @@ class SobolResult:
 
 
 def _problem(bounds):
+    """SALib problem dict of a parameter box (validated)."""
     if isinstance(bounds, Mapping):
         names = tuple(bounds)
         box = [tuple(map(float, bounds[n])) for n in names]
@@ -86,9 +116,28 @@ def _problem(bounds):
 
 
 def saltelli_design(bounds, N: int = 2048, *, calc_second_order: bool = False, seed: int | None = 0) -> np.ndarray:
-    """SALib Saltelli design over the box: (N (D + 2), D) rows (N (2D + 2) with second-order terms).
+    """SALib Saltelli design over a parameter box.
 
-    ``bounds``: a mapping name -> (lo, hi) in the function's input order, or (names, lo, hi).
+    Parameters
+    ----------
+    bounds : mapping or tuple
+        Name -> (lo, hi) in the function's input order, or (names, lo, hi) (units of each input).
+    N : int
+        Base sample size, a power of two >= 2.
+    calc_second_order : bool
+        Include the second-order rows.
+    seed : int or None
+        Seed of the scrambled Sobol' sequence.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N (D + 2), D) rows (N (2D + 2) with second-order terms).
+
+    Raises
+    ------
+    ValueError
+        For an N that is not a power of two, an empty box, or bounds that are not finite with lo < hi.
     """
     from SALib.sample import sobol as sobol_sample
 
@@ -99,9 +148,32 @@ def saltelli_design(bounds, N: int = 2048, *, calc_second_order: bool = False, s
 
 def sobol_indices(problem_bounds, Y, *, calc_second_order: bool = False, num_resamples: int = 100,
                   conf_level: float = 0.95, seed: int | None = 0):
-    """(S1, S1_conf, ST, ST_conf) arrays (P, D) for outputs ``Y`` of shape (rows,) or (rows, P).
+    """First-order and total Sobol indices at every output column.
 
-    Columns of ``Y`` with zero variance give NaN indices.
+    Parameters
+    ----------
+    problem_bounds : mapping or tuple
+        The box of the design (as :func:`saltelli_design`).
+    Y : array_like
+        Outputs on the design, shape (rows,) or (rows, P).
+    calc_second_order : bool
+        Whether the design has the second-order rows.
+    num_resamples : int
+        Bootstrap resamples of the confidence intervals.
+    conf_level : float
+        Confidence level.
+    seed : int or None
+        Seed of the bootstrap.
+
+    Returns
+    -------
+    S1, S1_conf, ST, ST_conf : numpy.ndarray
+        (P, D) each; columns of ``Y`` with zero variance give NaN.
+
+    Raises
+    ------
+    ValueError
+        If ``Y`` has non-finite values or the box is invalid.
     """
     from SALib.analyze import sobol as sobol_analyze
 
@@ -131,12 +203,43 @@ def sobol_along(fn: Callable, bounds, x, *, N: int = 2048, x_range: tuple[float,
                 fixed: Mapping[str, float] | None = None) -> SobolResult:
     """First-order and total Sobol indices of ``fn`` pointwise along ``x`` and averaged over ``x_range``.
 
-    ``fn(params, x)`` is called with ``params`` of shape (n, 1, D) and ``x`` of shape (1, P) and must
-    return (n, P) (the broadcasting convention of the surrogates); ``bounds`` maps the D input names
-    (in ``fn``'s order) to (lo, hi), or is (names, lo, hi). ``x_range`` defaults to [min x, max x].
-    ``batch_size`` limits the design rows per call. ``order`` (``fn``'s input names) with ``fixed``
-    (name -> value) varies only the names of ``bounds`` and holds the others constant, e.g. a reduced
-    shell: ``order=("ka", "kb", "b1", "b2", "a3", "a4")``, ``fixed={"b1": 0, "b2": 0, "a3": 0, "a4": 0}``.
+    Parameters
+    ----------
+    fn : callable
+        ``fn(params, x)`` called with ``params`` of shape (n, 1, D) and ``x`` of shape (1, P); returns
+        (n, P) (the broadcasting convention of the surrogates).
+    bounds : mapping or tuple
+        The D varied input names (in ``fn``'s order) -> (lo, hi), or (names, lo, hi).
+    x : array_like
+        (P,) loading coordinates (units of ``fn``'s x, e.g. DPD length).
+    N : int
+        Saltelli base sample size (a power of two).
+    x_range : tuple of float or None
+        Averaging range of x (default [min x, max x]).
+    num_resamples : int
+        Bootstrap resamples.
+    conf_level : float
+        Confidence level of the intervals.
+    seed : int or None
+        Seed of the design and of the bootstrap.
+    batch_size : int or None
+        Design rows per call of ``fn``.
+    order : tuple of str or None
+        ``fn``'s input names; with ``fixed`` varies only the names of ``bounds`` and holds the others
+        constant, e.g. a reduced shell: ``order=("ka", "kb", "b1", "b2", "a3", "a4")``,
+        ``fixed={"b1": 0, "b2": 0, "a3": 0, "a4": 0}``.
+    fixed : mapping of str to float or None
+        Values of the inputs that are not varied.
+
+    Returns
+    -------
+    SobolResult
+
+    Raises
+    ------
+    ValueError
+        For an invalid box or N, inputs without a value, ``fixed`` without ``order``, non-finite
+        outputs, or no point with output variance inside ``x_range``.
     """
     problem = _problem(bounds)
     names = tuple(problem["names"])

@@ -2,28 +2,36 @@
 
 - :func:`mechanical_model` — one loading curve, full or reduced shell (:func:`reduced_spec`), driven
   by a :class:`bubblecal.priors.PriorSpec`; :func:`mechanical_prediction` for predictive checks;
-- :func:`acoustic_model` — one acoustic dataset (resonance frequency in MHz vs diameter);
+- :func:`acoustic_model` — one acoustic dataset (resonance frequency in MHz vs diameter in um);
 - :func:`hierarchical_model` — the joint population model of one agent;
-- :mod:`bubblecal.models.likelihood` — pure-JAX log densities (relative noise with its floor,
-  truncated-normal population prior, the staged-hierarchy importance sums, population-predictive
-  draws); ``population=`` on the single-dataset models gives the phase-3 target of the staged hierarchy;
-- :func:`phase2_model` — phase 2 of the staged hierarchy (hyperparameters from phase-1 samples).
+- :func:`phase2_model` — phase 2 of the staged hierarchy (hyperparameters from phase-1 samples);
+  ``population=`` on the single-dataset models gives its phase 3;
+- :mod:`bubblecal.models.distributions` — the one prior constructor (:func:`uniform_prior`), the one
+  observation distribution (:func:`relative_normal`) and the population prior
+  (:class:`TruncatedNormalPopulation`) every model uses;
+- :mod:`bubblecal.models.likelihood` — the pure-JAX observation model (mechanical prediction,
+  relative noise with its floor);
+- :mod:`bubblecal.models.population` — pure-JAX population densities (truncated-normal population
+  prior, the staged-hierarchy importance sums, population-predictive draws).
 
-Surrogates are duck-typed: any JAX callable ``(params[..., 6], x[...]) -> y[...]`` (mechanics) or
-``(ka, diameter_um) -> MHz`` (acoustics).
+Surrogates are duck-typed: any JAX callable ``(params[..., 6], x[...]) -> y[...]`` (mechanics, DPD
+units) or ``(ka, diameter_um) -> MHz`` (acoustics). Equations: ``docs/inference.md`` sections 2-4.
 """
 
-from bubblecal.models.acoustic import acoustic_model, acoustic_prediction
-from bubblecal.models.hierarchical import TruncatedNormalPopulation, hierarchical_model
+from bubblecal.models.acoustic import FrequencyTable, acoustic_model, acoustic_prediction, predict_frequency
+from bubblecal.models.distributions import (
+    TruncatedNormalPopulation,
+    hyperprior_sites,
+    relative_normal,
+    uniform_prior,
+)
+from bubblecal.models.hierarchical import hierarchical_model
 from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
-    importance_ess,
-    log_truncnorm,
-    population_log_prob,
-    population_predictive_log_density,
+    noise_sd,
+    predict_mechanical,
     relative_normal_loglik,
-    sample_population_predictive,
-    staged_log_likelihood,
+    sd_floor_for,
 )
 from bubblecal.models.mechanical import (
     mechanical_model,
@@ -32,11 +40,36 @@ from bubblecal.models.mechanical import (
     population_factor,
     reduced_spec,
 )
-from bubblecal.models.staged import hyperprior_sites, phase2_model
+from bubblecal.models.population import (
+    TAU_FLOOR_REL,
+    importance_ess,
+    importance_log_weights,
+    log_truncnorm,
+    population_log_prob,
+    population_predictive_log_density,
+    sample_population_predictive,
+    staged_log_likelihood,
+    truncnorm_icdf,
+)
+from bubblecal.models.staged import (
+    PHASE2_FACTOR,
+    ess_site_name,
+    leave_one_out_log_weights,
+    phase2_model,
+    pooled_bounds,
+)
+from bubblecal.models.traced import TracedSurrogate, pad_curve
 
 __all__ = [
-    "mechanical_model", "mechanical_prediction", "reduced_spec", "acoustic_model", "acoustic_prediction",
-    "hierarchical_model", "TruncatedNormalPopulation", "SD_FLOOR_REL", "relative_normal_loglik", "log_truncnorm",
-    "population_log_prob", "population_predictive_log_density", "staged_log_likelihood", "importance_ess",
-    "sample_population_predictive", "population_factor", "nuts_init_values", "phase2_model", "hyperprior_sites",
+    # models
+    "mechanical_model", "mechanical_prediction", "reduced_spec", "nuts_init_values", "population_factor",
+    "TracedSurrogate", "pad_curve", "acoustic_model", "acoustic_prediction", "predict_frequency", "FrequencyTable",
+    "hierarchical_model", "phase2_model", "pooled_bounds", "leave_one_out_log_weights",
+    "PHASE2_FACTOR", "ess_site_name",
+    # distributions
+    "uniform_prior", "hyperprior_sites", "relative_normal", "TruncatedNormalPopulation",
+    # log densities
+    "SD_FLOOR_REL", "TAU_FLOOR_REL", "sd_floor_for", "noise_sd", "relative_normal_loglik", "predict_mechanical",
+    "log_truncnorm", "truncnorm_icdf", "population_log_prob", "population_predictive_log_density",
+    "staged_log_likelihood", "importance_log_weights", "importance_ess", "sample_population_predictive",
 ]

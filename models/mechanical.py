@@ -5,7 +5,7 @@ Units: DPD throughout (:mod:`bubblecal.data.units`). Compression curves: x = imp
 y = indentation depth [DPD length]. ``ka`` [DPD 2-D modulus], ``kb`` [DPD energy], ``b1, b2, a3, a4``
 [-], ``d0`` [DPD length], ``sigma``/``sigma_mech`` [-].
 
-Model (``shared/docs/inference.md`` §2)::
+Model (``docs/inference.md`` section 2)::
 
     Θ_k ~ Uniform(prior_k)              for every free shell parameter k of the spec (sites ka, kb, ..., d0)
     σ   ~ Uniform(prior_σ)              site 'sigma' ('sigma_mech' in acoustic workflows)
@@ -18,7 +18,7 @@ b1 = b2 = a3 = a4 = 0 and evaluates the *same* surrogate at those zeros (:func:`
 from a full spec). Deterministic sites: ``E_MPa`` (Young's modulus, ν = 1/2) when ``ka`` is free and
 ``kappa_kBT`` (continuum bending modulus) when ``kb`` is free.
 
-Phase 3 of the staged hierarchy (``inference.md`` §4): pass ``population=(m_samples, tau_samples)``
+Phase 3 of the staged hierarchy (``docs/inference.md`` section 4): pass ``population=(m_samples, tau_samples)``
 (dicts name -> (S,) arrays of phase-2 hyperparameter samples) and the model adds the factor site
 ``population_prior`` = log mean_s p(θ_pooled | ψ_s) − log p0(θ_pooled), i.e. the learned population
 prior replaces the uniform prior of the pooled parameters (p0 is divided out, not multiplied twice).
@@ -33,9 +33,10 @@ started there cannot find its way out. Start NUTS with d0 below the first displa
 
 ``surrogate`` is any callable ``(params[..., 6], x[...]) -> y[...]`` (ka, kb, b1, b2, a3, a4 in the last
 axis; leading shape broadcasts with ``x``) written in JAX; if it has a ``setup`` attribute it must
-match the curve's. :class:`TracedSurrogate` wraps a loaded MLP surrogate so that its weights are
-arguments of a compiled sampler rather than constants (curves with networks of one shape then share
-one compiled likelihood); ``mask`` lets curves padded to one length share it too (:func:`pad_curve`).
+match the curve's. :class:`~bubblecal.models.traced.TracedSurrogate` wraps a loaded MLP surrogate so
+that its weights are arguments of a compiled sampler rather than constants (curves with networks of one
+shape then share one compiled likelihood); ``mask`` lets curves padded to one length share it too
+(:func:`~bubblecal.models.traced.pad_curve`).
 """
 
 from __future__ import annotations
@@ -43,22 +44,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import numpyro
-import numpyro.distributions as dist
 
 from bubblecal.data import DEFAULT_UNITS, MODEL_PARAMETERS, NONLINEAR_PARAMETERS, SHELL_PARAMETERS, UnitSystem
-from bubblecal.models.likelihood import (
-    SD_FLOOR_REL,
-    noise_sd,
-    population_predictive_log_density,
-    predict_mechanical,
-    sd_floor_for,
-)
+from bubblecal.models.distributions import relative_normal, uniform_prior
+from bubblecal.models.likelihood import SD_FLOOR_REL, noise_sd, predict_mechanical, sd_floor_for
+from bubblecal.models.population import population_predictive_log_density
 from bubblecal.priors import PriorSpec
-from bubblecal.surrogates import mlp_forward, surrogate_inputs
 
 __all__ = [
     "nuts_init_values",
@@ -69,68 +63,33 @@ __all__ = [
     "resolve_setup",
     "shell_params",
     "derived_sites",
-    "TracedSurrogate",
-    "pad_curve",
 ]
 
 
-@jax.tree_util.register_pytree_node_class
-class TracedSurrogate:
-    """A loaded MLP surrogate (:class:`bubblecal.surrogates.Surrogate`) as a pytree of its arrays.
-
-    Same call ``(params[..., 6], x[...]) -> y[...]`` and the same arithmetic as the surrogate, but the
-    weights and normalisations are pytree leaves: given to a model as an argument they are traced data
-    of a compiled TMCMC program (not constants compiled into it), so curves whose networks have the same
-    layer sizes and setup share one compiled likelihood. ``setup`` as the surrogate's (checked by
-    :func:`resolve_setup`); ``param_names`` the surrogate's parameter inputs (``x`` is the last input).
-    """
-
-    def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, setup: str, param_names: tuple):
-        self.weights, self.biases = tuple(weights), tuple(biases)
-        self.in_mean, self.in_std, self.out_mean, self.out_std = in_mean, in_std, out_mean, out_std
-        self.setup = setup
-        self.param_names = tuple(param_names)
-
-    @classmethod
-    def wrap(cls, surrogate):
-        """The surrogate as a :class:`TracedSurrogate`; anything that is not an MLP surrogate unchanged."""
-        fields = ("weights", "biases", "in_mean", "in_std", "out_mean", "out_std", "setup", "param_names")
-        if isinstance(surrogate, cls) or not all(hasattr(surrogate, f) for f in fields):
-            return surrogate
-        return cls(*(getattr(surrogate, f) for f in fields))
-
-    def __call__(self, params, x):
-        u = surrogate_inputs(params, x, self.param_names)  # as Surrogate.__call__
-        y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std, u)
-        return y[..., 0]
-
-    def tree_flatten(self):
-        return (self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std), (
-            self.setup, self.param_names)
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        return cls(*children, *aux)
-
-
-def pad_curve(x, y, length: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x, y, mask) of a curve padded to ``length`` points for :func:`mechanical_model`'s ``mask``.
-
-    Padding repeats the last x (a point the surrogate evaluates normally) with y = 0, and the mask
-    (True on the real points) removes those points from the likelihood and from max |y|.
-    """
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    n = len(x)
-    if length < n:
-        raise ValueError(f"cannot pad a curve of {n} points to {length}")
-    pad = length - n
-    return (np.concatenate([x, np.full(pad, x[-1])]), np.concatenate([y, np.zeros(pad)]),
-            np.arange(length) < n)
-
-
 def resolve_setup(spec: PriorSpec, surrogate=None, setup: str | None = None, kind: str | None = None) -> str:
-    """The loading protocol, checked for consistency between spec, surrogate, curve kind and argument."""
+    """The loading protocol, checked for consistency between spec, surrogate, curve kind and argument.
+
+    Parameters
+    ----------
+    spec : PriorSpec
+        The priors (their ``setup``).
+    surrogate : object or None
+        The surrogate; its ``setup`` attribute, if any, is checked.
+    setup : str or None
+        Explicit protocol (default the spec's).
+    kind : str or None
+        The curve's kind, if known.
+
+    Returns
+    -------
+    str
+        'compression' or 'indentation'.
+
+    Raises
+    ------
+    ValueError
+        If the sources disagree or the protocol is unknown.
+    """
     chosen = setup or spec.setup
     for what, value in (("surrogate.setup", getattr(surrogate, "setup", None)), ("curve kind", kind),
                         ("spec.setup", spec.setup)):
@@ -143,7 +102,18 @@ def resolve_setup(spec: PriorSpec, surrogate=None, setup: str | None = None, kin
 
 
 def reduced_spec(spec: PriorSpec) -> PriorSpec:
-    """The reduced shell of ``spec``: b1 = b2 = a3 = a4 fixed at 0, other ranges unchanged."""
+    """The reduced shell of a spec: b1 = b2 = a3 = a4 fixed at 0, other ranges unchanged.
+
+    Parameters
+    ----------
+    spec : PriorSpec
+        A full or reduced spec.
+
+    Returns
+    -------
+    PriorSpec
+        Shell 'reduced'; a full spec's name gets the suffix ``_reduced``.
+    """
     parameters = {k: v for k, v in spec.parameters.items() if k not in NONLINEAR_PARAMETERS}
     fixed = dict(spec.fixed)
     fixed.update({k: 0.0 for k in NONLINEAR_PARAMETERS})
@@ -152,9 +122,21 @@ def reduced_spec(spec: PriorSpec) -> PriorSpec:
 
 
 def shell_params(values: Mapping, spec: PriorSpec):
-    """(params[..., 6], d0[...]) from sampled ``values`` and the spec's fixed parameters.
+    """Surrogate inputs and offset from sampled values and the spec's fixed parameters.
 
-    ``values`` maps free parameter names to arrays of a common batch shape (scalars for one Θ).
+    Parameters
+    ----------
+    values : mapping of str to array_like
+        Free parameter name -> array of a common batch shape (scalars for one Θ), DPD units.
+    spec : PriorSpec
+        Gives the fixed parameters.
+
+    Returns
+    -------
+    params : Array
+        (..., 6) in :data:`~bubblecal.data.names.SHELL_PARAMETERS` order.
+    d0 : Array
+        (...) offset [DPD length].
     """
     free = [values[k] for k in MODEL_PARAMETERS if k in values]
     like = jnp.asarray(free[0]) if free else jnp.zeros(())
@@ -167,7 +149,17 @@ def shell_params(values: Mapping, spec: PriorSpec):
 
 
 def derived_sites(values: Mapping, units: UnitSystem = DEFAULT_UNITS, suffix: str = "") -> None:
-    """Record ``E_MPa`` (from ka) and ``kappa_kBT`` (from kb) as deterministic sites when present."""
+    """Record ``E_MPa`` (from ka) and ``kappa_kBT`` (from kb) as deterministic sites when present.
+
+    Parameters
+    ----------
+    values : mapping of str to array_like
+        Sampled parameters (DPD units).
+    units : UnitSystem
+        Conversions: Young's modulus [MPa] (ν = 1/2) and continuum bending modulus [k_BT].
+    suffix : str
+        Appended to the site names.
+    """
     if "ka" in values:
         numpyro.deterministic("E_MPa" + suffix, values["ka"] * (float(units.ka_to_young(1.0)) * 1e-6))
     if "kb" in values:
@@ -178,9 +170,21 @@ def nuts_init_values(spec: PriorSpec, n_curves: int | None = None) -> dict:
     """Initial values that keep NUTS off the clamped plateau (see the module docstring).
 
     d0 near the bottom of its prior for compression (lo + 2% of the width), 0 (clipped into the prior)
-    for indentation; with ``n_curves`` the per-bubble arrays of :func:`bubblecal.models.hierarchical_model`
-    plus ``m_d0`` and, for the non-centred form, ``d0_u``. Empty if d0 is fixed. Pass to
-    ``numpyro.infer.init_to_value(values=...)``; other sites keep NumPyro's default initialisation.
+    for indentation. Pass to ``numpyro.infer.init_to_value(values=...)``; other sites keep NumPyro's
+    default initialisation.
+
+    Parameters
+    ----------
+    spec : PriorSpec
+        The priors.
+    n_curves : int or None
+        For :func:`~bubblecal.models.hierarchical_model`: per-bubble arrays of this length, plus
+        ``m_d0`` and, for the non-centred form, ``d0_u``.
+
+    Returns
+    -------
+    dict
+        Site name -> initial value [DPD length for d0]; empty if d0 is fixed.
     """
     if "d0" not in spec.parameters:
         return {}
@@ -197,9 +201,23 @@ def nuts_init_values(spec: PriorSpec, n_curves: int | None = None) -> dict:
 
 
 def population_factor(values: Mapping, spec: PriorSpec, population, site: str = "population_prior") -> None:
-    """Add log mean_s p(θ | ψ_s) − log p0(θ) over the pooled parameters present in ``values`` as a factor.
+    """Add the phase-3 factor log mean_s p(θ | ψ_s) − log p0(θ) over the pooled parameters in ``values``.
 
-    ``population`` = (m_samples, tau_samples): dicts name -> (S,) arrays (phase-2 samples of ψ).
+    Parameters
+    ----------
+    values : mapping of str to array_like
+        Sampled parameters (DPD units).
+    spec : PriorSpec
+        Gives the pooled parameters and their prior ranges (p0 is uniform on them).
+    population : tuple of (dict, dict)
+        (m_samples, tau_samples): parameter name -> (S,) phase-2 draws of ψ.
+    site : str
+        Name of the factor site.
+
+    Raises
+    ------
+    ValueError
+        If the population shares no pooled parameter with the model.
     """
     m_samples, tau_samples = population
     names = [k for k in spec.pooled_names if k in values and k in m_samples]
@@ -213,31 +231,57 @@ def population_factor(values: Mapping, spec: PriorSpec, population, site: str = 
     numpyro.factor(site, log_pop - log_p0)
 
 
-def _uniform(bounds):
-    return dist.Uniform(float(bounds.lo), float(bounds.hi))
-
-
 def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str | None = None, obs_name: str = "y",
                      y_scale: float | None = None, sd_floor_rel: float = SD_FLOOR_REL,
                      units: UnitSystem = DEFAULT_UNITS, population=None, mask=None):
     """NumPyro model of one loading curve under uniform priors (module docstring for the equations).
 
-    ``x``, ``y``: the curve in DPD units (``y=None`` samples the observations: prior/posterior
-    predictive). ``y_scale`` sets the noise floor s_floor = ``sd_floor_rel`` · y_scale (default max|y|;
-    pass it explicitly together with ``y=None`` to reproduce the fit's density). Sites: the free
-    shell parameters of ``spec`` by name, the mechanical noise (``spec.mechanical_noise_name``), the
-    observed ``obs_name`` and the deterministic ``E_MPa`` / ``kappa_kBT``. ``population``: phase-3
-    population prior (module docstring), adds the factor site ``population_prior``. ``mask``: (n,)
-    booleans, False on padding points (:func:`pad_curve`), which then add nothing to the likelihood.
-    ``x``, ``y`` and ``mask`` may be traced arrays (jit arguments).
+    Sites: the free shell parameters of ``spec`` by name, the mechanical noise
+    (``spec.mechanical_noise_name``), the observed ``obs_name`` and the deterministic ``E_MPa`` /
+    ``kappa_kBT``.
+
+    Parameters
+    ----------
+    x : array_like
+        (n,) loading coordinates: displacement [DPD length] (compression) or force [DPD force]
+        (indentation); may be traced (a jit argument).
+    y : array_like or None
+        (n,) observations: force [DPD force] or depth [DPD length]; None samples them (prior /
+        posterior predictive).
+    surrogate : callable
+        ``(params[..., 6], x[...]) -> y[...]`` in DPD units (e.g. a
+        :class:`~bubblecal.models.traced.TracedSurrogate`).
+    spec : PriorSpec
+        Priors of the free parameters and the noise.
+    setup : str or None
+        Loading protocol (default the spec's; checked by :func:`resolve_setup`).
+    obs_name : str
+        Name of the observed site.
+    y_scale : float or None
+        Data scale of the noise floor s_floor = ``sd_floor_rel`` · y_scale (units of y; default
+        max |y| over the real points); pass it with ``y=None`` to reproduce the fit's density.
+    sd_floor_rel : float
+        Relative noise floor.
+    units : UnitSystem
+        Conversions of the deterministic sites.
+    population : tuple of (dict, dict) or None
+        Phase-3 population prior (module docstring): adds the factor site ``population_prior``.
+    mask : array_like or None
+        (n,) booleans, False on padding points (:func:`~bubblecal.models.traced.pad_curve`), which add
+        nothing to the likelihood.
+
+    Raises
+    ------
+    ValueError
+        For an inconsistent setup or a spec without the mechanical noise amplitude.
     """
     setup = resolve_setup(spec, surrogate, setup)
     x = jnp.asarray(x, dtype=float)
-    values = {k: numpyro.sample(k, _uniform(p.prior)) for k, p in spec.parameters.items()}
+    values = {k: numpyro.sample(k, uniform_prior(p.prior)) for k, p in spec.parameters.items()}
     noise_name = spec.mechanical_noise_name
     if noise_name not in spec.noise:
         raise ValueError(f"priors {spec.name!r} declare no noise amplitude {noise_name!r}")
-    sigma = numpyro.sample(noise_name, _uniform(spec.noise[noise_name].prior))
+    sigma = numpyro.sample(noise_name, uniform_prior(spec.noise[noise_name].prior))
     derived_sites(values, units)
     if population is not None:
         population_factor(values, spec, population)
@@ -248,18 +292,38 @@ def mechanical_model(x, y, surrogate: Callable, spec: PriorSpec, *, setup: str |
         # max |y| over the real points (the float32 of the float64 maximum, as np.max gave)
         y_scale = jnp.max(jnp.abs(y if mask is None else jnp.where(mask, y, 0.0))) if y is not None \
             else jnp.max(jnp.abs(yhat))
-    sd = noise_sd(yhat, sigma, sd_floor_for(y_scale, sd_floor_rel))
-    likelihood = dist.Normal(yhat, sd)
+    likelihood = relative_normal(yhat, sigma, sd_floor_for(y_scale, sd_floor_rel))
     numpyro.sample(obs_name, likelihood if mask is None else likelihood.mask(jnp.asarray(mask, dtype=bool)), obs=y)
 
 
 def mechanical_prediction(samples: Mapping, surrogate: Callable, spec: PriorSpec, x, *, y_scale: float,
                           setup: str | None = None, sd_floor_rel: float = SD_FLOOR_REL, noise_name: str | None = None):
-    """Per-sample predicted curve and noise sd at ``x``: arrays (S, len(x)) each (DPD units of y).
+    """Per-sample predicted curve and noise standard deviation, for the Gaussian-mixture predictive.
 
-    ``samples`` maps the free parameter names and the noise name to (S,) arrays (posterior draws of
-    :func:`mechanical_model`, or one bubble's slice of the hierarchical model). The pair is what
-    :mod:`bubblecal.inference.predictive` needs for the Gaussian-mixture predictive.
+    Parameters
+    ----------
+    samples : mapping of str to array_like
+        Free parameter names and the noise name -> (S,) draws (of :func:`mechanical_model`, or one
+        bubble's slice of the hierarchical model), DPD units.
+    surrogate : callable
+        ``(params[..., 6], x[...]) -> y[...]`` in DPD units.
+    spec : PriorSpec
+        The priors the samples come from.
+    x : array_like
+        Loading coordinates (DPD units).
+    y_scale : float
+        Data scale of the noise floor (units of y, as in the fit).
+    setup : str or None
+        Loading protocol (default the spec's).
+    sd_floor_rel : float
+        Relative noise floor.
+    noise_name : str or None
+        Noise site (default ``spec.mechanical_noise_name``).
+
+    Returns
+    -------
+    yhat, sd : Array
+        (S, len(x)) each, in the DPD units of y; the pair :mod:`bubblecal.inference.predictive` needs.
     """
     setup = resolve_setup(spec, surrogate, setup)
     noise_name = noise_name or spec.mechanical_noise_name

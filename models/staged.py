@@ -3,7 +3,7 @@
 Phase 1 is every dataset's single-level model (:func:`bubblecal.models.mechanical.mechanical_model`,
 :func:`bubblecal.models.acoustic.acoustic_model`) under its uniform prior p0. Phase 2 samples the
 population hyperparameters ψ = (m_k, τ_k) of the pooled parameters with the importance-sampling
-likelihood of ``shared/docs/inference.md`` section 4::
+likelihood of ``docs/inference.md`` section 4::
 
     log L(ψ) = Σ_i [ logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k)) − log N_i ]
 
@@ -27,48 +27,73 @@ from collections.abc import Mapping, Sequence
 import jax.numpy as jnp
 import numpy as np
 import numpyro
-import numpyro.distributions as dist
 from jax.scipy.special import logsumexp
 
-from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
+from bubblecal.models.distributions import hyperprior_sites
+from bubblecal.models.population import importance_ess, importance_log_weights, staged_log_likelihood
 from bubblecal.priors import PriorSpec
 
-__all__ = ["hyperprior_sites", "phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name",
-           "leave_one_out_log_weights"]
+__all__ = ["phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name", "leave_one_out_log_weights"]
 
 #: Name of the factor site that carries log L(ψ) (TMCMC tempers it as the likelihood).
 PHASE2_FACTOR = "population_likelihood"
 
 
 def ess_site_name(name: str) -> str:
-    """Deterministic site holding dataset ``name``'s importance-sampling ESS in phase 2."""
+    """Name of the phase-2 deterministic site holding a dataset's importance-sampling ESS.
+
+    Parameters
+    ----------
+    name : str
+        Dataset name.
+
+    Returns
+    -------
+    str
+        ``is_ess_<name>``.
+    """
     return f"is_ess_{name}"
 
 
 def pooled_bounds(spec: PriorSpec) -> dict[str, tuple[float, float]]:
-    """Prior range (DPD) of every pooled parameter."""
+    """Prior range of every pooled parameter.
+
+    Parameters
+    ----------
+    spec : PriorSpec
+        The priors.
+
+    Returns
+    -------
+    dict
+        Pooled parameter name -> (lo, hi) in DPD units.
+    """
     return {k: spec.parameters[k].prior.as_tuple() for k in spec.pooled_names}
-
-
-def hyperprior_sites(spec: PriorSpec) -> tuple[dict, dict]:
-    """Sample ψ: ``m_<k>`` ~ U(hyper_m_k), ``tau_<k>`` ~ U(hyper_tau_k) for the pooled k; returns (m, tau)."""
-    m, tau = {}, {}
-    for k in spec.pooled_names:
-        p = spec.parameters[k]
-        m[k] = numpyro.sample(f"m_{k}", dist.Uniform(p.hyper_m.lo, p.hyper_m.hi))
-        tau[k] = numpyro.sample(f"tau_{k}", dist.Uniform(p.hyper_tau.lo, p.hyper_tau.hi))
-    return m, tau
 
 
 def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: PriorSpec,
                  names: Sequence[str] | None = None):
     """Phase 2 of the staged hierarchy: hyperparameters ψ of ``spec`` given phase-1 posterior samples.
 
-    ``phase1_samples[i]`` maps parameter names to dataset i's (N_i,) phase-1 posterior draws (DPD);
-    datasets that sampled only some pooled parameters (acoustic datasets: only ``ka``) contribute
-    those. Sites: ``m_<k>``, ``tau_<k>``, the factor :data:`PHASE2_FACTOR` and deterministic
-    :func:`ess_site_name` (IS effective sample size per dataset; small values mean phase 1 did not
+    Sites: ``m_<k>``, ``tau_<k>``, the factor :data:`PHASE2_FACTOR` and the deterministic
+    :func:`ess_site_name` of each dataset (IS effective sample size; small values mean phase 1 did not
     cover what ψ proposes).
+
+    Parameters
+    ----------
+    phase1_samples : sequence of mapping of str to array_like
+        ``phase1_samples[i]`` maps parameter names to dataset i's (N_i,) phase-1 posterior draws (DPD
+        units); datasets that sampled only some pooled parameters (acoustic datasets: only ``ka``)
+        contribute those.
+    spec : PriorSpec
+        Hyperpriors and prior ranges of the pooled parameters.
+    names : sequence of str or None
+        Dataset names (default ``dataset0``, ``dataset1``, ...).
+
+    Raises
+    ------
+    ValueError
+        For mismatched names, no datasets, or a dataset with none of the pooled parameters.
     """
     names = [f"dataset{i}" for i in range(len(phase1_samples))] if names is None else list(names)
     if len(names) != len(phase1_samples):
@@ -89,12 +114,31 @@ def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: Prio
 def leave_one_out_log_weights(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
                               phase1_samples: Mapping[str, np.ndarray], bounds: Mapping[str, tuple[float, float]],
                               chunk: int = 256) -> np.ndarray:
-    """Normalised log importance weights that turn phase-2 draws ψ_s ~ p(ψ | D) into draws of p(ψ | D_{-i}).
+    """Log importance weights that turn phase-2 draws ψ_s ~ p(ψ | D) into draws of p(ψ | D_{-i}).
 
-    log w_s = −log L_i(ψ_s) + const with log L_i(ψ) = logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k)) − log N_i,
-    dataset i's own phase-2 term (``phase1_samples``: its (N_i,) phase-1 draws, DPD).  ``m_samples`` /
-    ``tau_samples`` map pooled names to (S,) arrays; ``bounds`` the pooled prior ranges.  Returns (S,) with
-    logsumexp = 0.  Evaluated in chunks of ``chunk`` ψ draws (memory S x N_i otherwise).
+    log w_s = −log L_i(ψ_s) + const, with log L_i(ψ) = logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k))
+    − log N_i dataset i's own phase-2 term.
+
+    Parameters
+    ----------
+    m_samples, tau_samples : mapping of str to array_like
+        Pooled parameter name -> (S,) phase-2 draws of the population mean / spread.
+    phase1_samples : mapping of str to array_like
+        Dataset i's (N_i,) phase-1 draws (DPD units).
+    bounds : mapping of str to (float, float)
+        Prior ranges of the pooled parameters.
+    chunk : int
+        ψ draws per evaluation chunk (memory S × N_i otherwise).
+
+    Returns
+    -------
+    numpy.ndarray
+        (S,) normalised log weights (logsumexp = 0, float64); −inf where L_i(ψ_s) is 0 or undefined.
+
+    Raises
+    ------
+    ValueError
+        If the dataset has none of the pooled parameters or no draw gives it a finite likelihood.
     """
     names = [k for k in m_samples if k in phase1_samples and k in bounds]
     if not names:

@@ -38,10 +38,7 @@ from numpyro.infer import init_to_value
 import bubblecal.surrogates as surrogates
 from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import load_reference, radius_dpd_from_diameter_um
-from bubblecal.inference.compare import compare_posteriors
-from bubblecal.inference.nuts import run_nuts
-from bubblecal.inference.predictive import predictive_band
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC, compare_posteriors, predictive_band, run_nuts
 from bubblecal.models import mechanical_model, mechanical_prediction, nuts_init_values
 from bubblecal.priors import load_priors
 from bubblecal.surrogates.training import (

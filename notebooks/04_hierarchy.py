@@ -44,16 +44,16 @@ from numpyro.infer import init_to_value
 
 from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import load_reference
-from bubblecal.inference.hierarchical import Dataset, compare_staged_joint, run_staged
-from bubblecal.inference.nuts import run_nuts
+from bubblecal.inference import Dataset, compare_staged_joint, run_nuts, run_staged
 from bubblecal.models import (
     hierarchical_model,
+    leave_one_out_log_weights,
     mechanical_model,
     nuts_init_values,
     phase2_model,
+    pooled_bounds,
     sample_population_predictive,
 )
-from bubblecal.models.staged import leave_one_out_log_weights, pooled_bounds
 from bubblecal.priors import load_priors
 from bubblecal.surrogates import development_bundle_path, is_synthetic_bundle, load_bundle
 

@@ -34,8 +34,7 @@ import pandas as pd
 
 from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import acoustic_datasets, acoustic_observations
-from bubblecal.inference.predictive import predictive_band
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC, predictive_band
 from bubblecal.models import acoustic_model, acoustic_prediction
 from bubblecal.priors import load_priors
 from bubblecal.surrogates import (

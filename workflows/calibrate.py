@@ -512,7 +512,7 @@ def write_phase(path: Path, result, loglik, attrs: Mapping) -> Path:
 
 def read_phase(path: Path):
     """(PhaseResult, loglik or None) from a file written by :func:`write_phase`."""
-    from bubblecal.inference.hierarchical import PhaseResult
+    from bubblecal.inference import PhaseResult
 
     path = Path(path)
     if path.suffix == ".nc":
@@ -566,12 +566,12 @@ class AgentResult:
 def _curve_arguments(ap: AgentPlan, pad: bool) -> list[tuple[tuple, dict]]:
     """(args, kwargs) of :func:`bubblecal.models.mechanical_model` for every curve of the agent.
 
-    The surrogate goes in as a :class:`~bubblecal.models.mechanical.TracedSurrogate`, so its weights are
+    The surrogate goes in as a :class:`~bubblecal.models.TracedSurrogate`, so its weights are
     arguments of the compiled TMCMC programs and curves whose networks have one shape share them. With
     ``pad`` those curves are also padded (masked) to one length, so they share the programs in fact; it
     costs the padded points' evaluations, hence only where compiling dominates (the GPU).
     """
-    from bubblecal.models.mechanical import TracedSurrogate, pad_curve
+    from bubblecal.models import TracedSurrogate, pad_curve
 
     surrogates = [TracedSurrogate.wrap(s) for s in ap.surrogates]
 
@@ -603,7 +603,7 @@ def _pad_curves(config: CalibrationConfig) -> bool:
 
 
 def _dataset_objects(ap: AgentPlan, pad: bool = False):
-    from bubblecal.inference.hierarchical import Dataset
+    from bubblecal.inference import Dataset
     from bubblecal.models import acoustic_model, mechanical_model
 
     out = []
@@ -618,7 +618,7 @@ def _acoustic_arguments(ap: AgentPlan) -> list[tuple]:
     """Positional arguments of :func:`bubblecal.models.acoustic_model` for every acoustic dataset: the
     surrogate's quadratics at the dataset's diameters as a :class:`~bubblecal.models.acoustic.FrequencyTable`
     (arrays, so datasets with as many bubbles share the compiled programs)."""
-    from bubblecal.models.acoustic import FrequencyTable
+    from bubblecal.models import FrequencyTable
 
     return [(np.asarray(ds.diameter_um, dtype=float), np.asarray(ds.frequency_MHz, dtype=float),
              FrequencyTable.at(ap.f_res, ds.diameter_um), ap.spec) for ds in ap.acoustic]
@@ -667,7 +667,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     """
     import jax
 
-    from bubblecal.inference.hierarchical import run_staged
+    from bubblecal.inference import run_staged
     from bubblecal.models import acoustic_model, mechanical_model, phase2_model
 
     config = plan.config
@@ -719,7 +719,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
             warnings.simplefilter("ignore", category=FutureWarning)
             reweight = None
             if config.phase3 == "exact":
-                from bubblecal.models.staged import leave_one_out_log_weights, pooled_bounds
+                from bubblecal.models import leave_one_out_log_weights, pooled_bounds
 
                 bounds = pooled_bounds(ap.spec)
 
@@ -765,8 +765,7 @@ def _run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore,
     """Joint hierarchical model with NUTS (non-centred); reuses ``joint_nuts`` when its hash matches."""
     from numpyro.infer import init_to_value, log_likelihood
 
-    from bubblecal.inference.hierarchical import PhaseResult
-    from bubblecal.inference.nuts import run_nuts
+    from bubblecal.inference import PhaseResult, run_nuts
     from bubblecal.models import hierarchical_model, nuts_init_values
 
     name = "joint_nuts"

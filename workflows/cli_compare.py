@@ -121,9 +121,7 @@ def compare(
     import jax
     from numpyro.infer import init_to_value
 
-    from bubblecal.inference.compare import compare_posteriors
-    from bubblecal.inference.nuts import run_nuts
-    from bubblecal.inference.tmcmc import TMCMC
+    from bubblecal.inference import TMCMC, compare_posteriors, run_nuts
     from bubblecal.models import mechanical_model, nuts_init_values
 
     key_tm, key_nuts = jax.random.split(jax.random.PRNGKey(seed))

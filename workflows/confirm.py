@@ -40,7 +40,7 @@ def find_runs(results: Path) -> list[Path]:
 
 def map_parameters(run_dir: Path, curve_name: str) -> dict[str, float] | None:
     """The phase-3 MAP draw {site: value} of ``curve_name`` in ``run_dir`` (None if absent)."""
-    from bubblecal.inference.predictive import map_index
+    from bubblecal.inference import map_index
     from bubblecal.workflows.calibrate import read_phase
 
     for suffix in (".nc", ".npz"):

@@ -60,7 +60,7 @@ def run_evidence(agents, bundle, *, population: int = 2000, replicas: int = 3, s
     import pandas as pd
 
     from bubblecal.data import reference_curves
-    from bubblecal.inference.tmcmc import TMCMC
+    from bubblecal.inference import TMCMC
     from bubblecal.models import mechanical_model
     from bubblecal.priors import load_priors
     from bubblecal.workflows.calibrate import PAPER_COV, PAPER_COV_SCALE, _on_device

@@ -118,9 +118,8 @@ def summarise_agent(result, config) -> None:
     import jax
     import pandas as pd
 
-    from bubblecal.inference.predictive import map_index, predictive_band, predictive_crps
-    from bubblecal.models import mechanical_prediction, sample_population_predictive
-    from bubblecal.models.acoustic import acoustic_prediction
+    from bubblecal.inference import map_index, predictive_band, predictive_crps
+    from bubblecal.models import acoustic_prediction, mechanical_prediction, sample_population_predictive
 
     ap = result.plan
     spec = ap.spec

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import SHELL_PARAMETERS
-from bubblecal.inference.sensitivity import SobolResult, sobol_along
+from bubblecal.inference import SobolResult, sobol_along
 from bubblecal.priors import PriorSpec
 
 __all__ = ["SensitivityRun", "surrogate_sensitivity", "plot_sensitivity", "write_sensitivity"]

@@ -32,7 +32,7 @@ from numpyro import handlers
 from scipy.stats import binom
 
 from bubblecal.data import load_reference
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC
 from bubblecal.models import mechanical_model
 from bubblecal.priors import load_priors
 from bubblecal.surrogates.training import truth

@@ -13,8 +13,8 @@ import numpyro.distributions as dist
 import pytest
 from scipy.stats import norm
 
-from bubblecal.inference.hierarchical import Dataset, compare_staged_joint, ess_table, run_staged
-from bubblecal.models.likelihood import importance_ess, importance_log_weights, staged_log_likelihood
+from bubblecal.inference import Dataset, compare_staged_joint, ess_table, run_staged
+from bubblecal.models import importance_ess, importance_log_weights, staged_log_likelihood
 
 BOX = (-10.0, 10.0)
 Y = np.array([-0.8, 0.1, 0.6, 1.3])
@@ -43,7 +43,7 @@ def phase2_factory(samples, names):
 
 
 def phase3_factory(i, m_samples, tau_samples):
-    from bubblecal.models.likelihood import population_predictive_log_density
+    from bubblecal.models import population_predictive_log_density
 
     def model():
         theta = numpyro.sample("theta", dist.Uniform(*BOX))
@@ -122,7 +122,7 @@ def quadrature_theta(i: int, leave_out: bool) -> tuple[float, float]:
 def test_exact_phase3_is_the_joint_marginal():
     """Phase 3 with leave-one-out ψ weights reproduces the joint model's θ_i marginal (quadrature); the
     published phase 3 reproduces its own (double-counting) target, 0.11-0.12 sd away for the outer bubbles."""
-    from bubblecal.models.staged import leave_one_out_log_weights
+    from bubblecal.models import leave_one_out_log_weights
 
     datasets = [Dataset(f"b{i}", phase1_model, (float(Y[i]), float(S[i]))) for i in range(len(Y))]
     store = {}

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from bubblecal.inference.sensitivity import SobolResult, saltelli_design, sobol_along
+from bubblecal.inference import SobolResult, saltelli_design, sobol_along
 
 A, B = 7.0, 0.1
 _V = A**2 / 8 + B * math.pi**4 / 5 + B**2 * math.pi**8 / 18 + 0.5

@@ -9,8 +9,7 @@ from numpyro.infer import Predictive
 from numpyro.infer.util import log_density
 
 from bubblecal.data import acoustic_datasets
-from bubblecal.models import acoustic_model, acoustic_prediction
-from bubblecal.models.likelihood import SD_FLOOR_REL
+from bubblecal.models import SD_FLOOR_REL, acoustic_model, acoustic_prediction
 from bubblecal.priors import load_priors
 
 

@@ -12,8 +12,13 @@ from numpyro.infer.util import log_density
 from scipy import stats
 
 from bubblecal.data import acoustic_datasets
-from bubblecal.models import TruncatedNormalPopulation, hierarchical_model, nuts_init_values
-from bubblecal.models.likelihood import SD_FLOOR_REL, log_truncnorm
+from bubblecal.models import (
+    SD_FLOOR_REL,
+    TruncatedNormalPopulation,
+    hierarchical_model,
+    log_truncnorm,
+    nuts_init_values,
+)
 from bubblecal.priors import load_priors
 
 DIAMETERS = (2.1, 2.9, 3.0)
@@ -125,7 +130,8 @@ def test_nuts_runs_on_joint_model(make_surrogate):
     """Short NUTS smoke run on two synthetic bubbles: finite draws of every site (compile-dominated)."""
     spec = load_priors("definity_reduced")
     curves, surs = _synthetic_curves(make_surrogate, THETAS)
-    mcmc = MCMC(NUTS(hierarchical_model, max_tree_depth=3, init_strategy=init_to_value(values=nuts_init_values(spec, 2))),
+    init = init_to_value(values=nuts_init_values(spec, 2))
+    mcmc = MCMC(NUTS(hierarchical_model, max_tree_depth=3, init_strategy=init),
                 num_warmup=40, num_samples=20, progress_bar=False)
     mcmc.run(jax.random.PRNGKey(0), curves[:2], surs[:2], spec)
     s = mcmc.get_samples()

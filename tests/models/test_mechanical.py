@@ -10,8 +10,13 @@ from numpyro.infer import MCMC, NUTS, Predictive, init_to_value
 from numpyro.infer.util import log_density
 
 from bubblecal.data import DEFAULT_UNITS
-from bubblecal.models import mechanical_model, mechanical_prediction, nuts_init_values, reduced_spec
-from bubblecal.models.likelihood import SD_FLOOR_REL
+from bubblecal.models import (
+    SD_FLOOR_REL,
+    mechanical_model,
+    mechanical_prediction,
+    nuts_init_values,
+    reduced_spec,
+)
 from bubblecal.priors import load_priors
 
 TRUE = {"ka": 1.3e4, "kb": 600.0, "b1": 1.0, "b2": 2.0, "a3": 0.5, "a4": 1.0, "d0": 0.1, "sigma": 0.05}
@@ -133,7 +138,8 @@ def test_nuts_recovers_known_parameters(compression_surrogate):
     y = yhat * (1 + truth["sigma"] * np.random.default_rng(3).standard_normal(x.size))
     start = nuts_init_values(spec)
     assert 0.0 < start["d0"] < x[0]  # below the first displacement: off the clamped plateau
-    mcmc = MCMC(NUTS(mechanical_model, init_strategy=init_to_value(values=start)), num_warmup=250, num_samples=300, progress_bar=False)
+    mcmc = MCMC(NUTS(mechanical_model, init_strategy=init_to_value(values=start)), num_warmup=250, num_samples=300,
+                progress_bar=False)
     mcmc.run(jax.random.PRNGKey(1), x, y, compression_surrogate, spec)
     s = mcmc.get_samples()
     for k in ("ka", "kb", "d0"):

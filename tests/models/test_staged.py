@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.stats import truncnorm
 
-from bubblecal.models.staged import leave_one_out_log_weights
+from bubblecal.models import leave_one_out_log_weights
 
 BOUNDS = {"ka": (1.0e3, 3.0e4), "d0": (0.0, 0.5)}
 

@@ -8,9 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from bubblecal.inference._numpyro_utils import FlatModel
-from bubblecal.models.acoustic import FrequencyTable, acoustic_model
-from bubblecal.models.mechanical import TracedSurrogate, mechanical_model, pad_curve
+from bubblecal.inference.tmcmc._flat_model import FlatModel
+from bubblecal.models import FrequencyTable, TracedSurrogate, acoustic_model, mechanical_model, pad_curve
 from bubblecal.priors import load_priors
 from bubblecal.surrogates import default_bundle_path, load_bundle
 

@@ -214,7 +214,7 @@ def test_gpu_padding_groups_curves_by_network_shape_and_keeps_each_density(tmp_p
     import jax
     import numpy as np
 
-    from bubblecal.inference._numpyro_utils import FlatModel
+    from bubblecal.inference.tmcmc._flat_model import FlatModel
     from bubblecal.workflows.calibrate import _dataset_objects
 
     plan = make_plan(CalibrationConfig(agents=("sonovue",), population=200, out=tmp_path / "o"))

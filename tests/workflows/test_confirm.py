@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from bubblecal.inference.hierarchical import PhaseResult
+from bubblecal.inference import PhaseResult
 from bubblecal.workflows.calibrate import write_phase
 from bubblecal.workflows.cli import app
 from bubblecal.workflows.confirm import find_runs, map_parameters

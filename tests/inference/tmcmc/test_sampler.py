@@ -12,9 +12,8 @@ import numpyro.distributions as dist
 import pytest
 from scipy.stats import gamma, kstest, norm
 
-from bubblecal.inference import tmcmc_core as core
-from bubblecal.inference._numpyro_utils import FlatModel
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC, RandomWalk
+from bubblecal.inference.tmcmc._flat_model import FlatModel
 
 
 def model_simple(y=0.4):
@@ -43,7 +42,7 @@ def model_simple(y=0.4):
         ({"space": "box"}, "space must be 'unconstrained' or 'constrained'"),
         ({"min_delta": 1.5}, r"min_delta must be a number in \[0, 1\)"),
         ({"preset": "korali", "num_mcmc_steps": 5}, "preset='korali' runs one MH step"),
-        ({"preset": "korali", "move": core.RandomWalk()}, "preset='korali' uses Korali's random walk"),
+        ({"preset": "korali", "move": RandomWalk()}, "preset='korali' uses Korali's random walk"),
         ({"move": "hmc"}, "move must be a RandomWalk or KernelMove-like object"),
     ],
 )
@@ -138,7 +137,8 @@ def test_all_particles_minus_inf_names_the_model():
 
     with pytest.raises(
         ValueError,
-        match=r"all 50 prior draws of model 'test_all_particles_minus_inf_names_the_model.<locals>.model_impossible'.*non-finite",
+        match=r"all 50 prior draws of model "
+        r"'test_all_particles_minus_inf_names_the_model.<locals>.model_impossible'.*non-finite",
     ):
         TMCMC(model_impossible, num_particles=50).run(jax.random.PRNGKey(0))
 

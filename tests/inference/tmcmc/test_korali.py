@@ -17,7 +17,7 @@ import numpyro.distributions as dist
 from scipy.optimize import brentq
 from scipy.stats import ks_2samp
 
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC
 
 LO, HI = np.array([-4.0, -4.0]), np.array([4.0, 4.0])
 MU = np.array([0.5, -1.0])

@@ -41,6 +41,7 @@ _UNCONSTRAINED_CLIP = 20.0
 
 
 def _site_log_prob(site) -> jax.Array:
+    """Summed log density of a trace site, with its scale."""
     value = site["value"]
     if site["intermediates"]:
         log_prob = site["fn"].log_prob(value, site["intermediates"])
@@ -105,6 +106,7 @@ def _aval_key(value):
 
 
 def _has_tracer(tree) -> bool:
+    """Whether any leaf of ``tree`` is a JAX tracer."""
     return any(isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(tree))
 
 
@@ -118,15 +120,33 @@ def _unpartial(model, args: tuple, kwargs: dict):
 
 
 def _model_label(model) -> str:
+    """Readable name of a model function for messages."""
     return getattr(model, "__qualname__", None) or getattr(model, "__name__", None) or repr(model)
 
 
 class FlatModel:
     """A NumPyro model bound to its arguments, seen through one flat parameter vector.
 
-    ``space='unconstrained'`` (default): the vector is the unconstrained image of the latent sites and
-    the prior includes log|J|.  ``space='constrained'``: the vector holds the constrained values
-    themselves (Korali's behaviour on box priors); the prior is −∞ outside each site's support.
+    Parameters
+    ----------
+    model : callable
+        NumPyro model (a ``functools.partial`` is unwrapped: its bound arguments are arguments too).
+    model_args : tuple
+        Positional arguments of the model.
+    model_kwargs : dict or None
+        Keyword arguments of the model.
+    space : {'unconstrained', 'constrained'}
+        'unconstrained': the vector is the unconstrained image of the latent sites and the prior
+        includes log|J|. 'constrained': the vector holds the constrained values themselves (Korali's
+        behaviour on box priors); the prior is −∞ outside each site's support.
+    rng_key : jax.Array or None
+        Key of the prototype draw that gives the sites and shapes (default ``PRNGKey(0)``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``space``, a discrete latent site, no continuous latent site, or (constrained
+        space) a support with event dimensions.
     """
 
     def __init__(
@@ -235,6 +255,7 @@ class FlatModel:
     # -- arguments: traced data and fixed rest --------------------------------------------------
 
     def _split_arguments(self, traced: bool) -> None:
+        """Split the arguments' leaves into traced data (numeric arrays) and fixed values."""
         leaves, self._treedef = jax.tree_util.tree_flatten((self.args, self.kwargs))
         use = [traced and _is_data(v) for v in leaves]
         #: the traced arguments (numeric array leaves of args/kwargs), in tree order
@@ -260,6 +281,7 @@ class FlatModel:
     # -- spaces -------------------------------------------------------------------------------
 
     def _to_flat_space(self, constrained: dict) -> dict:
+        """Constrained values mapped to the flat space (clipped where a bound maps to ±inf)."""
         if self.space == "constrained":
             return dict(constrained)
         out = {}
@@ -269,17 +291,20 @@ class FlatModel:
         return out
 
     def constrain(self, x: jax.Array) -> dict:
+        """Constrained latent values {site: value} of one flat vector."""
         params = self._unravel(x)
         if self.space == "constrained":
             return params
         return {k: self.transforms[k](v) for k, v in params.items()}
 
     def flatten(self, constrained: dict) -> jax.Array:
+        """The flat vector of constrained latent values {site: value} (inverse of :meth:`constrain`)."""
         return ravel_pytree(self._to_flat_space({k: constrained[k] for k in self.latent}))[0]
 
     # -- densities ----------------------------------------------------------------------------
 
     def _trace(self, values: dict, data=None):
+        """Trace of the model with ``values`` substituted for the latent sites."""
         model = handlers.substitute(handlers.seed(self.model, jax.random.PRNGKey(0)), data=values)
         args, kwargs = self.arguments(data)
         return handlers.trace(model).get_trace(*args, **kwargs)
@@ -320,9 +345,11 @@ class FlatModel:
         return log_prior, log_lik
 
     def log_prior(self, x, data=None):
+        """Log prior of one flat vector, in the flat space (see :meth:`log_terms`)."""
         return self.log_terms(x, data)[0]
 
     def log_likelihood(self, x, data=None):
+        """Log likelihood of one flat vector: observed sites and user factors (see :meth:`log_terms`)."""
         return self.log_terms(x, data)[1]
 
     def sites(self, x: jax.Array, data=None) -> dict:

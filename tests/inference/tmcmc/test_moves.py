@@ -10,8 +10,7 @@ import numpyro.distributions as dist
 import pytest
 from scipy.stats import multivariate_normal
 
-from bubblecal.inference.moves import KernelMove, hmc_move, nuts_move
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC, KernelMove, hmc_move, nuts_move
 
 COV_L = np.array([[0.04, 0.038], [0.038, 0.04]])  # a narrow ridge (ρ = 0.95)
 MU_L = np.array([0.3, -0.2])

@@ -22,7 +22,7 @@ import pytest
 from scipy.special import erf
 from scipy.stats import multivariate_normal, norm
 
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC
 
 
 def box_1d():

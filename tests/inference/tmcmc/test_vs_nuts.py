@@ -9,9 +9,7 @@ import numpyro
 import numpyro.distributions as dist
 import pytest
 
-from bubblecal.inference.compare import compare_posteriors
-from bubblecal.inference.nuts import run_nuts
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC, compare_posteriors, run_nuts
 
 X = jnp.linspace(-1.5, 1.5, 20)
 Y = 0.4 + 1.1 * X - 0.6 * X**2 + 0.3 * jnp.sin(3 * X) + 0.25 * jax.random.normal(jax.random.PRNGKey(9), (20,))

@@ -9,8 +9,8 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
-from bubblecal.inference import tmcmc as tm
-from bubblecal.inference.tmcmc import TMCMC
+from bubblecal.inference import TMCMC
+from bubblecal.inference.tmcmc import _programs as tm
 
 
 def line_model(x, y):

@@ -1,0 +1,31 @@
+"""Transitional MCMC (Ching & Chen 2007, and the Korali variant) for NumPyro models and flat densities.
+
+User code imports the front end from the layer, ``from bubblecal.inference import TMCMC``; this
+subpackage holds the whole algorithm (``docs/inference.md`` section 5):
+
+- :mod:`~bubblecal.inference.tmcmc.sampler`: :class:`TMCMC`, the NumPyro front end (presets, replicas);
+- :mod:`~bubblecal.inference.tmcmc.results`: :class:`TMCMCResults`, what a run reports;
+- :mod:`~bubblecal.inference.tmcmc.core`: the pure, jittable core on flat particle arrays, BlackJAX-style
+  (:func:`init`, :func:`step`, :func:`run`, :func:`tmcmc`);
+- :mod:`~bubblecal.inference.tmcmc.state`: :class:`TMCMCState`, :class:`StageInfo`, :class:`TMCMCConfig`;
+- :mod:`~bubblecal.inference.tmcmc.tempering`: exponent, weights, resampling and covariance of a stage;
+- :mod:`~bubblecal.inference.tmcmc.moves`: the :class:`Move` interface, :class:`RandomWalk`,
+  :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`;
+- :mod:`~bubblecal.inference.tmcmc.evaluator`: :class:`Evaluator`, the densities over a population;
+- private: ``_flat_model`` (a NumPyro model as flat prior / likelihood functions) and ``_programs``
+  (compiled programs cached per process; :func:`clear_program_cache`).
+"""
+
+from bubblecal.inference.tmcmc._programs import clear_program_cache
+from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
+from bubblecal.inference.tmcmc.evaluator import Evaluator
+from bubblecal.inference.tmcmc.moves import KernelMove, Move, MoveResult, RandomWalk, hmc_move, nuts_move
+from bubblecal.inference.tmcmc.results import STAGE_COLUMNS, TMCMCResults
+from bubblecal.inference.tmcmc.sampler import PRESETS, TMCMC
+from bubblecal.inference.tmcmc.state import STATUS_NAMES, StageInfo, TMCMCConfig, TMCMCState
+
+__all__ = [
+    "TMCMC", "PRESETS", "TMCMCResults", "STAGE_COLUMNS", "clear_program_cache", "TMCMCState", "StageInfo",
+    "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
+    "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator",
+]

@@ -1,0 +1,171 @@
+"""Compiled TMCMC programs, cached per process (private to :mod:`bubblecal.inference.tmcmc`).
+
+A phase of a staged hierarchy is a new TMCMC run of a new model; if every run built its own jitted
+closures, every run would trace and compile everything again. Programs are therefore built once per
+key and kept here (least recently used entries beyond ``_PROGRAM_CACHE_SIZE`` are dropped):
+
+- ``("stage", type(move), move, resampling)``: the model-free pieces of a random-walk stage
+  (:class:`_StagePrograms`), shared by every model, dataset and CoV target;
+- ``("model", FlatModel.signature, chunk_size)``: the model's own programs (:class:`_ModelPrograms`);
+  its arrays are traced arguments, so datasets of one structure share them;
+- ``("fused", FlatModel.signature, type(move), move key, config, max_stages)``: init, stage and whole
+  run with a move that needs the model inside (:class:`_FusedPrograms`).
+
+Under each key, jit keeps one executable per argument shape (N, d, data shapes).
+"""
+
+from __future__ import annotations
+
+import collections
+import functools
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from bubblecal.inference.tmcmc import core
+from bubblecal.inference.tmcmc._flat_model import FlatModel, _static_key
+from bubblecal.inference.tmcmc.evaluator import Evaluator, chunked_vmap
+from bubblecal.inference.tmcmc.moves import RandomWalk
+from bubblecal.inference.tmcmc.state import TMCMCConfig, initial_state
+
+_PROGRAM_CACHE_SIZE = 64
+_program_cache: collections.OrderedDict = collections.OrderedDict()
+
+
+def _cached_programs(key, build: Callable):
+    """``build()`` once per ``key`` (least recently used entries beyond the cache size are dropped)."""
+    if key in _program_cache:
+        _program_cache.move_to_end(key)
+        return _program_cache[key]
+    value = _program_cache[key] = build()
+    while len(_program_cache) > _PROGRAM_CACHE_SIZE:
+        _program_cache.popitem(last=False)
+    return value
+
+
+def clear_program_cache() -> None:
+    """Forget every cached compiled TMCMC program (the next runs trace and compile again)."""
+    _program_cache.clear()
+
+
+class _StagePrograms(NamedTuple):
+    """Jitted model-free pieces of a random-walk stage (see :func:`_split_stage`)."""
+
+    initial_state: Callable  # (position, log_prior, log_likelihood) -> TMCMCState
+    begin: Callable  # (key, state, target CoV) -> (StagePlan, chol, log s, move carry)
+    propose: Callable  # (key, x, chol, log s) -> (key, acceptance key, proposal)
+    accept: Callable  # (acceptance key, carry, proposal, lp, ll, beta) -> carry
+    end: Callable  # (state, plan, carry, log s at the start, min Δ) -> (state, StageInfo)
+
+
+class _ModelPrograms(NamedTuple):
+    """Jitted programs of one model structure; the model's arrays (``FlatModel.data``) are arguments."""
+
+    draws: Callable  # (key, data, num) -> (num, d) exact prior draws in the flat space
+    evaluate: Callable  # (position, data) -> (log prior, log L) of (N, d) particles
+    sites: Callable  # (position, data) -> {site: (N, ...) constrained values and deterministic sites}
+
+
+class _FusedPrograms(NamedTuple):
+    """Jitted init / stage / whole run with the move fused in (moves that need the model inside)."""
+
+    init: Callable  # (key, data, num) -> TMCMCState
+    step: Callable  # (key, state, data) -> (state, StageInfo)
+    run: Callable  # (key, state, data) -> (state, infos, status)
+
+
+def _splittable(move) -> bool:
+    """True for moves whose stage can run as model-free pieces around the evaluator (the random walk)."""
+    return isinstance(move, RandomWalk)
+
+
+def _stage_programs(move: RandomWalk, config: TMCMCConfig) -> _StagePrograms:
+    """The stage pieces of ``move`` with ``config``'s resampling, shared by every model, dataset and CoV
+    target: the numeric settings (target CoV, minimum Δ) are traced arguments of each call."""
+
+    def build():
+        def settings(target_cov, min_delta):
+            return TMCMCConfig(target_cov=target_cov, resampling=config.resampling, min_delta=min_delta)
+
+        def begin(key, state, target_cov):
+            plan = core.prepare_stage(key, state, settings(target_cov, 0.0))
+            chol, log_s = move.start(plan.weighted_cov, state.move_params)
+            carry = (plan.position, plan.log_prior, plan.log_likelihood, log_s, jnp.zeros((), plan.position.dtype))
+            return plan, chol, log_s, carry
+
+        def end(state, plan, carry, log_s0, min_delta):
+            return core.finish_stage(state, plan, move.result(carry, log_s0), settings(1.0, min_delta))
+
+        return _StagePrograms(
+            initial_state=jax.jit(lambda position, lp, ll: initial_state(position, lp, ll, move)),
+            begin=jax.jit(begin),
+            propose=jax.jit(move.propose),
+            accept=jax.jit(move.accept),
+            end=jax.jit(end),
+        )
+
+    # the type is part of the key: NamedTuples of equal fields compare equal across classes
+    return _cached_programs(("stage", type(move), move, config.resampling), build)
+
+
+def _densities(flat: FlatModel, data) -> tuple[Callable, Callable]:
+    """(log prior, log likelihood) of one flat vector of ``flat``'s structure with ``data`` as its arrays."""
+    return functools.partial(flat.log_prior, data=data), functools.partial(flat.log_likelihood, data=data)
+
+
+def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
+    """Prior draws, evaluator and sites of ``flat``'s structure; ``flat`` (the first model seen with
+    this signature) serves as the template, every later model of equal signature passes its own data."""
+
+    def build():
+        def evaluate(position, data):
+            return Evaluator(*_densities(flat, data), chunk_size)(position)
+
+        def sites(position, data):
+            return chunked_vmap(functools.partial(flat.sites, data=data), chunk_size)(position)
+
+        return _ModelPrograms(
+            draws=jax.jit(lambda key, data, num: flat.prior_draws(key, num, data), static_argnums=2),
+            evaluate=jax.jit(evaluate),
+            sites=jax.jit(sites),
+        )
+
+    return _cached_programs(("model", flat.signature, chunk_size), build)
+
+
+def _fused_programs(flat: FlatModel, move: Any, config: TMCMCConfig, max_stages: int) -> _FusedPrograms:
+    """Init, stage and whole run with ``move`` fused in, for ``flat``'s structure (data as arguments)."""
+
+    def build():
+        return _FusedPrograms(
+            init=jax.jit(
+                lambda key, data, num: core.init(
+                    flat.prior_draws(key, num, data), *_densities(flat, data), move, config.chunk_size
+                ),
+                static_argnums=2,
+            ),
+            step=jax.jit(lambda key, state, data: core.step(key, state, *_densities(flat, data), move, config)),
+            run=jax.jit(
+                lambda key, state, data: core.run(key, state, *_densities(flat, data), move, config, max_stages)
+            ),
+        )
+
+    key = ("fused", flat.signature, type(move), _static_key(move), config, max_stages)
+    return _cached_programs(key, build)
+
+
+def _split_stage(stages: _StagePrograms, evaluate: Callable, move: RandomWalk, config: TMCMCConfig, key, state):
+    """One stage as host-driven pieces: the arithmetic and random numbers of :func:`core.step` with a
+    :class:`RandomWalk`, but only ``evaluate`` (jitted, ``(N, d) -> (log prior, log L)``) is specific to
+    the model.  Returns ``(state, info)``.  (Not bitwise equal to the fused step: XLA fuses the
+    proposal into the fused step's likelihood, which moves log L by float round-off, ~1e-6 relative.)"""
+    # Python floats reach jit as traced weakly typed scalars (the dtype of the particles), not constants
+    plan, chol, log_s0, carry = stages.begin(key, state, float(config.target_cov))
+    key = plan.key_move
+    for _ in range(move.num_steps):
+        key, k_acc, prop = stages.propose(key, carry[0], chol, carry[3])
+        lp_p, ll_p = evaluate(prop)
+        carry = stages.accept(k_acc, carry, prop, lp_p, ll_p, plan.beta)
+    return stages.end(state, plan, carry, log_s0, float(config.min_delta))
