@@ -24,7 +24,13 @@ import numpy as np
 from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
 from bubblecal.workflows.calibrate.device import on_device
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
-from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes, write_phase
+from bubblecal.workflows.calibrate.store import (
+    PhaseStore,
+    bundle_hashes,
+    config_hash,
+    phase_hashes,
+    write_phase,
+)
 
 __all__ = ["AgentResult", "run_agent", "run_calibration"]
 
