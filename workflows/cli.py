@@ -39,6 +39,7 @@ TOP_LEVEL_MODULES: list[str] = [
 
 
 def _version_callback(value: bool) -> None:
+    """Print the version and exit when ``--version`` is given."""
     if value:
         typer.echo(f"bubblecal {__version__}")
         raise typer.Exit()

@@ -12,19 +12,38 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
+from bubblecal.data import AGENTS
+from bubblecal.workflows.calibrate import (
+    DEFAULT_PHASE2_SAMPLES,
+    DEFAULT_POPULATION,
+    DEVICES,
+    PAPER_POPULATION,
+    WORKFLOWS,
+    CalibrationConfig,
+)
+from bubblecal.workflows.confirm import DEFAULT_TIER
 from bubblecal.workflows.console import console, fail
+from bubblecal.workflows.evidence import DEFAULT_REPLICAS
+
+#: The defaults of ``calibrate`` (and of the options ``evidence`` shares with it): one source of truth.
+_D = CalibrationConfig()
+#: ``--agent`` value selecting every agent.
+ALL_AGENTS = "all"
+_AGENT_HELP = " | ".join((*AGENTS, ALL_AGENTS))
 
 
 class _PhaseProgress:
     """A rich progress bar over the phases of one agent, fed by run_staged's progress messages."""
 
     def __init__(self, progress, total: int, label: str):
+        """Add a task of ``total`` phases labelled ``label`` to the rich ``progress``."""
         self.progress = progress
         self.task = progress.add_task(label, total=total)
         self.label = label
         self.t0 = time.perf_counter()
 
     def __call__(self, message: str) -> None:
+        """Show ``message``; a message that ends a phase advances the bar and is printed."""
         done = not message.endswith(("running TMCMC", "draws)")) and ": running" not in message
         self.progress.update(self.task, description=f"{self.label}: {message}", advance=1 if done else 0)
         if done:
@@ -32,32 +51,34 @@ class _PhaseProgress:
 
 
 def calibrate(
-    agent: str = typer.Option("all", "--agent", help="definity | sonovue | all"),
-    workflow: str = typer.Option("reduced-acoustic", "--workflow", help="reduced-acoustic | reduced | full"),
-    sampler: str = typer.Option("tmcmc", "--sampler", help="tmcmc (staged phases 1-2-3) | nuts (joint model)"),
-    population: int = typer.Option(None, "--population", help="TMCMC particles per phase (default 2000; "
-                                   "--paper: 50000)."),
-    paper: bool = typer.Option(False, "--paper", help="Published settings: N = 50,000, CoV 0.8/0.6, scaling 0.04."),
-    out: Path = typer.Option(Path("calibration"), "--out", help="Output folder (OUT/<agent>/<workflow>/...)."),
-    device: str = typer.Option("cpu", "--device", help="cpu | gpu (JAX device)."),
-    bundle: Path = typer.Option(None, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
-    force: bool = typer.Option(False, "--force", help="Rerun finished phases instead of reusing them."),
-    seed: int = typer.Option(0, "--seed"),
+    agent: str = typer.Option(ALL_AGENTS, "--agent", help=_AGENT_HELP),
+    workflow: str = typer.Option(_D.workflow, "--workflow", help=" | ".join(WORKFLOWS)),
+    sampler: str = typer.Option(_D.sampler, "--sampler", help="tmcmc (staged phases 1-2-3) | nuts (joint model)"),
+    population: int = typer.Option(_D.population, "--population", help="TMCMC particles per phase (default "
+                                   f"{DEFAULT_POPULATION}; --paper: {PAPER_POPULATION})."),
+    paper: bool = typer.Option(_D.paper, "--paper", help="Published settings: N = 50,000, CoV 0.8/0.6, scaling "
+                               "0.04."),
+    out: Path = typer.Option(_D.out, "--out", help="Output folder (OUT/<agent>/<workflow>/...)."),
+    device: str = typer.Option(_D.device, "--device", help=f"{' | '.join(DEVICES)} (JAX device)."),
+    bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
+    force: bool = typer.Option(_D.force, "--force", help="Rerun finished phases instead of reusing them."),
+    seed: int = typer.Option(_D.seed, "--seed"),
     priors: Path = typer.Option(None, "--priors", help="Your priors TOML instead of the workflow's (one agent only)."),
-    data_dir: Path = typer.Option(None, "--data-dir", help="Folder of curve CSVs (DPD units) named like the shipped "
-                                  "ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
+    data_dir: Path = typer.Option(_D.data_dir, "--data-dir", help="Folder of curve CSVs (DPD units) named like the "
+                                  "shipped ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
                                   "acoustic_observations_published.csv, replacing them."),
     curve: list[str] = typer.Option(None, "--curve", help="Only these curves (repeatable), e.g. "
                                     "definity_compression_2.1um."),
-    phase2_samples: int = typer.Option(None, "--phase2-samples", help="Phase-1 draws per dataset in phase 2 "
-                                       "(default min(N, 2000))."),
-    mcmc_steps: int = typer.Option(10, "--mcmc-steps", help="Random-walk MH steps per TMCMC stage."),
-    chunk_size: int = typer.Option(None, "--chunk-size", help="TMCMC likelihood evaluations per batch (memory)."),
-    nuts_samples: int = typer.Option(500, "--nuts-samples", help="NUTS draws per chain (--sampler nuts)."),
-    nuts_chains: int = typer.Option(2, "--nuts-chains"),
-    netcdf: bool = typer.Option(True, "--netcdf/--npz", help="Phase files as ArviZ NetCDF (else .npz)."),
-    figures: bool = typer.Option(True, "--figures/--no-figures", help="Draw figures and report.md."),
-    phase3: str = typer.Option("published", "--phase3", help="published (Korali: population prior over p(psi | D), "
+    phase2_samples: int = typer.Option(_D.phase2_samples, "--phase2-samples", help="Phase-1 draws per dataset in "
+                                       f"phase 2 (default min(N, {DEFAULT_PHASE2_SAMPLES}))."),
+    mcmc_steps: int = typer.Option(_D.num_mcmc_steps, "--mcmc-steps", help="Random-walk MH steps per TMCMC stage."),
+    chunk_size: int = typer.Option(_D.chunk_size, "--chunk-size", help="TMCMC likelihood evaluations per batch "
+                                   "(memory)."),
+    nuts_samples: int = typer.Option(_D.nuts_samples, "--nuts-samples", help="NUTS draws per chain (--sampler nuts)."),
+    nuts_chains: int = typer.Option(_D.nuts_chains, "--nuts-chains"),
+    netcdf: bool = typer.Option(_D.netcdf, "--netcdf/--npz", help="Phase files as ArviZ NetCDF (else .npz)."),
+    figures: bool = typer.Option(_D.figures, "--figures/--no-figures", help="Draw figures and report.md."),
+    phase3: str = typer.Option(_D.phase3, "--phase3", help="published (Korali: population prior over p(psi | D), "
                                "which holds the curve's own data) | exact (leave-one-out psi weights: the joint "
                                "model's per-bubble marginal)."),
 ) -> None:
@@ -66,11 +87,11 @@ def calibrate(
     figures and report.md under OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    from bubblecal.workflows.calibrate import CalibrationConfig, CalibrationError, make_plan, run_agent
+    from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_agent
     from bubblecal.workflows.figures import agent_figures
     from bubblecal.workflows.report import summary_table, write_report
 
-    agents = ("definity", "sonovue") if agent == "all" else (agent,)
+    agents = AGENTS if agent == ALL_AGENTS else (agent,)
     priors_map = {}
     if priors is not None:
         if len(agents) != 1:
@@ -121,29 +142,29 @@ def calibrate(
 
 
 def evidence(
-    agent: str = typer.Option("all", "--agent", help="definity | sonovue | all"),
-    population: int = typer.Option(2000, "--population", help="TMCMC particles per run."),
-    replicas: int = typer.Option(3, "--replicas", help="Independent TMCMC runs per model (ln Z ± SE)."),
+    agent: str = typer.Option(ALL_AGENTS, "--agent", help=_AGENT_HELP),
+    population: int = typer.Option(DEFAULT_POPULATION, "--population", help="TMCMC particles per run."),
+    replicas: int = typer.Option(DEFAULT_REPLICAS, "--replicas", help="Independent TMCMC runs per model (ln Z ± SE)."),
     curve: list[str] = typer.Option(None, "--curve", help="Only these curves (repeatable)."),
-    out: Path = typer.Option(Path("calibration"), "--out", help="Output root: OUT/<agent>/evidence.csv."),
-    bundle: Path = typer.Option(None, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
-    device: str = typer.Option("cpu", "--device", help="cpu | gpu"),
-    seed: int = typer.Option(0, "--seed"),
+    out: Path = typer.Option(_D.out, "--out", help="Output root: OUT/<agent>/evidence.csv."),
+    bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
+    device: str = typer.Option(_D.device, "--device", help=" | ".join(DEVICES)),
+    seed: int = typer.Option(_D.seed, "--seed"),
 ) -> None:
     """ln Z of the full and the reduced shell per curve (TMCMC, replica mean ± SE), the Bayes factor
     ln B = ln Z_full − ln Z_reduced ± error and its Kass–Raftery verdict; CSV + table (and in report.md)."""
     from bubblecal.surrogates import load_bundle
-    from bubblecal.workflows.calibrate import CalibrationError, _check_device, resolve_bundle
+    from bubblecal.workflows.calibrate import CalibrationError, check_device, resolve_bundle
     from bubblecal.workflows.console import make_table
     from bubblecal.workflows.evidence import run_evidence
 
-    agents = ("definity", "sonovue") if agent == "all" else (agent,)
-    if any(a not in ("definity", "sonovue") for a in agents):
+    agents = AGENTS if agent == ALL_AGENTS else (agent,)
+    if any(a not in AGENTS for a in agents):
         raise fail(f"--agent must be definity, sonovue or all, got {agent!r}")
     if population < 100 or replicas < 2:
         raise fail(f"--population must be >= 100 and --replicas >= 2 (for an error bar), got {population}, {replicas}")
     try:
-        _check_device(device)
+        check_device(device)
         bundle_dir = resolve_bundle(bundle)
         b = load_bundle(bundle_dir)
         for a in agents:
@@ -167,8 +188,9 @@ def evidence(
 
 
 def confirm(
-    results: Path = typer.Argument(..., help="A calibration output folder (OUT, OUT/<agent> or OUT/<agent>/<workflow>)."),
-    tier: str = typer.Option("explicit", "--tier", help="explicit | implicit | quasistatic"),
+    results: Path = typer.Argument(..., help="A calibration output folder (OUT, OUT/<agent> or "
+                                   "OUT/<agent>/<workflow>)."),
+    tier: str = typer.Option(DEFAULT_TIER, "--tier", help="explicit | implicit | quasistatic"),
     device: str = typer.Option("cuda", "--device", help="Warp device: cuda | cpu"),
     subdivisions: int = typer.Option(None, "--subdivisions", help="Icosphere level (default: the tier's)."),
     scale: float = typer.Option(None, "--scale", min=0.01, max=1.0,
@@ -189,7 +211,8 @@ def confirm(
         try:
             settings = {"scale": scale} if scale is not None and tier in ("explicit", "implicit") else None
             pts, summ, fig = confirm_run(run, tier=tier, device=device, subdivisions=subdivisions,
-                                         tier_settings=settings, progress=lambda m: console.print(f"  {m}", highlight=False))
+                                         tier_settings=settings,
+                                         progress=lambda m: console.print(f"  {m}", highlight=False))
         except ValueError as exc:
             raise fail(f"{run}: {exc}") from None
         table = make_table(f"{run}: {tier} tier at the MAP, relative L2", ("curve", "status", "sim vs surrogate",

@@ -9,49 +9,17 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from pathlib import Path
 
 import typer
 from rich.markup import escape
 
 from bubblecal.workflows.console import console, fail, make_table
-
-#: slack of the prior-box check, as a fraction of each training range: a Latin hypercube of n points samples the
-#: edge strata only to within width/n of the box edge, and the reduced shell's b1 = b2 = a4 = 0 sits on it
-PRIOR_BOX_RTOL = 0.01
-
-
-def _prior_box_domain_warnings(surrogate, spec, x) -> list[str]:
-    """Messages of ``surrogate.check_domain`` over the corners of the prior box (DPD units).
-
-    A corner counts as outside only beyond :data:`PRIOR_BOX_RTOL` of the training range.
-
-    Compression evaluates the surrogate at max(0, x − d0) for d0 across its prior; indentation at x.
-    """
-    import itertools
-
-    import numpy as np
-
-    from bubblecal.data import SHELL_PARAMETERS
-    from bubblecal.surrogates import SurrogateDomainWarning
-
-    axes = [spec.parameters[k].prior.as_tuple() if k in spec.parameters else (spec.fixed[k],)
-            for k in SHELL_PARAMETERS]
-    corners = np.array(list(itertools.product(*axes)), dtype=float)
-    x = np.asarray(x, dtype=float)
-    if spec.setup == "compression":
-        d0s = spec.parameters["d0"].prior.as_tuple() if "d0" in spec.parameters else (spec.fixed["d0"],)
-        xs = np.concatenate([np.maximum(0.0, x - d0) for d0 in d0s])
-    else:
-        xs = x
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", SurrogateDomainWarning)
-        surrogate.check_domain(corners[:, None, :], xs[None, :], rtol=PRIOR_BOX_RTOL)
-    return [str(w.message) for w in caught if issubclass(w.category, SurrogateDomainWarning)]
+from bubblecal.workflows.domain import prior_box_domain_warnings
 
 
 def _finite(value: float) -> float | None:
+    """``value`` as float, or None when not finite (strict JSON)."""
     return float(value) if math.isfinite(value) else None
 
 
@@ -112,7 +80,7 @@ def compare(
         raise fail(f"priors {spec.name} are for {spec.setup}, the curve {name} is {curve_kind}")
     if spec.mechanical_noise_name not in spec.noise:
         raise fail(f"priors {spec.name} declare no noise amplitude {spec.mechanical_noise_name!r}")
-    domain = _prior_box_domain_warnings(model_s, spec, obs.x)
+    domain = prior_box_domain_warnings(model_s, spec, obs.x)
     for msg in domain:
         console.print(f"[yellow]warning:[/] the prior box exceeds the surrogate's training box: {escape(msg)}",
                       highlight=False, markup=True)
@@ -145,8 +113,8 @@ def compare(
     table = make_table(f"TMCMC vs NUTS on {name}: quantile differences (TMCMC − NUTS) in posterior sd",
                        ("parameter", "sd", "dq05", "dq25", "dq50", "dq75", "dq95", "KS", "pass"))
     for row in result.table:
-        table.add_row(row["name"], f"{row['sd']:.4g}", *(f"{row[f'dq_{q}']:+.3f}" for q in ("05", "25", "50", "75", "95")),
-                      f"{row['ks']:.3f}", "yes" if row["passed"] else "NO")
+        dq = (f"{row[f'dq_{q}']:+.3f}" for q in ("05", "25", "50", "75", "95"))
+        table.add_row(row["name"], f"{row['sd']:.4g}", *dq, f"{row['ks']:.3f}", "yes" if row["passed"] else "NO")
     console.print(table)
     th = result.thresholds
     colour = "green" if result.passed else "red"

@@ -23,6 +23,7 @@ app = typer.Typer(help="Reference force curves and acoustic observations.", no_a
 
 
 def _summary_table() -> Table:
+    """Overview of the reference curves (diameters, retained points, ranges in nm and nN)."""
     table = make_table("Reference force-spectroscopy curves (retained points enter the likelihood)",
                        ("name", "D [µm]", "R [DPD length]", "points retained/source", "displacement [nm]",
                         "force [nN]"),
@@ -30,13 +31,15 @@ def _summary_table() -> Table:
                                "PhD thesis, Edinburgh (2014). D: nominal (measured) diameter.")
     for c in reference_curves():
         disp, force = c.displacement_nm, c.force_nN
-        diameter = f"{c.diameter_um:g}" + (f" ({c.bubble_diameter_um:g})" if c.bubble_diameter_um != c.diameter_um else "")
+        measured = f" ({c.bubble_diameter_um:g})" if c.bubble_diameter_um != c.diameter_um else ""
+        diameter = f"{c.diameter_um:g}" + measured
         table.add_row(c.name, diameter, f"{c.radius_dpd:g}", f"{c.n_points}/{c.source_curve.x.size}",
                       f"{disp.min():.1f}–{disp.max():.1f}", f"{force.min():.2f}–{force.max():.2f}")
     return table
 
 
 def _acoustic_table() -> Table:
+    """The acoustic resonance observations (diameter [um], radius [DPD length], f_res [MHz])."""
     table = make_table("Acoustic resonance observations",
                        ("#", "agent", "diameter [µm]", "radius [DPD length]", "f_res [MHz]", "source"))
     for k, o in enumerate(acoustic_observations(), start=1):
@@ -46,6 +49,7 @@ def _acoustic_table() -> Table:
 
 
 def _curve_table(curve, title: str) -> Table:
+    """One curve point by point, in physical and DPD units."""
     headers = ["#"] + [curve.axis_label(axis, u) for axis in ("x", "y") for u in ("physical", "dpd")]
     table = make_table(title, headers)
     for k in range(curve.n_points):

@@ -17,6 +17,7 @@ _PACKAGES = ("numpy", "scipy", "jax", "jaxlib", "numpyro", "torch", "warp-lang",
 
 
 def _devices() -> str:
+    """The JAX platforms, or why JAX is unavailable."""
     try:
         import jax
 
@@ -46,8 +47,10 @@ def info() -> None:
     units.add_row("length", f"{u.length_m * 1e9:g} nm")
     units.add_row("energy (k_BT, T = 300 K)", f"{u.energy_J:.5g} J")
     units.add_row("time", f"{u.time_s * 1e6:.4f} µs (ρ_water = {u.rho_water:g} kg/m³)")
-    units.add_row("force on the shell (fscale = 0.0074)", f"{1 / u.nN_to_dpd(1.0):.6g} nN  (1 nN = {u.nN_to_dpd(1.0):.3f})")
-    units.add_row("k_a (2-D modulus)", f"E = {u.yt_per_ka:.2f} Pa (h = {u.shell_thickness_m * 1e9:g} nm, ν = {u.poisson:g})")
+    units.add_row("force on the shell (fscale = 0.0074)",
+                  f"{1 / u.nN_to_dpd(1.0):.6g} nN  (1 nN = {u.nN_to_dpd(1.0):.3f})")
+    units.add_row("k_a (2-D modulus)",
+                  f"E = {u.yt_per_ka:.2f} Pa (h = {u.shell_thickness_m * 1e9:g} nm, ν = {u.poisson:g})")
     console.print(units)
 
     curves = reference_curves()

@@ -27,11 +27,23 @@ def _physical(name: str, lo: float, hi: float) -> str:
 
 
 def _range(b) -> str:
+    """'lo – hi' of a bounds object, '–' for None."""
     return "–" if b is None else f"{b.lo:.4g} – {b.hi:.4g}"
 
 
 def priors_table(spec) -> Table:
-    """Rich table of a PriorSpec: one row per parameter, units in every header."""
+    """Rich table of a PriorSpec: one row per parameter, units in every header.
+
+    Parameters
+    ----------
+    spec : bubblecal.priors.PriorSpec
+
+    Returns
+    -------
+    rich.table.Table
+        Prior ranges in DPD units and in physical units (E [MPa], κ [k_BT], d0 [nm]), pooling and
+        hyperprior ranges; fixed and noise parameters below.
+    """
     table = make_table(f"{spec.name}: {spec.agent} {spec.setup}, {spec.shell} shell"
                        f"{' + acoustic' if spec.acoustic else ''}  ({spec.path})",
                        ("parameter", "unit [DPD]", "prior range [DPD]", "prior range [E MPa | κ k_BT | nm]",

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from bubblecal.workflows.console import console, fail, make_table
+from bubblecal.workflows.sensitivity import SOBOL_N, SOBOL_POINTS
 
 
 def sensitivity(
@@ -15,8 +16,8 @@ def sensitivity(
     curve: str = typer.Option(..., "--curve", help="Reference curve whose explored loading range is averaged "
                                                    "over, e.g. definity-2.1."),
     priors: str = typer.Option(None, "--priors", help="Priors name or TOML path (default: the agent's full workflow)."),
-    n: int = typer.Option(2048, "--n", help="Saltelli base sample size N (power of two)."),
-    points: int = typer.Option(40, "--points", help="Loading coordinates along the surrogate's range."),
+    n: int = typer.Option(SOBOL_N, "--n", help="Saltelli base sample size N (power of two)."),
+    points: int = typer.Option(SOBOL_POINTS, "--points", help="Loading coordinates along the surrogate's range."),
     seed: int = typer.Option(0, "--seed"),
     out: Path = typer.Option(Path("results/sensitivity"), "--out", help="Output folder (JSON + PNG)."),
 ) -> None:

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import typer
 
+from bubblecal.data import AGENTS, LOADING_PROTOCOLS
+
 #: Nominal vs data diameter tolerance: the "3.2 um" SonoVue data have radius 6.38 (3.19 um).
 DIAMETER_ATOL_UM = 0.025
 
@@ -18,6 +20,7 @@ app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, e
 
 
 def _ints(text: str, name: str) -> tuple[int, ...]:
+    """Comma-separated positive integers (typer.BadParameter naming the option otherwise)."""
     try:
         vals = tuple(int(v) for v in text.replace(" ", "").split(",") if v)
     except ValueError as exc:
@@ -28,6 +31,7 @@ def _ints(text: str, name: str) -> tuple[int, ...]:
 
 
 def _fail(msg: str, code: int = 2):
+    """Print 'error: msg' on stderr and exit with status ``code``."""
     typer.echo(f"error: {msg}", err=True)
     raise typer.Exit(code)
 
@@ -93,7 +97,7 @@ def train(
         scaled_max_rel_diff,
     )
 
-    if setup not in ("compression", "indentation"):
+    if setup not in LOADING_PROTOCOLS:
         raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
     try:
         raw = read_dataset(dataset, setup=setup, n_points="auto" if n_points == "auto" else int(n_points))
@@ -103,7 +107,8 @@ def train(
                                    min_prefix_points=min_prefix_points)
         typer.echo(str(report))
         if ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
-            _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, --diameter is {diameter:g}")
+            _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, "
+                  f"--diameter is {diameter:g}")
         try:
             train_cfg = TrainConfig(lr=lr, batch_size=batch_size, max_epochs=max_epochs, patience=patience,
                                     max_reductions=max_reductions, threads=1, device=device)
@@ -233,7 +238,8 @@ def acoustic(
         f = sur.fits[s.diameter_um]
         sm = s.summary()
         typer.echo(f"{s.diameter_um:6.2f} um: {sm['n_valid']}/{sm['n']} valid, check-7 ratio "
-                   f"{sm['check7_ratio_median']:.4f}, LOO median {100 * f.loo_median:.2f} % max {100 * f.loo_max:.2f} %")
+                   f"{sm['check7_ratio_median']:.4f}, LOO median {100 * f.loo_median:.2f} % "
+                   f"max {100 * f.loo_max:.2f} %")
     typer.echo(f"wrote {out}" + (f" and {rows}" if rows else ""))
 
 
@@ -252,7 +258,7 @@ def bundle(
     ac: dict[str, Path] = {}
     for item in acoustic or []:
         name, sep, file = item.partition("=")
-        if not sep or name not in ("definity", "sonovue"):
+        if not sep or name not in AGENTS:
             raise fail(f"--acoustic {item!r}: expected definity=FILE or sonovue=FILE")
         ac[name] = Path(file)
     missing = [str(p) for p in [*(surrogate or []), *ac.values()] if not Path(p).is_file()]

@@ -24,13 +24,27 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS
+from bubblecal.workflows.plotting import new_figure, save_figure, styled
 
-__all__ = ["find_runs", "map_parameters", "confirm_run"]
+__all__ = ["DEFAULT_TIER", "find_runs", "map_parameters", "confirm_run"]
+
+#: DPD tier that re-simulates the MAP unless another is named.
+DEFAULT_TIER = "explicit"
 
 
 def find_runs(results: Path) -> list[Path]:
-    """Run folders (holding ``manifest.json``): ``results`` itself, OUT/<agent>/<workflow> under an agent
-    folder, or every run under an output root."""
+    """Calibration run folders (holding ``manifest.json``) at or under ``results``.
+
+    Parameters
+    ----------
+    results : Path
+        A run folder OUT/<agent>/<workflow>, an agent folder OUT/<agent> or an output root OUT.
+
+    Returns
+    -------
+    list of Path
+        ``results`` itself when it is a run, else every run below it (sorted); empty when there is none.
+    """
     results = Path(results)
     if (results / "manifest.json").is_file():
         return [results]
@@ -39,8 +53,21 @@ def find_runs(results: Path) -> list[Path]:
 
 
 def map_parameters(run_dir: Path, curve_name: str) -> dict[str, float] | None:
-    """The phase-3 MAP draw {site: value} of ``curve_name`` in ``run_dir`` (None if absent)."""
-    from bubblecal.inference import map_index
+    """The phase-3 MAP draw of one curve: the draw with the largest stored log likelihood.
+
+    Parameters
+    ----------
+    run_dir : Path
+        A run folder.
+    curve_name : str
+        E.g. 'definity_compression_2.1um'.
+
+    Returns
+    -------
+    dict of str to float or None
+        Site -> value (DPD units); None when the phase-3 file or its log likelihoods are absent.
+    """
+    from bubblecal.inference.predictive import map_index
     from bubblecal.workflows.calibrate import read_phase
 
     for suffix in (".nc", ".npz"):
@@ -55,16 +82,40 @@ def map_parameters(run_dir: Path, curve_name: str) -> dict[str, float] | None:
 
 
 def _rel_l2(a, b) -> float:
+    """||a − b||_2 / ||b||_2 over the points where both are finite (NaN when none is)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     ok = np.isfinite(a) & np.isfinite(b)
     return float(np.linalg.norm(a[ok] - b[ok]) / np.linalg.norm(b[ok])) if ok.any() else math.nan
 
 
-def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", subdivisions: int | None = None,
+def confirm_run(run_dir: Path, *, tier: str = DEFAULT_TIER, device: str = "cpu", subdivisions: int | None = None,
                 bundle=None, tier_settings: dict | None = None,
                 progress: Callable[[str], None] | None = None):
-    """Re-simulate the MAP of every curve of one run folder; returns (pointwise DataFrame, summary DataFrame,
-    figure path). ``bundle``: a loaded bundle (default: the one recorded in the run manifest)."""
+    """Re-simulate the phase-3 MAP of every curve of one run folder and compare it with surrogate and data.
+
+    Parameters
+    ----------
+    run_dir : Path
+        A run folder (``manifest.json`` names its agent, priors and bundle).
+    tier : str
+        DPD tier: 'explicit', 'implicit' or 'quasistatic'.
+    device : str
+        Warp device, e.g. 'cpu' or 'cuda'.
+    subdivisions : int or None
+        Icosphere level (None: the tier's).
+    bundle : bubblecal.surrogates.Bundle or None
+        A loaded bundle (None: the one recorded in the run manifest).
+    tier_settings : dict or None
+        Keyword arguments of :func:`bubblecal.sim.tiers.get_tier` (e.g. ``scale``).
+    progress : callable or None
+        Receives one-line messages.
+
+    Returns
+    -------
+    tuple
+        (pointwise DataFrame, summary DataFrame, figure path or None); the CSVs and the PNG are written
+        under ``run_dir/confirm/``.
+    """
     import json
 
     import pandas as pd
@@ -122,7 +173,8 @@ def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", s
                            "surrogate_phys": float(conv(surrogate[j])), "simulation_phys": float(conv(simulated[j])),
                            "unit_phys": "nN" if curve.kind == "compression" else "nm"})
         summary.append({"agent": agent, "curve": curve.name, "tier": tier, "status": batch.status[0],
-                        "rel_l2_sim_vs_surrogate": _rel_l2(simulated, surrogate), "rel_l2_sim_vs_data": _rel_l2(simulated, data),
+                        "rel_l2_sim_vs_surrogate": _rel_l2(simulated, surrogate),
+                        "rel_l2_sim_vs_data": _rel_l2(simulated, data),
                         "rel_l2_surrogate_vs_data": _rel_l2(surrogate, data), "seconds": batch.seconds,
                         **{f"map_{k}": v for k, v in values.items()}, "info": json.dumps(
                             {k: v for k, v in batch.info.items() if k in ("mesh_subdivisions", "n_vertices", "tier")})})
@@ -136,12 +188,11 @@ def confirm_run(run_dir: Path, *, tier: str = "explicit", device: str = "cpu", s
     return pts, summ, fig
 
 
+@styled
 def _figure(pts, summ, path: Path, tier: str, agent: str) -> Path:
-    from bubblecal.workflows.figures import _plt, _save
-
-    plt = _plt()
+    """Overlay of simulation, surrogate and data per curve (force [nN] against displacement [nm])."""
     curves = list(dict.fromkeys(pts["curve"]))
-    fig, axes = plt.subplots(1, len(curves), figsize=(max(3.6 * len(curves), 5.0), 3.4), squeeze=False)
+    fig, axes = new_figure(1, len(curves), figsize=(max(3.6 * len(curves), 5.0), 3.4), squeeze=False)
     for ax, name in zip(axes[0], curves, strict=True):
         p = pts[pts["curve"] == name]
         kind = p["kind"].iloc[0]
@@ -165,4 +216,4 @@ def _figure(pts, summ, path: Path, tier: str, agent: str) -> Path:
         ax.set_ylim(bottom=0)
     axes[0][0].legend(fontsize=7)
     fig.suptitle(f"{agent.capitalize()}: {tier} simulation at the phase-3 MAP", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -21,15 +21,33 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["kass_raftery", "run_evidence", "EVIDENCE_COLUMNS"]
+from bubblecal.workflows.calibrate import DEFAULT_POPULATION
 
+__all__ = ["kass_raftery", "run_evidence", "EVIDENCE_COLUMNS", "DEFAULT_REPLICAS"]
+
+#: Independent TMCMC runs per model and curve (at least 2 give ln Z an error bar).
+DEFAULT_REPLICAS = 3
+#: Columns of ``evidence.csv``.
 EVIDENCE_COLUMNS = ("agent", "curve", "diameter_um", "log_z_full", "log_z_full_se", "log_z_reduced",
                     "log_z_reduced_se", "ln_bayes_factor", "ln_bayes_factor_se", "favours", "verdict", "num_particles",
                     "num_replicas", "seconds")
 
 
 def kass_raftery(ln_b: float, se: float = 0.0) -> tuple[str, str]:
-    """(favoured model, strength) for ln B = ln Z_full − ln Z_reduced with Monte Carlo error ``se``."""
+    """Kass–Raftery verdict of a Bayes factor.
+
+    Parameters
+    ----------
+    ln_b : float
+        ln B = ln Z_full − ln Z_reduced.
+    se : float
+        Its Monte Carlo standard error.
+
+    Returns
+    -------
+    tuple of str
+        (favoured model 'full' | 'reduced' | '' when undefined, strength).
+    """
     if not math.isfinite(ln_b):
         return "", "undefined"
     favours = "full" if ln_b > 0 else "reduced"
@@ -47,13 +65,40 @@ def kass_raftery(ln_b: float, se: float = 0.0) -> tuple[str, str]:
     return favours, strength
 
 
-def run_evidence(agents, bundle, *, population: int = 2000, replicas: int = 3, seed: int = 0, device: str = "cpu",
-                 out: Path | None = None, curves: tuple[str, ...] = (), num_mcmc_steps: int = 10,
-                 progress: Callable[[str], None] | None = None):
-    """ln Z full vs reduced for every curve of ``agents`` with the surrogates of ``bundle`` (a loaded
-    :class:`~bubblecal.surrogates.Bundle`). Returns a pandas DataFrame (:data:`EVIDENCE_COLUMNS`); with
-    ``out`` writes ``out/<agent>/evidence.csv``; ``curves`` restricts to these curve names. ln Z is dimensionless (natural log of a density of the
-    curve's y in DPD units)."""
+def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replicas: int = DEFAULT_REPLICAS,
+                 seed: int = 0, device: str = "cpu", out: Path | None = None, curves: tuple[str, ...] = (),
+                 num_mcmc_steps: int = 10, progress: Callable[[str], None] | None = None):
+    """ln Z of the full and the reduced shell for every curve of ``agents``, and the Bayes factors.
+
+    Parameters
+    ----------
+    agents : sequence of str
+        'definity' and/or 'sonovue'.
+    bundle : bubblecal.surrogates.Bundle
+        A loaded bundle holding a surrogate for every curve.
+    population : int
+        TMCMC particles per run.
+    replicas : int
+        Independent TMCMC runs per model and curve.
+    seed : int
+        Seed of the JAX keys.
+    device : str
+        'cpu' or 'gpu' (JAX device).
+    out : Path or None
+        Output root: writes ``out/<agent>/evidence.csv``.
+    curves : tuple of str
+        Restrict to these curve names (empty: all).
+    num_mcmc_steps : int
+        Random-walk Metropolis steps per TMCMC stage.
+    progress : callable or None
+        Receives one-line messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`EVIDENCE_COLUMNS`. ln Z is dimensionless (natural log of a density of the curve's y
+        in DPD units).
+    """
     import time
 
     import jax
@@ -63,7 +108,7 @@ def run_evidence(agents, bundle, *, population: int = 2000, replicas: int = 3, s
     from bubblecal.inference import TMCMC
     from bubblecal.models import mechanical_model
     from bubblecal.priors import load_priors
-    from bubblecal.workflows.calibrate import PAPER_COV, PAPER_COV_SCALE, _on_device
+    from bubblecal.workflows.calibrate import PAPER_COV, PAPER_COV_SCALE, on_device
 
     say = progress or (lambda _m: None)
     rows = []
@@ -82,7 +127,7 @@ def run_evidence(agents, bundle, *, population: int = 2000, replicas: int = 3, s
                 say(f"{curve.name}: {model_name} shell, N = {population} x {replicas} replicas")
                 tm = TMCMC(mechanical_model, num_particles=population, num_replicas=replicas,
                            target_cov=PAPER_COV[0], cov_scale=PAPER_COV_SCALE, num_mcmc_steps=num_mcmc_steps)
-                with _on_device(device):
+                with on_device(device):
                     tm.run(sub, np.asarray(curve.x), np.asarray(curve.y), sur, spec)
                 row[f"log_z_{model_name}"] = tm.log_evidence
                 row[f"log_z_{model_name}_se"] = tm.log_evidence_se

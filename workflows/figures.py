@@ -1,4 +1,4 @@
-"""Figures of a calibration run (matplotlib, Agg): physical units, labelled axes, legends.
+"""Figures of a calibration run (matplotlib, PNG): physical units, labelled axes, legends.
 
 * ``fit.png`` — every loading curve (one panel each): data, posterior-predictive median and 90 % band
   (observation noise included) and the MAP model curve; force [nN] against displacement [nm] for both
@@ -17,50 +17,49 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS
+from bubblecal.workflows.plotting import new_figure, save_figure, styled
 
 __all__ = ["agent_figures", "fit_figure", "ka_kb_figure", "population_figure", "acoustic_figure"]
 
+#: Colour cycle of the calibration figures.
 COLOURS = ("#1b6ca8", "#d1495b", "#2e8b57", "#edae49", "#6a4c93", "#00798c")
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({"font.size": 9, "axes.spines.top": False, "axes.spines.right": False,
-                         "legend.frameon": False, "savefig.dpi": 150})
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    """Tight layout, write ``path`` (PNG, 150 dpi), close the figure."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
-
-
 def _nm(v):
+    """DPD length -> nm."""
     return np.asarray(DEFAULT_UNITS.dpd_to_nm(v))
 
 
 def _nN(v):
+    """DPD force -> nN."""
     return np.asarray(DEFAULT_UNITS.dpd_to_nN(v))
 
 
 def _title(result, plan, what: str) -> str:
+    """Figure title: agent, what, workflow, and a warning line for a synthetic bundle."""
     t = f"{result.plan.agent.capitalize()} — {what} ({result.plan.workflow})"
     return t + ("\nSYNTHETIC surrogate bundle: not a physical result" if plan.synthetic_bundle else "")
 
 
+@styled
 def fit_figure(result, plan, path: Path) -> Path:
-    plt = _plt()
+    """``fit.png``: every loading curve with its posterior-predictive band, median and MAP model curve.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run (``result.bands`` set).
+    plan : bubblecal.workflows.calibrate.Plan
+    path : Path
+        PNG to write.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     curves = [c for c in result.plan.curves if c.name in result.bands]
-    fig, axes = plt.subplots(1, len(curves), figsize=(max(3.4 * len(curves), 5.0), 3.3), squeeze=False)
+    fig, axes = new_figure(1, len(curves), figsize=(max(3.4 * len(curves), 5.0), 3.3), squeeze=False)
     for ax, curve in zip(axes[0], curves, strict=True):
         b = result.bands[curve.name]
         if b["kind"] == "compression":
@@ -90,7 +89,7 @@ def fit_figure(result, plan, path: Path) -> Path:
         ax.text(0.03, 0.97, f"coverage {cov:.2f}", transform=ax.transAxes, va="top", fontsize=8)
     axes[0][0].legend(loc="lower right", fontsize=7)
     fig.suptitle(_title(result, plan, "loading curves and posterior predictive"), fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _tick_label(v: float, _pos=None) -> str:
@@ -102,14 +101,28 @@ def _tick_label(v: float, _pos=None) -> str:
     return f"$10^{{{e}}}$" if abs(m - 1) < 1e-6 else f"${m:g}\\times10^{{{e}}}$"
 
 
+@styled
 def ka_kb_figure(result, plan, path: Path) -> Path | None:
-    from bubblecal.workflows.report import dataset_posteriors
+    """``ka_kb.png``: per-curve posteriors of (E [MPa], κ [k_BT]) and the population-predictive cloud.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+    plan : bubblecal.workflows.calibrate.Plan
+    path : Path
+        PNG to write.
+
+    Returns
+    -------
+    Path or None
+        ``path``; None when k_a or k_b is not sampled.
+    """
+    from bubblecal.workflows.summary import dataset_posteriors
 
     spec = result.plan.spec
     if "ka" not in spec.parameters or "kb" not in spec.parameters:
         return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(4.6, 3.8))
+    fig, ax = new_figure(figsize=(4.6, 3.8))
     E = lambda v: np.asarray(DEFAULT_UNITS.ka_to_young(v)) * 1e-6  # noqa: E731
     K = lambda v: np.asarray(DEFAULT_UNITS.kb_to_bending_kBT(v))  # noqa: E731
     pop = result.population_predictive
@@ -149,18 +162,32 @@ def ka_kb_figure(result, plan, path: Path) -> Path | None:
     for h in leg.legend_handles:
         h.set_alpha(1)
     ax.set_title(_title(result, plan, "$k_a$–$k_b$ posteriors"), fontsize=9)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
+@styled
 def population_figure(result, plan, path: Path) -> Path | None:
-    from bubblecal.workflows.report import PHYSICAL, _psi
+    """``population.png``: posterior marginals of the hyperparameters m_k, τ_k over their hyperpriors.
 
-    m, tau = _psi(result)
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+    plan : bubblecal.workflows.calibrate.Plan
+    path : Path
+        PNG to write.
+
+    Returns
+    -------
+    Path or None
+        ``path``; None when nothing is pooled.
+    """
+    from bubblecal.workflows.summary import PHYSICAL, psi_samples
+
+    m, tau = psi_samples(result)
     if not m:
         return None
-    plt = _plt()
     names = list(m)
-    fig, axes = plt.subplots(2, len(names), figsize=(2.9 * len(names), 4.6), squeeze=False)
+    fig, axes = new_figure(2, len(names), figsize=(2.9 * len(names), 4.6), squeeze=False)
     spec = result.plan.spec
     for j, k in enumerate(names):
         _u, pname, punit, conv = PHYSICAL[k]
@@ -184,15 +211,30 @@ def population_figure(result, plan, path: Path) -> Path | None:
             ax.set_yticks([])
     axes[0][0].legend(fontsize=7)
     fig.suptitle(_title(result, plan, "population hyperparameters ψ"), fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
+@styled
 def acoustic_figure(result, plan, path: Path) -> Path | None:
+    """``acoustic.png``: measured resonance frequencies [MHz] against diameter [um] with the f_res(D) band
+    of the population-predictive k_a and each dataset's predictive interval.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+    plan : bubblecal.workflows.calibrate.Plan
+    path : Path
+        PNG to write.
+
+    Returns
+    -------
+    Path or None
+        ``path``; None without acoustic data.
+    """
     ap = result.plan
     if not ap.acoustic or ap.f_res is None:
         return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(4.6, 3.5))
+    fig, ax = new_figure(figsize=(4.6, 3.5))
     pop = result.population_predictive
     diam_grid = np.array([d for d in ap.f_res.diameters])
     obs_d = np.concatenate([np.atleast_1d(ds.diameter_um) for ds in ap.acoustic])
@@ -221,11 +263,23 @@ def acoustic_figure(result, plan, path: Path) -> Path | None:
     ax.set_ylim(bottom=0)
     ax.legend(fontsize=7)
     ax.set_title(_title(result, plan, "acoustic resonance"), fontsize=9)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def agent_figures(result, plan) -> list[Path]:
-    """Draw every figure of one agent under ``<out>/figures/``; returns the written paths."""
+    """Draw every figure of one agent under ``out/<agent>/<workflow>/figures/``.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run.
+    plan : bubblecal.workflows.calibrate.Plan
+
+    Returns
+    -------
+    list of Path
+        The written PNG files.
+    """
     folder = result.plan.out_dir / "figures"
     folder.mkdir(parents=True, exist_ok=True)
     out = [fit_figure(result, plan, folder / "fit.png"), ka_kb_figure(result, plan, folder / "ka_kb.png"),

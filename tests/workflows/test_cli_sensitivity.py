@@ -50,7 +50,8 @@ def test_bad_inputs(tiny_compression_surrogate, tmp_path):
     runner = CliRunner()
     result = runner.invoke(app, ["sensitivity", "--surrogate", str(tmp_path / "none.npz"), "--curve", "definity-2.1"])
     assert result.exit_code == 1 and "surrogate file not found" in result.output
-    result = runner.invoke(app, ["sensitivity", "--surrogate", str(tiny_compression_surrogate), "--curve", "sonovue-3.2"])
+    result = runner.invoke(app, ["sensitivity", "--surrogate", str(tiny_compression_surrogate), "--curve",
+                                 "sonovue-3.2"])
     assert result.exit_code == 1 and "cannot explain the indentation curve" in result.output
     s = load(tiny_compression_surrogate)
     with pytest.raises(ValueError, match="power of two"):

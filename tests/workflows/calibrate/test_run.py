@@ -1,91 +1,23 @@
-"""`bubblecal calibrate`: plan validation (bad inputs fail before sampling), a tiny staged run with an
-injected crash in phase 2, reuse of finished phases, outputs (NetCDF, manifest, summary, figures, report)."""
+"""`bubblecal calibrate` runs: a tiny staged run with an injected crash in phase 2, reuse of finished phases,
+outputs (NetCDF, manifest, summary, figures, report), the joint NUTS run and GPU curve padding."""
 
 from __future__ import annotations
 
 import json
-import shutil
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from bubblecal.workflows.calibrate import CalibrationConfig, CalibrationError, make_plan, run_calibration
+from bubblecal.workflows.calibrate import CalibrationConfig, make_plan, run_calibration
 from bubblecal.workflows.cli import app
 
 runner = CliRunner()
 
 
-def _phase_files(root: Path) -> list[Path]:
-    return sorted(root.rglob("phase*.nc")) + sorted(root.rglob("phase*.npz"))
-
-
 def _cli(*args):
     return runner.invoke(app, ["calibrate", *map(str, args)])
-
-
-# -------------------------------------------------------------------------------------------------
-# bad inputs: one clear error before any sampling (no phase files)
-# -------------------------------------------------------------------------------------------------
-def test_broken_priors_file(tmp_path, synthetic_bundle):
-    bad = tmp_path / "broken.toml"
-    bad.write_text("[workflow]\nagent = 'definity'\nsetup = 'compression'\nshell = 'reduced'\nacoustic = false\n"
-                   "[parameters.ka]\nprior = [3.0e4, 1.0e3]\n")
-    out = tmp_path / "out"
-    r = _cli("--agent", "definity", "--workflow", "reduced", "--priors", bad, "--bundle", synthetic_bundle,
-             "--population", 200, "--out", out)
-    assert r.exit_code == 1, r.output
-    assert "broken.toml" in r.output and "ka" in r.output
-    assert not _phase_files(out)
-
-
-def test_bad_data_rows(tmp_path, synthetic_bundle):
-    data = tmp_path / "data"
-    data.mkdir()
-    (data / "definity_compression_2.9um_dpd.csv").write_text(
-        "displacement_dpd,force_dpd\n0.3,600\n0.5,abc\n0.4,-5\n0.9,3000\n")
-    with pytest.raises(CalibrationError, match=r"definity_compression_2\.9um_dpd\.csv.*\n.*row"):
-        make_plan(CalibrationConfig(agents=("definity",), workflow="reduced", bundle=synthetic_bundle, population=200,
-                                    data_dir=data, out=tmp_path / "out"))
-    r = _cli("--agent", "definity", "--workflow", "reduced", "--data-dir", data, "--bundle", synthetic_bundle,
-             "--population", 200, "--out", tmp_path / "out")
-    assert r.exit_code == 1 and "abc" in r.output
-    assert not _phase_files(tmp_path / "out")
-
-
-def test_bundle_missing_a_diameter(tmp_path, synthetic_bundle):
-    partial = tmp_path / "partial"
-    shutil.copytree(synthetic_bundle, partial)
-    manifest = json.loads((partial / "manifest.json").read_text())
-    manifest["surrogates"] = [e for e in manifest["surrogates"] if not (e["setup"] == "indentation"
-                                                                         and abs(e["diameter_um"] - 3.4) < 0.01)]
-    (partial / "manifest.json").write_text(json.dumps(manifest))
-    r = _cli("--agent", "sonovue", "--bundle", partial, "--population", 500, "--out", tmp_path / "out")
-    assert r.exit_code == 1
-    assert "no indentation surrogate at 3.4 um" in r.output and "sonovue_indentation_3.4um" in r.output
-    assert not _phase_files(tmp_path / "out")
-
-
-def test_population_too_small_and_other_fields(tmp_path, synthetic_bundle):
-    r = _cli("--agent", "definity", "--bundle", synthetic_bundle, "--population", 50, "--out", tmp_path / "out")
-    assert r.exit_code == 1 and "--population 50 is too small" in r.output and "phase" in r.output
-    assert not _phase_files(tmp_path / "out")
-    for kwargs, match in (({"workflow": "medium"}, "--workflow"), ({"sampler": "hmc"}, "--sampler"),
-                          ({"phase3": "joint"}, "--phase3"),
-                          ({"agents": ("optison",)}, "--agent"), ({"bundle": tmp_path}, "manifest.json")):
-        base = {"agents": ("definity",), "bundle": synthetic_bundle, "population": 200, "out": tmp_path / "o"}
-        with pytest.raises(CalibrationError, match=match):
-            make_plan(CalibrationConfig(**{**base, **kwargs}))
-
-
-def test_no_shipped_bundle_message(tmp_path, monkeypatch):
-    import bubblecal.surrogates.bundle as bundle_mod
-
-    monkeypatch.setattr(bundle_mod, "__file__", str(tmp_path / "nowhere" / "bundle.py"))
-    with pytest.raises(CalibrationError, match="no shipped surrogate bundle found at .*synthetic-bundle"):
-        make_plan(CalibrationConfig(agents=("definity",), out=tmp_path / "o"))
 
 
 # -------------------------------------------------------------------------------------------------
@@ -160,11 +92,11 @@ def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
 
     # a changed setting invalidates exactly the dependent phases: a new phase-2 sample size keeps phase 1
     cfg2 = CalibrationConfig(**{**config.__dict__, "phase2_samples": 100, "figures": False})
-    from bubblecal.workflows.calibrate import PhaseStore, _bundle_hashes, _phase_hashes
+    from bubblecal.workflows.calibrate import PhaseStore, bundle_hashes, phase_hashes
 
     plan2 = make_plan(cfg2)
     h_old = {k: v["config_hash"] for k, v in manifest["phases"].items()}
-    h_new = _phase_hashes(plan2.agents[0], cfg2, _bundle_hashes(plan2.bundle))
+    h_new = phase_hashes(plan2.agents[0], cfg2, bundle_hashes(plan2.bundle))
     assert all(h_new[k] == h_old[k] for k in h_old if k.startswith("phase1"))
     assert h_new["phase2"] != h_old["phase2"] and all(h_new[k] != h_old[k] for k in h_old if k.startswith("phase3"))
     assert PhaseStore(run_dir).manifest["phases"].keys() == manifest["phases"].keys()
@@ -190,24 +122,6 @@ def test_joint_nuts_run(tmp_path, synthetic_bundle):
     assert (tmp_path / "definity" / "reduced" / "joint_nuts.nc").is_file() and res.joint.diagnostics
 
 
-def test_hyperprior_bound_notes_flag_only_pressed_bounds():
-    """m_ka piled at its lower hyperprior bound is reported; a tau well inside its range is not."""
-    import pandas as pd
-
-    from bubblecal.priors import load_priors
-    from bubblecal.workflows.report import hyperprior_bound_notes
-
-    spec = load_priors("definity_reduced_acoustic")
-    lo, hi = spec.parameters["ka"].hyper_m.as_tuple()
-    tlo, thi = spec.parameters["ka"].hyper_tau.as_tuple()
-    hyp = pd.DataFrame([
-        {"parameter": "m_ka", "q05": lo + 0.001 * (hi - lo), "q95": lo + 0.3 * (hi - lo)},
-        {"parameter": "tau_ka", "q05": tlo + 0.2 * (thi - tlo), "q95": tlo + 0.7 * (thi - tlo)},
-    ])
-    notes = hyperprior_bound_notes(hyp, spec)
-    assert len(notes) == 1 and notes[0].startswith("m_ka") and "lower" in notes[0]
-
-
 def test_gpu_padding_groups_curves_by_network_shape_and_keeps_each_density(tmp_path):
     """--device gpu pads the curves of one network shape to one length (shared compiled programs); every
     padded dataset has the log density of its unpadded curve."""
@@ -215,7 +129,7 @@ def test_gpu_padding_groups_curves_by_network_shape_and_keeps_each_density(tmp_p
     import numpy as np
 
     from bubblecal.inference.tmcmc._flat_model import FlatModel
-    from bubblecal.workflows.calibrate import _dataset_objects
+    from bubblecal.workflows.calibrate.run import _dataset_objects
 
     plan = make_plan(CalibrationConfig(agents=("sonovue",), population=200, out=tmp_path / "o"))
     (ap,) = plan.agents

@@ -1,0 +1,71 @@
+"""The ``bubblecal calibrate`` main job: staged hierarchy per agent on the shipped data, priors and surrogates.
+
+Pipeline (``docs/inference.md`` sections 4 and 7)::
+
+    config = CalibrationConfig(agents=("definity", "sonovue"), workflow="reduced-acoustic", out=Path("calibration"))
+    plan = make_plan(config)          # validates EVERYTHING before any sampling (CalibrationError otherwise)
+    results = run_calibration(plan)   # phases 1 -> 2 -> 3 per agent, summaries, figures, report.md
+
+Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
+:mod:`~bubblecal.workflows.calibrate.plan` (validation and inputs), :mod:`~bubblecal.workflows.calibrate.store`
+(phase files, manifest, config hashes), :mod:`~bubblecal.workflows.calibrate.run` (the samplers),
+:mod:`~bubblecal.workflows.calibrate.device` (the JAX device).
+
+Output, under ``out/<agent>/<workflow>/``:
+
+* ``phase1_<dataset>.nc``, ``phase2.nc``, ``phase3_<dataset>.nc`` (ArviZ NetCDF; ``.npz`` when
+  ``netcdf=False``, e.g. on a machine without ArviZ), each written atomically (temp file + rename) as soon
+  as the phase ends; ``joint_nuts.nc`` for NUTS;
+* ``manifest.json``: the configuration, its hash and per phase the config hash, log Z, status, wall time.
+  A phase whose file exists and whose hash matches is reused on rerun (``force=True`` reruns all). The
+  hash of a phase covers its data, priors, surrogate, sampler settings, seed and the hashes of the
+  phases it depends on;
+* ``summary.csv`` (see :mod:`bubblecal.workflows.summary`), ``ess.csv``, ``figures/*.png``, ``report.md``.
+
+Units: DPD inside; summaries add physical units (E [MPa] from k_a, κ [k_BT] from k_b, d0 [nm], CRPS in
+nN for compression / nm for indentation / MHz for acoustics) through :mod:`bubblecal.data.units`.
+MAP = the posterior draw with the largest log likelihood + log prior; every prior of the staged phases is
+uniform (the phase-3 population prior is a likelihood factor), so this is the largest stored log likelihood.
+"""
+
+from bubblecal.workflows.calibrate.config import (
+    DEFAULT_PHASE2_SAMPLES,
+    DEFAULT_POPULATION,
+    DEVICES,
+    MIN_PARTICLES,
+    PAPER_COV,
+    PAPER_COV_SCALE,
+    PAPER_POPULATION,
+    PARTICLES_PER_DIMENSION,
+    PHASE3_TARGETS,
+    SAMPLERS,
+    WORKFLOWS,
+    CalibrationConfig,
+    CalibrationError,
+    config_from_agents,
+    min_population,
+    phase2_samples,
+    phase_tmcmc_options,
+)
+from bubblecal.workflows.calibrate.device import check_device, on_device
+from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle
+from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_calibration
+from bubblecal.workflows.calibrate.store import (
+    PhaseStore,
+    array_hash,
+    bundle_hashes,
+    config_hash,
+    phase_hashes,
+    read_phase,
+    write_phase,
+)
+
+__all__ = [
+    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "PAPER_COV",
+    "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
+    "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
+    "min_population", "check_device", "on_device",
+    "AgentPlan", "Plan", "make_plan", "resolve_bundle",
+    "PhaseStore", "write_phase", "read_phase", "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
+    "AgentResult", "run_agent", "run_calibration",
+]

@@ -1,0 +1,224 @@
+"""Settings of a calibration run: the choices, the population sizes and :class:`CalibrationConfig`.
+
+The ``bubblecal calibrate`` command reads its defaults from :class:`CalibrationConfig`, so a default is
+written once, here. TMCMC settings follow ``docs/inference.md`` section 5.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bubblecal.data import AGENTS
+
+__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION",
+           "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
+           "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
+           "min_population"]
+
+#: Workflows: each names one priors TOML per agent (``priors/<agent>_<workflow>.toml``).
+WORKFLOWS = ("reduced-acoustic", "reduced", "full")
+#: 'tmcmc': the staged hierarchy (phases 1 -> 2 -> 3); 'nuts': the joint model.
+SAMPLERS = ("tmcmc", "nuts")
+#: Phase 3 of the staged hierarchy: the published (Korali) target or the joint model's marginal.
+PHASE3_TARGETS = ("published", "exact")
+#: JAX devices.
+DEVICES = ("cpu", "gpu")
+#: Default TMCMC particles per phase: small enough for both agents on a few CPU cores (compile-dominated
+#: at this size; measurements in ``benchmarks/RESULTS.md``).
+DEFAULT_POPULATION = 2000
+#: The published settings (``--paper``): N = 50,000 per phase, target CoV 0.8 (phase 1) / 0.6 (phases 2, 3),
+#: covariance scaling s² = 0.04 (``docs/inference.md`` section 5).
+PAPER_POPULATION = 50_000
+PAPER_COV = (0.8, 0.6)
+PAPER_COV_SCALE = 0.04
+#: Particles per sampled dimension that every phase needs at least (and an absolute floor).
+PARTICLES_PER_DIMENSION = 20
+MIN_PARTICLES = 100
+#: Cap of the phase-1 draws per dataset that phase 2 uses (and of the ψ draws of the phase-3 prior).
+DEFAULT_PHASE2_SAMPLES = 2000
+
+
+class CalibrationError(ValueError):
+    """A calibration input is invalid; the message names the file / field / range. Raised before sampling."""
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """Settings of one calibration run (CLI: ``bubblecal calibrate``).
+
+    Parameters
+    ----------
+    agents : tuple of str
+        Subset of :data:`bubblecal.data.names.AGENTS`.
+    workflow : str
+        One of :data:`WORKFLOWS`; the priors are ``priors/<agent>_<workflow>.toml`` unless ``priors`` maps
+        the agent to another TOML.
+    sampler : str
+        'tmcmc' (staged phases 1 -> 2 -> 3) or 'nuts' (joint model).
+    population : int or None
+        TMCMC particles N per phase (None: :data:`DEFAULT_POPULATION`, or :data:`PAPER_POPULATION` with
+        ``paper``).
+    paper : bool
+        Published settings: N = 50,000, target CoV 0.8 / 0.6, covariance scaling s² = 0.04.
+    out : Path
+        Output root; one run writes ``out/<agent>/<workflow>/``.
+    device : str
+        'cpu' or 'gpu' (JAX device).
+    bundle : Path or None
+        Surrogate bundle directory (None: the shipped one).
+    force : bool
+        Rerun finished phases instead of reusing them.
+    seed : int
+        Seed of the JAX keys (agent ``definity``: seed, ``sonovue``: seed + 1000).
+    priors : Mapping of str to str
+        Agent -> priors name or TOML path replacing the workflow's.
+    data_dir : Path or None
+        Folder of curve CSVs in DPD units named like the shipped ones (``<agent>_<kind>_<D>um_dpd.csv``)
+        and/or ``acoustic_observations_published.csv``, replacing them.
+    curves : tuple of str
+        Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
+    phase2_samples : int or None
+        Phase-1 draws per dataset used by the phase-2 importance sums, and phase-2 ψ draws used by the
+        phase-3 population prior (None: min(N, :data:`DEFAULT_PHASE2_SAMPLES`)).
+    num_mcmc_steps : int
+        Random-walk Metropolis steps per TMCMC stage.
+    chunk_size : int or None
+        TMCMC evaluates the likelihood this many particles at a time (GPU memory at N = 50,000).
+    predictive_samples : int
+        Posterior draws used by the predictive bands, CRPS and the population predictive.
+    crps_replicates : int
+        Monte Carlo replicates of the CRPS (``docs/inference.md`` section 7).
+    nuts_warmup, nuts_samples, nuts_chains : int
+        NUTS warm-up steps and draws per chain, and chains (``sampler='nuts'``).
+    netcdf : bool
+        Write phase files as ArviZ NetCDF (else ``.npz``).
+    figures : bool
+        Draw figures and ``report.md`` (needs pandas and matplotlib).
+    summaries : bool
+        Compute ``summary.csv`` / ``ess.csv`` (needs pandas).
+    phase3 : str
+        'published' (the Korali phase 3: population prior over p(ψ | D), which holds the dataset's own
+        data) or 'exact' (over p(ψ | D_{-i}) by leave-one-out weights: Θ_i is the joint model's marginal).
+    """
+
+    agents: tuple[str, ...] = AGENTS
+    workflow: str = "reduced-acoustic"
+    sampler: str = "tmcmc"
+    population: int | None = None
+    paper: bool = False
+    out: Path = Path("calibration")
+    device: str = "cpu"
+    bundle: Path | None = None
+    force: bool = False
+    seed: int = 0
+    priors: Mapping[str, str] = field(default_factory=dict)
+    data_dir: Path | None = None
+    curves: tuple[str, ...] = ()
+    phase2_samples: int | None = None
+    num_mcmc_steps: int = 10
+    chunk_size: int | None = None
+    predictive_samples: int = 5000
+    crps_replicates: int = 5
+    nuts_warmup: int = 500
+    nuts_samples: int = 500
+    nuts_chains: int = 2
+    netcdf: bool = True
+    figures: bool = True
+    summaries: bool = True
+    phase3: str = "published"
+
+    @property
+    def num_particles(self) -> int:
+        """TMCMC particles per phase: ``population``, else the paper's or the default number."""
+        if self.population is not None:
+            return int(self.population)
+        return PAPER_POPULATION if self.paper else DEFAULT_POPULATION
+
+    @property
+    def target_cov(self) -> tuple[float, float]:
+        """(phase 1, phases 2 and 3) target coefficient of variation of the TMCMC weights."""
+        return PAPER_COV
+
+    @property
+    def cov_scale(self) -> float:
+        """Covariance scaling s² of the TMCMC proposal."""
+        return PAPER_COV_SCALE
+
+    def as_dict(self) -> dict:
+        """The settings as a JSON-able dict (paths as strings, plus ``num_particles``).
+
+        Returns
+        -------
+        dict
+            The manifest's ``run.config``; its hash is the run's ``config_hash``.
+        """
+        d = dataclasses.asdict(self)
+        d.update({k: (None if v is None else str(v)) for k, v in d.items() if isinstance(v, Path)})
+        d["agents"] = list(self.agents)
+        d["priors"] = {k: str(v) for k, v in self.priors.items()}
+        d["curves"] = list(self.curves)
+        d["num_particles"] = self.num_particles
+        return d
+
+
+def config_from_agents(agent: str, **kwargs) -> CalibrationConfig:
+    """Build a config from the CLI's ``--agent definity|sonovue|all``.
+
+    Parameters
+    ----------
+    agent : str
+        An agent name or 'all'.
+    **kwargs
+        Other :class:`CalibrationConfig` fields.
+
+    Returns
+    -------
+    CalibrationConfig
+    """
+    agents = AGENTS if agent == "all" else (agent,)
+    return CalibrationConfig(agents=tuple(agents), **kwargs)
+
+
+def phase_tmcmc_options(config: CalibrationConfig) -> tuple[dict, dict]:
+    """TMCMC keyword arguments of (phase 1, phases 2 and 3).
+
+    Parameters
+    ----------
+    config : CalibrationConfig
+
+    Returns
+    -------
+    tuple of dict
+        ``num_particles``, ``cov_scale``, ``num_mcmc_steps``, ``target_cov`` (and ``chunk_size`` when set);
+        these dicts enter the phase hashes.
+    """
+    base = {"num_particles": config.num_particles, "cov_scale": config.cov_scale,
+            "num_mcmc_steps": config.num_mcmc_steps}
+    if config.chunk_size:
+        base["chunk_size"] = int(config.chunk_size)
+    c1, c23 = config.target_cov
+    return {**base, "target_cov": c1}, {**base, "target_cov": c23}
+
+
+def phase2_samples(config: CalibrationConfig) -> int:
+    """Phase-1 draws per dataset used by phase 2 (and ψ draws kept for the phase-3 prior)."""
+    return int(config.phase2_samples or min(config.num_particles, DEFAULT_PHASE2_SAMPLES))
+
+
+def min_population(n_dims: int) -> int:
+    """Smallest accepted particle number for a phase sampling ``n_dims`` parameters.
+
+    Parameters
+    ----------
+    n_dims : int
+        Sampled dimensions of the phase.
+
+    Returns
+    -------
+    int
+        max(:data:`MIN_PARTICLES`, :data:`PARTICLES_PER_DIMENSION` x ``n_dims``).
+    """
+    return max(MIN_PARTICLES, PARTICLES_PER_DIMENSION * n_dims)

@@ -1,0 +1,324 @@
+"""The plan of a calibration run: every input loaded and checked before any sampling.
+
+:func:`make_plan` validates the whole :class:`~bubblecal.workflows.calibrate.CalibrationConfig` and loads
+the priors, the loading curves with their surrogates and the acoustic datasets of each agent; any problem
+raises one :class:`~bubblecal.workflows.calibrate.CalibrationError` naming the file, field or range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data import AGENTS
+from bubblecal.workflows.calibrate.config import (
+    DEVICES,
+    MIN_PARTICLES,
+    PARTICLES_PER_DIMENSION,
+    PHASE3_TARGETS,
+    SAMPLERS,
+    WORKFLOWS,
+    CalibrationConfig,
+    CalibrationError,
+    min_population,
+)
+from bubblecal.workflows.calibrate.device import check_device
+
+__all__ = ["AgentPlan", "Plan", "resolve_bundle", "make_plan"]
+
+
+@dataclass
+class AgentPlan:
+    """What one agent's run needs: priors, curves with their surrogates, acoustic datasets, output folder.
+
+    Parameters
+    ----------
+    agent : str
+        'definity' or 'sonovue'.
+    workflow : str
+        One of :data:`~bubblecal.workflows.calibrate.WORKFLOWS`.
+    spec : bubblecal.priors.PriorSpec
+        The agent's priors.
+    priors_path : Path
+        The priors TOML that ``spec`` was read from.
+    curves : list of bubblecal.data.LoadingCurve
+        Loading curves (DPD units).
+    surrogates : list of bubblecal.surrogates.Surrogate
+        One mechanical surrogate per curve, in the same order.
+    acoustic : list of bubblecal.data.AcousticDataset
+        Acoustic datasets (diameters in um, frequencies in MHz); empty without acoustics.
+    f_res : bubblecal.surrogates.AcousticSurrogate or None
+        The agent's acoustic surrogate (f_res² quadratics in k_a per diameter).
+    out_dir : Path
+        ``out/<agent>/<workflow>``.
+    domain_warnings : list of str
+        Places where the prior box exceeds a surrogate's training box (reported, not fatal).
+    """
+
+    agent: str
+    workflow: str
+    spec: object
+    priors_path: Path
+    curves: list
+    surrogates: list
+    acoustic: list
+    f_res: object
+    out_dir: Path
+    domain_warnings: list[str] = field(default_factory=list)
+
+    @property
+    def dataset_names(self) -> list[str]:
+        """Curve names, then acoustic dataset names (the order of every phase list)."""
+        return [c.name for c in self.curves] + [d.name for d in self.acoustic]
+
+    def dims(self) -> dict[str, int]:
+        """Sampled dimensions of each phase (phase 1 / 3: the largest dataset; phase 2: 2 per pooled parameter)."""
+        spec = self.spec
+        mech = len(spec.parameters) + 1
+        ac = 2 if self.acoustic else 0
+        return {"phase1": max(mech, ac), "phase2": 2 * len(spec.pooled_names), "phase3": max(mech, ac)}
+
+
+@dataclass
+class Plan:
+    """A validated run: the configuration, the loaded surrogate bundle and one :class:`AgentPlan` per agent.
+
+    Parameters
+    ----------
+    config : CalibrationConfig
+    bundle : bubblecal.surrogates.Bundle
+    bundle_path : Path
+        The bundle directory.
+    synthetic_bundle : bool
+        The bundle holds closed-form development laws, not DPD surrogates (results are not physical).
+    agents : list of AgentPlan
+    """
+
+    config: CalibrationConfig
+    bundle: object
+    bundle_path: Path
+    synthetic_bundle: bool
+    agents: list[AgentPlan]
+
+
+def resolve_bundle(path: Path | None) -> Path:
+    """The bundle directory to use: ``path`` or the shipped default.
+
+    Parameters
+    ----------
+    path : Path or None
+        A bundle directory (holding ``manifest.json``), or None for the shipped bundle.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    CalibrationError
+        ``path`` is not a bundle, or no bundle ships with this installation (the message says how to write one).
+    """
+    from bubblecal.surrogates.bundle import NoDefaultBundleError, default_bundle_path
+
+    if path is not None:
+        path = Path(path)
+        if not (path / "manifest.json").is_file():
+            raise CalibrationError(f"--bundle {path}: no manifest.json there (not a surrogate bundle; write one "
+                                   "with `bubblecal surrogates synthetic-bundle DIR`)")
+        return path
+    try:
+        return default_bundle_path(must_exist=True)
+    except NoDefaultBundleError as exc:
+        raise CalibrationError(str(exc)) from None
+
+
+def _workflow_priors_name(agent: str, workflow: str) -> str:
+    """The shipped priors name of ``agent`` and ``workflow``."""
+    from bubblecal.priors import workflow_file_name
+
+    return workflow_file_name(agent, workflow)
+
+
+def _load_curves(agent: str, data_dir: Path | None) -> list:
+    """The agent's reference curves, each replaced by ``data_dir/<name>_dpd.csv`` where that file exists."""
+    from bubblecal.data import REFERENCE_CURVES, DataError, load_curve, load_reference
+
+    curves = []
+    for name, (ag, kind, nominal, measured, _cite) in REFERENCE_CURVES.items():
+        if ag != agent:
+            continue
+        path = None if data_dir is None else Path(data_dir) / f"{name}_dpd.csv"
+        if path is not None and path.is_file():
+            try:
+                curve = load_curve(path, kind, "dpd", name=name, agent=agent, diameter_um=nominal, source=str(path))
+            except DataError as exc:
+                raise CalibrationError(str(exc)) from None
+            curve = dataclasses.replace(curve, bubble_diameter_um=measured)
+        else:
+            curve = load_reference(agent, nominal)
+        curves.append(curve)
+    return curves
+
+
+def _load_acoustic(agent: str, data_dir: Path | None) -> list:
+    """The agent's acoustic datasets, from ``data_dir/acoustic_observations_published.csv`` where it exists."""
+    from bubblecal.data import DataError, acoustic_datasets, load_acoustic_table
+
+    path = None if data_dir is None else Path(data_dir) / "acoustic_observations_published.csv"
+    if path is not None and path.is_file():
+        try:
+            rows = load_acoustic_table(path)
+        except DataError as exc:
+            raise CalibrationError(str(exc)) from None
+        return acoustic_datasets(agent, rows)
+    return acoustic_datasets(agent)
+
+
+def _check_choices(config: CalibrationConfig) -> None:
+    """The settings that need no file: choices and ranges (CalibrationError otherwise)."""
+    bad = [a for a in config.agents if a not in AGENTS]
+    if bad or not config.agents:
+        raise CalibrationError(f"--agent must be one of {', '.join(AGENTS)} or all, got {', '.join(bad) or 'none'}")
+    if config.workflow not in WORKFLOWS:
+        raise CalibrationError(f"--workflow must be one of {', '.join(WORKFLOWS)}, got {config.workflow!r}")
+    if config.sampler not in SAMPLERS:
+        raise CalibrationError(f"--sampler must be one of {', '.join(SAMPLERS)}, got {config.sampler!r}")
+    if config.phase3 not in PHASE3_TARGETS:
+        raise CalibrationError(f"--phase3 must be one of {', '.join(PHASE3_TARGETS)}, got {config.phase3!r}")
+    if config.device not in DEVICES:
+        raise CalibrationError(f"--device must be one of {', '.join(DEVICES)}, got {config.device!r}")
+    check_device(config.device)
+    if config.num_mcmc_steps < 1:
+        raise CalibrationError(f"--mcmc-steps must be >= 1, got {config.num_mcmc_steps}")
+    if config.crps_replicates < 1 or config.predictive_samples < 10:
+        raise CalibrationError("crps_replicates must be >= 1 and predictive_samples >= 10")
+    if config.phase2_samples is not None and config.phase2_samples < 10:
+        raise CalibrationError(f"phase2_samples must be >= 10, got {config.phase2_samples}")
+    if config.data_dir is not None and not Path(config.data_dir).is_dir():
+        raise CalibrationError(f"--data-dir {config.data_dir}: not a directory")
+
+
+def make_plan(config: CalibrationConfig) -> Plan:
+    """Validate the whole configuration and load every input, before any sampling starts.
+
+    Parameters
+    ----------
+    config : CalibrationConfig
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    CalibrationError
+        One clear message naming the file, field or range: a bad choice or range, a missing device, an
+        unreadable bundle, priors or data file, priors for another agent or workflow, a curve without a
+        surrogate, missing acoustic data or surrogate, or a population too small for a phase.
+    """
+    from bubblecal.priors import PriorError, load_priors
+    from bubblecal.surrogates import SurrogateFormatError, load_bundle
+    from bubblecal.surrogates.acoustic import AcousticFormatError
+    from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
+
+    _check_choices(config)
+    bundle_path = resolve_bundle(config.bundle)
+    try:
+        bundle = load_bundle(bundle_path)
+    except (SurrogateFormatError, AcousticFormatError, FileNotFoundError, KeyError, ValueError) as exc:
+        raise CalibrationError(f"surrogate bundle {bundle_path}: {exc}") from None
+
+    agents = []
+    for agent in config.agents:
+        source = config.priors.get(agent, _workflow_priors_name(agent, config.workflow))
+        try:
+            spec = load_priors(source)
+        except PriorError as exc:
+            raise CalibrationError(str(exc)) from None
+        if spec.agent != agent:
+            raise CalibrationError(f"{spec.path}: field workflow.agent is {spec.agent!r}, expected {agent!r}")
+        wants_acoustic = config.workflow == "reduced-acoustic"
+        if spec.acoustic != wants_acoustic:
+            raise CalibrationError(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but "
+                                   f"workflow {config.workflow!r} needs {str(wants_acoustic).lower()}")
+        curves = _select_curves(_load_curves(agent, config.data_dir), config.curves, agent)
+        surrogates, domain = _curve_surrogates(curves, bundle, spec, agent)
+        acoustic, f_res = [], None
+        if spec.acoustic:
+            acoustic, f_res = _acoustic_inputs(agent, config, bundle, bundle_path, spec, domain)
+        ap = AgentPlan(agent=agent, workflow=config.workflow, spec=spec, priors_path=Path(spec.path), curves=curves,
+                       surrogates=surrogates, acoustic=acoustic, f_res=f_res,
+                       out_dir=Path(config.out) / agent / config.workflow, domain_warnings=domain)
+        n = config.num_particles
+        if config.sampler == "tmcmc":
+            for phase, dim in ap.dims().items():
+                need = min_population(dim)
+                if n < need:
+                    raise CalibrationError(f"--population {n} is too small: {agent} {phase} samples {dim} parameters "
+                                           f"and needs N >= {need} ({PARTICLES_PER_DIMENSION} per dimension, at least "
+                                           f"{MIN_PARTICLES})")
+        agents.append(ap)
+    return Plan(config=config, bundle=bundle, bundle_path=bundle_path,
+                synthetic_bundle=is_synthetic_bundle(bundle), agents=agents)
+
+
+def _select_curves(curves: list, names: tuple[str, ...], agent: str) -> list:
+    """The curves named by ``--curve`` (all when ``names`` is empty)."""
+    if not names:
+        return curves
+    from bubblecal.data import REFERENCE_CURVES
+
+    unknown = [c for c in names if c not in REFERENCE_CURVES]
+    if unknown:
+        raise CalibrationError(f"--curve {', '.join(unknown)}: unknown; curves: {', '.join(REFERENCE_CURVES)}")
+    curves = [c for c in curves if c.name in names]
+    if not curves:
+        raise CalibrationError(f"--curve: none of {', '.join(names)} belongs to {agent}")
+    return curves
+
+
+def _curve_surrogates(curves: list, bundle, spec, agent: str) -> tuple[list, list[str]]:
+    """(surrogate per curve, domain warnings of the prior box vs each surrogate's training box)."""
+    from bubblecal.workflows.domain import prior_box_domain_warnings
+
+    surrogates, domain = [], []
+    for curve in curves:
+        try:
+            sur = bundle.get(curve.kind, curve.diameter_um)
+        except KeyError as exc:
+            raise CalibrationError(f"{exc.args[0]}; the {agent} curve {curve.name} needs it") from None
+        if spec.setup != curve.kind:
+            raise CalibrationError(f"{spec.path}: field workflow.setup is {spec.setup!r}, the {agent} curves are "
+                                   f"{curve.kind}")
+        surrogates.append(sur)
+        domain += prior_box_domain_warnings(sur, spec, curve.x)
+    return surrogates, domain
+
+
+def _acoustic_inputs(agent: str, config: CalibrationConfig, bundle, bundle_path: Path, spec,
+                     domain: list[str]) -> tuple[list, object]:
+    """(acoustic datasets, acoustic surrogate); appends a message to ``domain`` where the fitted k_a range
+    of a diameter does not contain the k_a prior."""
+    from bubblecal.surrogates.acoustic import AcousticRangeError
+
+    acoustic = _load_acoustic(agent, config.data_dir)
+    if not acoustic:
+        raise CalibrationError(f"no acoustic observations of {agent} (workflow {config.workflow})")
+    if agent not in bundle.acoustic:
+        raise CalibrationError(f"bundle {bundle_path} has no acoustic surrogate {agent!r} (has: "
+                               f"{', '.join(bundle.acoustic) or 'none'}); workflow {config.workflow} needs it")
+    f_res = bundle.acoustic[agent]
+    lo, hi = spec.parameters["ka"].prior.as_tuple()
+    for ds in acoustic:
+        for d in np.atleast_1d(ds.diameter_um):
+            try:
+                r_lo, r_hi = f_res.ka_ranges(float(d))
+            except AcousticRangeError as exc:
+                raise CalibrationError(f"bundle {bundle_path}: {exc}; acoustic dataset {ds.name} needs it") from None
+            if lo < r_lo * (1 - 1e-9) or hi > r_hi * (1 + 1e-9):
+                domain.append(f"acoustic {agent} {float(d):g} um: fitted ka range [{r_lo:.6g}, {r_hi:.6g}] "
+                              f"does not contain the ka prior [{lo:.6g}, {hi:.6g}]")
+    return acoustic, f_res

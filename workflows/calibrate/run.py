@@ -1,0 +1,345 @@
+"""Running a calibration plan: the staged TMCMC phases or the joint NUTS run per agent, then summaries.
+
+Per agent the datasets are its loading curves and, in the acoustic workflow, its acoustic datasets
+(:func:`bubblecal.data.acoustic_datasets`). Staged (``docs/inference.md`` section 4): phase 1 samples each
+dataset under the workflow's uniform priors, phase 2 the population ψ = (m_k, τ_k)
+(:func:`bubblecal.models.phase2_model`), phase 3 every dataset under the learned population prior
+(``population=`` of the single-dataset models, p0 divided out). Joint: :func:`bubblecal.models.hierarchical_model`
+(non-centred) sampled by NUTS. Phases are stored and reused through
+:class:`~bubblecal.workflows.calibrate.PhaseStore`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
+from bubblecal.workflows.calibrate.device import on_device
+from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
+from bubblecal.workflows.calibrate.store import (
+    PhaseStore,
+    bundle_hashes,
+    config_hash,
+    phase_hashes,
+    write_phase,
+)
+
+__all__ = ["AgentResult", "run_agent", "run_calibration"]
+
+
+@dataclass
+class AgentResult:
+    """Everything one agent's run produced (files under ``plan.out_dir``).
+
+    Parameters
+    ----------
+    plan : AgentPlan
+    staged : bubblecal.inference.hierarchical.StagedResult or None
+        Phases 1, 2, 3 (``sampler='tmcmc'``).
+    joint : object or None
+        The joint NUTS draws, log likelihood, seconds and diagnostics (``sampler='nuts'``).
+    loglik : dict of str to ndarray
+        Phase name -> log likelihood of every draw.
+    summary : pandas.DataFrame or None
+        ``summary.csv`` (see :mod:`bubblecal.workflows.summary`).
+    ess : pandas.DataFrame or None
+        ``ess.csv``: phase-2 importance-sampling ESS per dataset.
+    population_predictive : dict of str to ndarray or None
+        Population-predictive draws θ_new of the pooled parameters (DPD units).
+    seconds : dict of str to float
+        Wall time [s] per phase, of the sampling and of the summaries.
+    reused : list of str
+        Phases read back from disk instead of run.
+    figures : list of Path
+    report : Path or None
+    evidence : object or None
+    """
+
+    plan: AgentPlan
+    staged: object | None
+    joint: object | None
+    loglik: dict[str, np.ndarray]
+    summary: object
+    ess: object | None
+    population_predictive: dict[str, np.ndarray] | None
+    seconds: dict[str, float]
+    reused: list[str]
+    figures: list[Path] = field(default_factory=list)
+    report: Path | None = None
+    evidence: object | None = None
+
+
+def _curve_arguments(ap: AgentPlan, pad: bool) -> list[tuple[tuple, dict]]:
+    """(args, kwargs) of :func:`bubblecal.models.mechanical_model` for every curve of the agent.
+
+    The surrogate goes in as a :class:`~bubblecal.models.TracedSurrogate`, so its weights are
+    arguments of the compiled TMCMC programs and curves whose networks have one shape share them. With
+    ``pad`` those curves are also padded (masked) to one length, so they share the programs in fact; it
+    costs the padded points' evaluations, hence only where compiling dominates (the GPU).
+    """
+    from bubblecal.models import TracedSurrogate, pad_curve
+
+    surrogates = [TracedSurrogate.wrap(s) for s in ap.surrogates]
+
+    def shape_key(s):
+        # curves can share programs when setup and layer sizes agree (other surrogates: never)
+        if not isinstance(s, TracedSurrogate):
+            return id(s)
+        return s.setup, tuple(np.shape(a) for a in (*s.weights, *s.biases))
+
+    length: dict = {}
+    for curve, sur in zip(ap.curves, surrogates, strict=True):
+        key = shape_key(sur)
+        length[key] = max(length.get(key, 0), len(curve.x))
+    out = []
+    for curve, sur in zip(ap.curves, surrogates, strict=True):
+        x, y = np.asarray(curve.x), np.asarray(curve.y)
+        if pad:  # every curve of a group gets a mask (all True on the longest): one argument structure
+            x, y, mask = pad_curve(x, y, length[shape_key(sur)])
+            out.append(((x, y, sur, ap.spec), {"mask": mask}))
+        else:
+            out.append(((x, y, sur, ap.spec), {}))
+    return out
+
+
+def _pad_curves(config: CalibrationConfig) -> bool:
+    """Pad curves of one network shape to one length (shared compiled programs): on the GPU only, where
+    compiling a phase's programs costs more than the padded points; on CPU cores the particles dominate."""
+    return config.device == "gpu"
+
+
+def _acoustic_arguments(ap: AgentPlan) -> list[tuple]:
+    """Positional arguments of :func:`bubblecal.models.acoustic_model` for every acoustic dataset: the
+    surrogate's quadratics at the dataset's diameters as a :class:`~bubblecal.models.acoustic.FrequencyTable`
+    (arrays, so datasets with as many bubbles share the compiled programs)."""
+    from bubblecal.models.acoustic import FrequencyTable
+
+    return [(np.asarray(ds.diameter_um, dtype=float), np.asarray(ds.frequency_MHz, dtype=float),
+             FrequencyTable.at(ap.f_res, ds.diameter_um), ap.spec) for ds in ap.acoustic]
+
+
+def _dataset_objects(ap: AgentPlan, pad: bool = False):
+    """The agent's datasets as :class:`bubblecal.inference.hierarchical.Dataset` (curves, then acoustic)."""
+    from bubblecal.inference.hierarchical import Dataset
+    from bubblecal.models import acoustic_model, mechanical_model
+
+    out = []
+    for curve, (args, kwargs) in zip(ap.curves, _curve_arguments(ap, pad), strict=True):
+        out.append(Dataset(curve.name, mechanical_model, args, kwargs))
+    for ds, args in zip(ap.acoustic, _acoustic_arguments(ap), strict=True):
+        out.append(Dataset(ds.name, acoustic_model, args))
+    return out
+
+
+def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | None = None,
+              inject: Callable[[str], None] | None = None) -> AgentResult:
+    """Run one agent (staged TMCMC or joint NUTS), then its summaries; writes ``manifest.json`` throughout.
+
+    Parameters
+    ----------
+    plan : Plan
+        The validated run (:func:`~bubblecal.workflows.calibrate.make_plan`).
+    ap : AgentPlan
+        One of ``plan.agents``.
+    progress : callable or None
+        Receives one-line progress messages.
+    inject : callable or None
+        Called with the phase name before each phase runs (tests inject crashes through it).
+
+    Returns
+    -------
+    AgentResult
+        With ``summary``, ``ess`` and the population predictive filled unless ``config.summaries`` and
+        ``config.figures`` are both off; figures and report are drawn by :func:`run_calibration`.
+
+    Raises
+    ------
+    RuntimeError
+        A phase failed (finished phases stay on disk and are reused on rerun).
+    """
+    import jax
+
+    from bubblecal.inference.hierarchical import run_staged
+
+    config = plan.config
+    say = progress or (lambda _m: None)
+    ap.out_dir.mkdir(parents=True, exist_ok=True)
+    run_info = {"config": config.as_dict(), "config_hash": config_hash(config.as_dict()), "agent": ap.agent,
+                "priors": str(ap.priors_path), "bundle": str(plan.bundle_path),
+                "synthetic_bundle": plan.synthetic_bundle}
+    store = PhaseStore(ap.out_dir, netcdf=config.netcdf, force=config.force, run_info=run_info)
+    store.expected = phase_hashes(ap, config, bundle_hashes(plan.bundle))
+    store.write_manifest()
+    seconds: dict[str, float] = {}
+    t_start = time.perf_counter()
+    staged = joint = None
+    key = jax.random.PRNGKey(config.seed + (0 if ap.agent == "definity" else 1000))
+
+    if config.sampler == "tmcmc":
+        phase2_factory, phase3_factory, datasets = _phase_models(ap, config)
+
+        def load(name):
+            result = store.load(name)
+            if result is None and inject is not None:
+                inject(name)
+            return result
+
+        o1, o23 = phase_tmcmc_options(config)
+        with on_device(config.device), warnings.catch_warnings():
+            warnings.simplefilter("ignore", category=FutureWarning)
+            reweight = None
+            if config.phase3 == "exact":
+                from bubblecal.models.staged import leave_one_out_log_weights, pooled_bounds
+
+                bounds = pooled_bounds(ap.spec)
+
+                def reweight(i, phase1_i, m_samples, tau_samples):
+                    return leave_one_out_log_weights(m_samples, tau_samples, phase1_i, bounds)
+
+            staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1, phase2_options=o23,
+                                phase3_options=o23, phase2_max_samples=phase2_samples(config), load=load,
+                                save=store.save, progress=say, phase3_reweight=reweight)
+            if staged.phase3_ess:
+                say("phase 3 leave-one-out importance ESS: "
+                    + ", ".join(f"{k} {v:.0f}" for k, v in staged.phase3_ess.items()))
+        for r in [*staged.phase1, staged.phase2, *staged.phase3]:
+            seconds[r.name] = r.seconds
+    else:
+        joint = _run_joint(ap, config, key, store, say)
+        seconds["joint_nuts"] = joint.seconds
+    seconds["sampling_total"] = time.perf_counter() - t_start
+
+    t0 = time.perf_counter()
+    result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
+                         population_predictive=None, seconds=seconds, reused=list(store.reused))
+    if config.summaries or config.figures:
+        from bubblecal.workflows.summary import summarise_agent
+
+        summarise_agent(result, config)
+    seconds["summaries"] = time.perf_counter() - t0
+    store.manifest["summary"] = {"wall_seconds": seconds, "reused": store.reused}
+    store.write_manifest()
+    return result
+
+
+def _phase_models(ap: AgentPlan, config: CalibrationConfig):
+    """(phase-2 model factory, phase-3 model factory, datasets) of the staged run."""
+    from bubblecal.models import acoustic_model, mechanical_model, phase2_model
+
+    datasets = _dataset_objects(ap, _pad_curves(config))
+    curve_arguments = [(d.args, d.kwargs) for d in datasets[:len(ap.curves)]]
+    acoustic_arguments = [d.args for d in datasets[len(ap.curves):]]
+    n_curves = len(ap.curves)
+
+    # partials, not lambdas: their arrays reach TMCMC as arguments, so the phase programs are
+    # compiled once per model structure and shared by datasets (and agents) of that structure
+    def phase2_factory(samples, names):
+        return functools.partial(phase2_model, samples, ap.spec, names)
+
+    def phase3_factory(i, m_samples, tau_samples):
+        # the phase-3 prior log mean_s p(θ | ψ_s) costs S densities per particle: thin ψ to the
+        # phase-2 sample size (deterministic, evenly spaced draws)
+        n_psi = phase2_samples(config)
+        size = len(next(iter(m_samples.values())))
+        idx = np.linspace(0, size - 1, min(size, n_psi)).round().astype(int)
+        pop = ({k: np.asarray(v)[idx] for k, v in m_samples.items()},
+               {k: np.asarray(v)[idx] for k, v in tau_samples.items()})
+        if i < n_curves:
+            args, kwargs = curve_arguments[i]
+            return functools.partial(mechanical_model, *args, **kwargs, population=pop)
+        return functools.partial(acoustic_model, *acoustic_arguments[i - n_curves], population=pop)
+
+    return phase2_factory, phase3_factory, datasets
+
+
+@dataclass
+class _JointResult:
+    """Draws, total log likelihood per draw, seconds and NUTS diagnostics of the joint run."""
+
+    samples: dict
+    loglik: np.ndarray
+    seconds: float
+    diagnostics: dict
+    reused: bool
+
+
+def _run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore, say) -> _JointResult:
+    """Joint hierarchical model with NUTS (non-centred); reuses ``joint_nuts`` when its hash matches."""
+    from numpyro.infer import init_to_value, log_likelihood
+
+    from bubblecal.inference.hierarchical import PhaseResult
+    from bubblecal.inference.nuts import run_nuts
+    from bubblecal.models import hierarchical_model, nuts_init_values
+
+    name = "joint_nuts"
+    store.expected[name] = config_hash({"phases": store.expected, "nuts": [config.nuts_warmup, config.nuts_samples,
+                                                                            config.nuts_chains], "seed": config.seed})
+    cached = store.load(name)
+    if cached is not None:
+        say(f"{name}: reused")
+        return _JointResult(cached.samples, store.loglik.get(name), cached.seconds, {}, True)
+    say(f"{name}: running NUTS ({config.nuts_chains} chains x {config.nuts_samples} draws)")
+    t0 = time.perf_counter()
+    kwargs = {"acoustic": ap.acoustic, "f_res": ap.f_res, "noncentred": True}
+    init = nuts_init_values(ap.spec, n_curves=len(ap.curves))
+    with on_device(config.device):
+        res = run_nuts(hierarchical_model, ap.curves, ap.surrogates, ap.spec, rng_key=key,
+                       num_warmup=config.nuts_warmup, num_samples=config.nuts_samples, num_chains=config.nuts_chains,
+                       target_accept_prob=0.9, init_strategy=init_to_value(values=init), **kwargs)
+        ll = log_likelihood(hierarchical_model, res.samples, ap.curves, ap.surrogates, ap.spec, **kwargs)
+    total_ll = sum(np.asarray(v).reshape(np.asarray(v).shape[0], -1).sum(axis=1) for v in ll.values())
+    seconds = time.perf_counter() - t0
+    samples = {k: np.asarray(v) for k, v in res.samples.items()}
+    result = PhaseResult(name=name, samples=samples, log_evidence=math.nan, log_evidence_se=math.nan,
+                         status="converged" if res.converged else "not converged", seconds=seconds)
+    store.loglik[name] = total_ll
+    write_phase(store.path(name), result, total_ll, {"config_hash": store.expected[name], "phase": name,
+                                                      "max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff,
+                                                      "num_divergences": res.num_divergences})
+    store.manifest["phases"][name] = {"file": store.path(name).name, "config_hash": store.expected[name],
+                                      "status": result.status, "seconds": seconds, "max_r_hat": res.max_r_hat,
+                                      "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
+    store.write_manifest()
+    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
+    return _JointResult(samples, total_ll, seconds, diag, False)
+
+
+def run_calibration(plan: Plan, *, progress: Callable[[str], None] | None = None,
+                    inject: Callable[[str], None] | None = None) -> list[AgentResult]:
+    """Run every agent of ``plan`` (see :func:`run_agent`), then its figures and ``report.md``.
+
+    Parameters
+    ----------
+    plan : Plan
+    progress, inject : callable or None
+        As in :func:`run_agent`.
+
+    Returns
+    -------
+    list of AgentResult
+        One per agent, in ``plan.agents`` order.
+
+    Raises
+    ------
+    RuntimeError
+        A phase failed (see :func:`run_agent`).
+    """
+    results = []
+    for ap in plan.agents:
+        result = run_agent(plan, ap, progress=progress, inject=inject)
+        if plan.config.figures:
+            from bubblecal.workflows.figures import agent_figures
+            from bubblecal.workflows.report import write_report
+
+            result.figures = agent_figures(result, plan)
+            result.report = write_report(result, plan)
+        results.append(result)
+    return results

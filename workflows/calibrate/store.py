@@ -1,0 +1,281 @@
+"""The phase store of a run folder: atomic phase files, ``manifest.json`` with config hashes, reuse.
+
+Every phase carries a config hash that covers its data, priors, surrogate, sampler settings, seed and the
+hashes of the phases it depends on (:func:`phase_hashes`). A phase whose file exists and whose hash in
+the manifest matches is reused on rerun, so the hashed dicts decide which existing output folders are
+reused: changing what they hold reruns every affected phase.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data import atomic_write
+from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
+
+__all__ = ["config_hash", "array_hash", "phase_hashes", "bundle_hashes", "PhaseStore", "write_phase", "read_phase"]
+
+
+def config_hash(obj) -> str:
+    """First 16 hex digits of the SHA-256 of ``obj`` as sorted-key JSON (non-JSON values via ``str``)."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def array_hash(*arrays) -> str:
+    """First 16 hex digits of the SHA-256 of the arrays as contiguous little-endian float64."""
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(np.ascontiguousarray(np.asarray(a, dtype="<f8")).tobytes())
+    return h.hexdigest()[:16]
+
+
+def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, str]) -> dict[str, str]:
+    """Config hash of every phase of one agent.
+
+    Parameters
+    ----------
+    ap : bubblecal.workflows.calibrate.AgentPlan
+        The agent's priors, curves, surrogates and acoustic datasets.
+    config : CalibrationConfig
+        Seed and TMCMC settings (:func:`~bubblecal.workflows.calibrate.phase_tmcmc_options`).
+    acoustic_hashes : Mapping of str to str
+        :func:`bundle_hashes` of the surrogate bundle (the acoustic surrogates' hashes).
+
+    Returns
+    -------
+    dict of str to str
+        ``phase1_<dataset>``, ``phase2`` and ``phase3_<dataset>`` -> 16-digit hash. Phase 1 covers its data,
+        surrogate, priors and options; phase 2 the phase-1 hashes and its sample size; phase 3 its own
+        phase-1 hash and the phase-2 hash.
+    """
+    spec_text = Path(ap.priors_path).read_text() if Path(ap.priors_path).is_file() else repr(ap.spec)
+    o1, o23 = phase_tmcmc_options(config)
+    common = {"agent": ap.agent, "workflow": ap.workflow, "priors": config_hash(spec_text), "seed": config.seed,
+              "datasets": ap.dataset_names}
+    hashes = {}
+    for curve, sur in zip(ap.curves, ap.surrogates, strict=True):
+        hashes[f"phase1_{curve.name}"] = config_hash({**common, "phase": 1, "data": array_hash(curve.x, curve.y),
+                                                      "surrogate": sur.data_hash, "options": o1})
+    for ds in ap.acoustic:
+        hashes[f"phase1_{ds.name}"] = config_hash({**common, "phase": 1,
+                                                   "data": array_hash(ds.diameter_um, ds.frequency_MHz),
+                                                   "surrogate": acoustic_hashes.get(f"acoustic_{ap.agent}", ""),
+                                                   "options": o1})
+    p1 = [hashes[f"phase1_{n}"] for n in ap.dataset_names]
+    hashes["phase2"] = config_hash({**common, "phase": 2, "upstream": p1, "options": o23,
+                                    "phase2_samples": phase2_samples(config)})
+    for n in ap.dataset_names:
+        h3 = {**common, "phase": 3, "self": hashes[f"phase1_{n}"], "upstream": hashes["phase2"], "options": o23}
+        if config.phase3 != "published":  # keeps the hashes of runs with the published phase 3 unchanged
+            h3["phase3"] = config.phase3
+        hashes[f"phase3_{n}"] = config_hash(h3)
+    return hashes
+
+
+def bundle_hashes(bundle) -> dict[str, str]:
+    """``acoustic_<name>`` -> config hash of each acoustic surrogate of ``bundle`` (its JSON content)."""
+    out = {}
+    for name, ac in bundle.acoustic.items():
+        out[f"acoustic_{name}"] = config_hash(ac.to_dict())
+    return out
+
+
+class PhaseStore:
+    """Phase files of one agent/workflow folder plus ``manifest.json`` (config hash per phase).
+
+    ``expected[name]`` holds the hash a phase must carry to be reused; :meth:`load` returns the stored
+    :class:`~bubblecal.inference.hierarchical.PhaseResult` when file and hash match (and not ``force``),
+    :meth:`save` writes the file atomically and records it in the manifest.
+
+    Parameters
+    ----------
+    folder : Path
+        The run folder ``out/<agent>/<workflow>``.
+    netcdf : bool
+        Write ArviZ NetCDF (``.nc``), else ``.npz``; either suffix is read back.
+    force : bool
+        Never reuse a phase.
+    run_info : Mapping or None
+        Stored as the manifest's ``run`` entry (configuration, its hash, agent, priors, bundle).
+    """
+
+    def __init__(self, folder: Path, netcdf: bool = True, force: bool = False, run_info: Mapping | None = None):
+        self.folder = Path(folder)
+        self.netcdf = netcdf
+        self.force = force
+        self.expected: dict[str, str] = {}
+        self.loglik: dict[str, np.ndarray] = {}
+        self.reused: list[str] = []
+        self.manifest_path = self.folder / "manifest.json"
+        self.manifest = self._read_manifest()
+        if run_info is not None:
+            self.manifest["run"] = dict(run_info)
+
+    def _read_manifest(self) -> dict:
+        """The folder's manifest, or an empty one when absent or unreadable."""
+        if self.manifest_path.is_file():
+            try:
+                return json.loads(self.manifest_path.read_text())
+            except json.JSONDecodeError:
+                pass
+        return {"format": "bubblecal-calibration-run", "format_version": 1, "phases": {}}
+
+    def write_manifest(self) -> None:
+        """Write ``manifest.json`` atomically."""
+        text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
+        atomic_write(self.manifest_path, lambda p: p.write_text(text))
+
+    def path(self, name: str) -> Path:
+        """The file that :meth:`save` writes for phase ``name``."""
+        return self.folder / (f"{name}.nc" if self.netcdf else f"{name}.npz")
+
+    def _existing(self, name: str) -> Path | None:
+        """The stored file of phase ``name`` (either suffix), or None."""
+        for suffix in (".nc", ".npz"):
+            p = self.folder / f"{name}{suffix}"
+            if p.is_file():
+                return p
+        return None
+
+    def load(self, name: str):
+        """The stored result of phase ``name`` when its file exists and its hash matches ``expected``.
+
+        Parameters
+        ----------
+        name : str
+            Phase name, e.g. 'phase2'.
+
+        Returns
+        -------
+        bubblecal.inference.hierarchical.PhaseResult or None
+            None when the phase must run (also with ``force``); else the result, its log likelihoods
+            recorded in :attr:`loglik` and its name in :attr:`reused`.
+        """
+        entry = self.manifest["phases"].get(name)
+        path = self._existing(name)
+        if self.force or entry is None or path is None or entry.get("config_hash") != self.expected.get(name):
+            return None
+        result, loglik = read_phase(path)
+        self.loglik[name] = loglik
+        self.reused.append(name)
+        return result
+
+    def save(self, result) -> None:
+        """Write a finished phase atomically and record it (hash, log Z, status, seconds) in the manifest.
+
+        Parameters
+        ----------
+        result : bubblecal.inference.hierarchical.PhaseResult
+            The phase; its sampler's final log likelihoods are stored with the draws.
+        """
+        name = result.name
+        path = self.path(name)
+        loglik = np.asarray(result.sampler.state.log_likelihood) if result.sampler is not None else None
+        if loglik is not None:
+            self.loglik[name] = loglik
+        attrs = {"config_hash": self.expected.get(name, ""), "phase": name}
+        write_phase(path, result, loglik, attrs)
+        self.manifest["phases"][name] = {
+            "file": path.name, "config_hash": self.expected.get(name, ""), "log_evidence": result.log_evidence,
+            "log_evidence_se": result.log_evidence_se if math.isfinite(result.log_evidence_se) else None,
+            "status": result.status, "seconds": result.seconds,
+            "num_draws": int(next(iter(result.samples.values())).shape[0])}
+        self.write_manifest()
+
+
+def write_phase(path: Path, result, loglik, attrs: Mapping) -> Path:
+    """Write a phase result atomically: ArviZ NetCDF (``.nc``) or plain ``.npz`` (samples + attrs JSON).
+
+    Parameters
+    ----------
+    path : Path
+        Target file; its suffix picks the format.
+    result : bubblecal.inference.hierarchical.PhaseResult
+        Draws (DPD units), log evidence and its standard error, status, seconds.
+    loglik : array_like or None
+        Log likelihood of every draw (stored for the MAP).
+    attrs : Mapping
+        Extra metadata (config hash, phase name, diagnostics).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    meta = {"log_evidence": result.log_evidence, "log_evidence_se": result.log_evidence_se, "status": result.status,
+            "seconds": result.seconds, "name": result.name, **attrs}
+    if path.suffix == ".nc":
+        import arviz as az
+
+        if result.sampler is not None:
+            idata = result.sampler.to_inference_data()
+        else:
+            stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
+            idata = az.from_dict(posterior={k: np.asarray(v)[None] for k, v in result.samples.items()},
+                                 sample_stats=stats)
+        idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
+                                          ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
+                                      for k, v in meta.items()})
+        atomic_write(path, lambda p: idata.to_netcdf(str(p)))
+    else:
+        arrays = {f"sample__{k}": np.asarray(v) for k, v in result.samples.items()}
+        if loglik is not None:
+            arrays["loglik"] = np.asarray(loglik)
+        arrays["meta"] = np.array(json.dumps(meta, default=str))
+
+        def _w(p):
+            with open(p, "wb") as fh:
+                np.savez(fh, **arrays)
+
+        atomic_write(path, _w)
+    return path
+
+
+def read_phase(path: Path):
+    """Read a file written by :func:`write_phase`.
+
+    Parameters
+    ----------
+    path : Path
+        A ``.nc`` or ``.npz`` phase file.
+
+    Returns
+    -------
+    tuple
+        (:class:`~bubblecal.inference.hierarchical.PhaseResult`, log likelihood per draw or None).
+    """
+    from bubblecal.inference.hierarchical import PhaseResult
+
+    path = Path(path)
+    if path.suffix == ".nc":
+        import arviz as az
+
+        idata = az.from_netcdf(str(path))
+        post = idata.posterior
+        samples = {k: np.asarray(post[k].values[0]) for k in post.data_vars}
+        meta = dict(post.attrs)
+        loglik = (np.asarray(idata.sample_stats["loglik"].values[0])
+                  if "sample_stats" in idata.groups() and "loglik" in idata.sample_stats else None)
+    else:
+        with np.load(path, allow_pickle=False) as npz:
+            samples = {k[len("sample__"):]: npz[k] for k in npz.files if k.startswith("sample__")}
+            loglik = npz["loglik"] if "loglik" in npz.files else None
+            meta = json.loads(str(npz["meta"]))
+
+    def _f(v):
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return math.nan
+
+    result = PhaseResult(name=str(meta.get("name", meta.get("phase", path.stem))), samples=samples,
+                         log_evidence=_f(meta.get("log_evidence")), log_evidence_se=_f(meta.get("log_evidence_se")),
+                         status=str(meta.get("status", "converged")), seconds=_f(meta.get("seconds")))
+    return result, loglik

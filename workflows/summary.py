@@ -1,0 +1,241 @@
+"""Summaries of a calibration run: per-dataset posterior tables and predictive checks.
+
+:func:`summarise_agent` fills an :class:`~bubblecal.workflows.calibrate.AgentResult` with
+
+* ``summary`` (pandas DataFrame, written to ``summary.csv``): one row per (dataset, parameter) with the
+  posterior mean, 5 % and 95 % quantiles and the MAP draw in DPD units and in physical units
+  (k_a -> E [MPa] at nu = 1/2, k_b -> continuum bending modulus kappa [k_BT], d0 -> nm, Lim coefficients
+  and noise amplitudes dimensionless), plus per dataset the coverage of the 90 % posterior-predictive band
+  and the CRPS (Monte Carlo, ``config.crps_replicates`` replicates: mean and sd over replicates) in nN
+  (compression: force), nm (indentation: depth) or MHz (acoustics) (``docs/inference.md`` section 7); the
+  dataset ``population (new bubble)`` holds the population-predictive draws of the pooled parameters;
+* ``ess`` (``ess.csv``): the phase-2 importance-sampling ESS per dataset
+  (:func:`bubblecal.inference.hierarchical.ess_table`);
+* ``bands``: predictive medians and 90 % bands at the data and on a dense grid (for the figures).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from bubblecal.data import DEFAULT_UNITS, NOISE_PARAMETERS, NONLINEAR_PARAMETERS
+
+__all__ = ["PHYSICAL", "POPULATION_ROW", "dataset_posteriors", "psi_samples", "summarise_agent"]
+
+#: Dataset name of the population-predictive rows of ``summary.csv``.
+POPULATION_ROW = "population (new bubble)"
+
+#: parameter -> (DPD unit, physical name, physical unit, converter DPD -> physical); E at ν = 1/2,
+#: κ the continuum bending modulus (:mod:`bubblecal.data.units`).
+PHYSICAL = {
+    "ka": ("DPD 2-D modulus", "E", "MPa", lambda v: np.asarray(DEFAULT_UNITS.ka_to_young(v)) * 1e-6),
+    "kb": ("DPD energy", "kappa", "k_BT", lambda v: np.asarray(DEFAULT_UNITS.kb_to_bending_kBT(v))),
+    "d0": ("DPD length", "d0", "nm", lambda v: np.asarray(DEFAULT_UNITS.dpd_to_nm(v))),
+}
+for _k in (*NONLINEAR_PARAMETERS, *NOISE_PARAMETERS):
+    PHYSICAL[_k] = ("1", _k, "1", lambda v: np.asarray(v, dtype=float))
+
+
+def _y_to_physical(kind: str):
+    """Converter of a curve's y (DPD) to physical units and the unit name."""
+    if kind == "compression":
+        return (lambda v: np.asarray(DEFAULT_UNITS.dpd_to_nN(v))), "nN"
+    return (lambda v: np.asarray(DEFAULT_UNITS.dpd_to_nm(v))), "nm"
+
+
+def dataset_posteriors(result) -> dict[str, dict]:
+    """The final posterior draws of every dataset of one agent.
+
+    Staged runs: phase-3 draws; NUTS: the joint draws sliced per curve / acoustic dataset (the MAP then
+    uses the joint total log likelihood).
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+
+    Returns
+    -------
+    dict
+        Dataset name -> {'kind' (protocol or 'acoustic'), 'samples' (dict of (S,) arrays, DPD units),
+        'loglik' ((S,) array or None), 'obj' (the curve or acoustic dataset), 'surrogate'}.
+    """
+    ap = result.plan
+    spec = ap.spec
+    noise = spec.mechanical_noise_name
+    out = {}
+    if result.staged is not None:
+        by_name = {r.name.removeprefix("phase3_"): r for r in result.staged.phase3}
+        for curve, sur in zip(ap.curves, ap.surrogates, strict=True):
+            r = by_name[curve.name]
+            out[curve.name] = {"kind": curve.kind, "samples": dict(r.samples), "obj": curve, "surrogate": sur,
+                               "loglik": result.loglik.get(f"phase3_{curve.name}")}
+        for ds in ap.acoustic:
+            r = by_name[ds.name]
+            out[ds.name] = {"kind": "acoustic", "samples": dict(r.samples), "obj": ds, "surrogate": ap.f_res,
+                            "loglik": result.loglik.get(f"phase3_{ds.name}")}
+    else:
+        js = result.joint.samples
+        ll = result.joint.loglik
+        for i, (curve, sur) in enumerate(zip(ap.curves, ap.surrogates, strict=True)):
+            s = {k: np.asarray(js[k])[:, i] for k in [*spec.parameters, noise] if k in js}
+            out[curve.name] = {"kind": curve.kind, "samples": s, "obj": curve, "surrogate": sur, "loglik": ll}
+        for j, ds in enumerate(ap.acoustic):
+            s = {"ka": np.asarray(js["ka_ac"])[:, j], "sigma_ac": np.asarray(js["sigma_ac"])[:, j]}
+            out[ds.name] = {"kind": "acoustic", "samples": s, "obj": ds, "surrogate": ap.f_res, "loglik": ll}
+    return out
+
+
+def psi_samples(result) -> tuple[dict, dict]:
+    """Population hyperparameter draws of one agent (phase 2, or the joint run).
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+
+    Returns
+    -------
+    tuple of dict
+        (m, τ): pooled parameter name -> draws of its population mean and spread (DPD units); empty
+        dicts when nothing is pooled.
+    """
+    if result.staged is not None:
+        src = result.staged.phase2.samples
+    else:
+        src = result.joint.samples
+    m = {k[2:]: np.asarray(v) for k, v in src.items() if k.startswith("m_")}
+    tau = {k[4:]: np.asarray(v) for k, v in src.items() if k.startswith("tau_")}
+    return m, tau
+
+
+def _thin(samples: Mapping[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+    """At most ``n`` evenly spaced draws (deterministic)."""
+    size = int(next(iter(samples.values())).shape[0])
+    if size <= n:
+        return {k: np.asarray(v) for k, v in samples.items()}
+    idx = np.linspace(0, size - 1, n).round().astype(int)
+    return {k: np.asarray(v)[idx] for k, v in samples.items()}
+
+
+def _param_rows(base: dict, samples: Mapping[str, np.ndarray], names, map_index: int | None) -> list[dict]:
+    """Summary rows (mean, 5 %, 95 %, MAP in DPD and physical units) of the parameters ``names``."""
+    rows = []
+    for k in names:
+        if k not in samples:
+            continue
+        v = np.asarray(samples[k], dtype=float)
+        unit, pname, punit, conv = PHYSICAL.get(k, ("DPD", k, "DPD", lambda a: np.asarray(a)))
+        q05, q95 = np.quantile(v, [0.05, 0.95])
+        mp = float(v[map_index]) if map_index is not None else math.nan
+        rows.append({**base, "parameter": k, "unit": unit, "mean": float(v.mean()), "q05": float(q05),
+                     "q95": float(q95), "map": mp, "physical": pname, "physical_unit": punit,
+                     "mean_phys": float(conv(v).mean()), "q05_phys": float(conv(q05)), "q95_phys": float(conv(q95)),
+                     "map_phys": float(conv(mp)) if map_index is not None else math.nan})
+    return rows
+
+
+def summarise_agent(result, config) -> None:
+    """Fill ``result.summary``, ``result.ess``, ``result.bands``, ``result.population_predictive``; write CSVs.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A finished run; filled in place. ``summary.csv`` (and ``ess.csv`` for staged runs) are written to
+        its ``plan.out_dir``.
+    config : bubblecal.workflows.calibrate.CalibrationConfig
+        ``seed`` (CRPS draws and population predictive), ``predictive_samples`` and ``crps_replicates``.
+    """
+    import jax
+    import pandas as pd
+
+    from bubblecal.inference import map_index, predictive_band, predictive_crps
+    from bubblecal.models import mechanical_prediction, sample_population_predictive
+    from bubblecal.models.acoustic import acoustic_prediction
+
+    ap = result.plan
+    spec = ap.spec
+    noise = spec.mechanical_noise_name
+    rows = []
+    bands = {}
+    post = dataset_posteriors(result)
+    rng = np.random.default_rng(config.seed)
+    for name, d in post.items():
+        samples, obj, kind = d["samples"], d["obj"], d["kind"]
+        ll = d["loglik"]
+        imap = map_index(ll) if ll is not None and np.size(ll) == next(iter(samples.values())).shape[0] else None
+        thin = _thin(samples, config.predictive_samples)
+        if kind == "acoustic":
+            diam = np.asarray(obj.diameter_um, dtype=float)
+            f = np.asarray(obj.frequency_MHz, dtype=float)
+            mu, sd = acoustic_prediction(thin["ka"], thin["sigma_ac"], ap.f_res, diam, f_scale=float(np.max(f)))
+            mu, sd = np.asarray(mu, dtype=float), np.asarray(sd, dtype=float)
+            band = predictive_band(mu, sd, 0.9)
+            crps = predictive_crps(mu, sd, f, replicates=config.crps_replicates, seed=rng)
+            crps_sd = float(np.std(crps.replicates, ddof=1) if crps.replicates.size > 1 else 0.0)
+            cov, crps_mean, unit = band.coverage(f), crps.mean, "MHz"
+            bands[name] = {"kind": kind, "x": diam, "y": f, "median": band.median, "lower": band.lower,
+                           "upper": band.upper, "sigma_mean": float(np.mean(thin["sigma_ac"]))}
+            names = ["ka", "sigma_ac"]
+            diameter = float(np.mean(diam)) if diam.size == 1 else math.nan
+        else:
+            x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
+            y_scale = float(np.max(np.abs(y)))
+            mu, sd = mechanical_prediction(thin, d["surrogate"], spec, x, y_scale=y_scale)
+            mu, sd = np.asarray(mu, dtype=float), np.asarray(sd, dtype=float)
+            band = predictive_band(mu, sd, 0.9)
+            crps = predictive_crps(mu, sd, y, replicates=config.crps_replicates, seed=rng)
+            conv, unit = _y_to_physical(kind)
+            cov = band.coverage(y)
+            crps_mean = float(conv(crps.mean))
+            crps_sd = float(conv(np.std(crps.replicates, ddof=1))) if crps.replicates.size > 1 else 0.0
+            grid = np.linspace(0.0 if kind == "compression" else 0.0, float(x.max()) * 1.02, 80)
+            gmu, gsd = mechanical_prediction(thin, d["surrogate"], spec, grid, y_scale=y_scale)
+            gband = predictive_band(np.asarray(gmu, dtype=float), np.asarray(gsd, dtype=float), 0.9)
+            # the model curve itself (no observation noise): the spread of the surrogate prediction
+            gmodel = np.quantile(np.asarray(gmu, dtype=float), [0.05, 0.5, 0.95], axis=0)
+            bands[name] = {"kind": kind, "x": x, "y": y, "median": band.median, "lower": band.lower,
+                           "upper": band.upper, "grid": grid, "grid_median": gband.median, "grid_lower": gband.lower,
+                           "grid_upper": gband.upper, "grid_model": gmodel,
+                           "map_curve": (np.asarray(mechanical_prediction({k: np.asarray(v)[imap:imap + 1]
+                                                                           for k, v in samples.items()},
+                                                                          d["surrogate"], spec, grid,
+                                                                          y_scale=y_scale)[0])[0]
+                                         if imap is not None else None)}
+            names = [*spec.parameters, noise]
+            diameter = float(obj.diameter_um)
+        base = {"agent": ap.agent, "workflow": ap.workflow, "dataset": name, "kind": kind, "diameter_um": diameter,
+                "n_points": int(np.size(bands[name]["y"])), "coverage_90": float(cov), "crps": float(crps_mean),
+                "crps_sd": float(crps_sd), "crps_unit": unit}
+        rows += _param_rows(base, samples, names, imap)
+    # population predictive of a new bubble
+    m, tau = psi_samples(result)
+    pop = None
+    if m:
+        bounds = {k: spec.parameters[k].prior.as_tuple() for k in m}
+        pop = sample_population_predictive(jax.random.PRNGKey(config.seed + 7), m, tau, bounds,
+                                           config.predictive_samples)
+        pop = {k: np.asarray(v) for k, v in pop.items()}
+        base = {"agent": ap.agent, "workflow": ap.workflow, "dataset": POPULATION_ROW, "kind": "population",
+                "diameter_um": math.nan, "n_points": 0, "coverage_90": math.nan, "crps": math.nan, "crps_sd": math.nan,
+                "crps_unit": ""}
+        rows += _param_rows(base, pop, list(m), None)
+        hyper = {f"m_{k}": v for k, v in m.items()} | {f"tau_{k}": v for k, v in tau.items()}
+        for key, v in hyper.items():
+            k = key.split("_", 1)[1]
+            unit, pname, punit, conv = PHYSICAL.get(k, ("DPD", k, "DPD", lambda a: np.asarray(a)))
+            q05, q95 = np.quantile(v, [0.05, 0.95])
+            rows.append({**base, "dataset": "hyperparameters", "kind": "psi", "parameter": key, "unit": unit,
+                         "mean": float(v.mean()), "q05": float(q05), "q95": float(q95), "map": math.nan,
+                         "physical": f"{key.split('_')[0]}_{pname}", "physical_unit": punit,
+                         "mean_phys": float(conv(v).mean()), "q05_phys": float(conv(q05)),
+                         "q95_phys": float(conv(q95)), "map_phys": math.nan})
+    result.summary = pd.DataFrame(rows)
+    result.bands = bands
+    result.population_predictive = pop
+    result.summary.to_csv(ap.out_dir / "summary.csv", index=False)
+    if result.staged is not None:
+        result.ess = result.staged.ess()
+        result.ess.to_csv(ap.out_dir / "ess.csv", index=False)
+
