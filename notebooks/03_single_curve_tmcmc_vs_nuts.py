@@ -136,7 +136,8 @@ take = np.random.default_rng(0).choice(PARTICLES, size=min(PARTICLES, 2000), rep
 means, sds = mechanical_prediction({k: v[take] for k, v in tm_s.items()}, S, spec, x_fine, y_scale=y_scale)
 band = predictive_band(np.asarray(means, float), np.asarray(sds, float), level=0.9)
 m_pts, s_pts = mechanical_prediction({k: v[take] for k, v in tm_s.items()}, S, spec, curve.x, y_scale=y_scale)
-print(f"coverage of the 90% band: {predictive_band(np.asarray(m_pts, float), np.asarray(s_pts, float)).coverage(curve.y):.2f}")
+band90 = predictive_band(np.asarray(m_pts, float), np.asarray(s_pts, float))
+print(f"coverage of the 90% band: {band90.coverage(curve.y):.2f}")
 
 fig, ax = plt.subplots(figsize=(6, 4))
 xn = units.dpd_to_nm(x_fine)

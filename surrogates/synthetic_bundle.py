@@ -58,8 +58,8 @@ __all__ = ["development_bundle_path", "SYNTHETIC_NOTE", "TRAINING_BOXES", "LOG_P
 
 #: The loud warning carried by the manifest and every file of the bundle.
 SYNTHETIC_NOTE = ("SYNTHETIC closed-form laws, for development/tests, not DPD: surrogates trained on "
-                  "bubblecal.surrogates.training.synthetic (mechanics) and the ringdown law of docs/physics.md section 6 "
-                  "check 7 (acoustics); posteriors obtained with this bundle are not physical results.")
+                  "bubblecal.surrogates.training.synthetic (mechanics) and the ringdown law of docs/physics.md "
+                  "section 6 check 7 (acoustics); posteriors obtained with this bundle are not physical results.")
 
 #: Training boxes [lo, hi] per agent (DPD units; b1..a4 dimensionless). Each contains the union of the
 #: agent's shipped prior boxes (priors/<agent>_{full,reduced,reduced_acoustic}.toml), widened slightly.

@@ -83,8 +83,10 @@ def test_layer_directions(layer):
             parts = module.split(".")
             if parts[0] == "bubblecal" and len(parts) > 1:
                 target = parts[1]
-                assert target == layer or target in ALLOWED[layer], f"{path}: {layer} must not import bubblecal.{target}"
-            assert parts[0] not in FORBIDDEN_THIRD_PARTY.get(layer, set()), f"{path}: {layer} must not import {parts[0]}"
+                assert target == layer or target in ALLOWED[layer], \
+                    f"{path}: {layer} must not import bubblecal.{target}"
+            assert parts[0] not in FORBIDDEN_THIRD_PARTY.get(layer, set()), \
+                f"{path}: {layer} must not import {parts[0]}"
             assert parts[0] not in LAYERS, f"{path}: import through bubblecal.{parts[0]}, not {parts[0]}"
 
 
@@ -102,7 +104,8 @@ def test_modules_stay_small():
         n = len(path.read_text().splitlines())
         if n > MAX_LINES and rel not in LONG_MODULES:
             too_long[rel] = n
-    assert not too_long, f"modules over {MAX_LINES} lines (split them, or list a kernel module in LONG_MODULES): {too_long}"
+    assert not too_long, \
+        f"modules over {MAX_LINES} lines (split them, or list a kernel module in LONG_MODULES): {too_long}"
     for rel in LONG_MODULES:
         assert (ROOT / rel).exists(), f"LONG_MODULES lists {rel}, which no longer exists"
         assert len((ROOT / rel).read_text().splitlines()) > MAX_LINES, f"{rel} is short now: drop it from LONG_MODULES"

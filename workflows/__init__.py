@@ -10,5 +10,37 @@ Pipelines: :mod:`~bubblecal.workflows.calibrate` (the main job: config, plan, ph
 
 Command line: :mod:`~bubblecal.workflows.cli` (the typer root) and one thin ``cli_<group>`` module per
 command group or top-level command; :mod:`~bubblecal.workflows.console` (shared console, errors, tables).
-Import each object from its module; nothing outside this layer imports it.
+Nothing outside this layer imports it.  The pipelines' entry points are exported here for notebooks and
+scripts (``from bubblecal.workflows import CalibrationConfig, make_plan, run_calibration``); they are imported on
+first access, so that the command line starts without loading JAX.
 """
+
+import importlib
+
+__all__ = ["CalibrationConfig", "CalibrationError", "config_from_agents", "make_plan", "run_calibration",
+           "run_agent", "read_phase", "app", "main"]
+
+_LAZY = {
+    "CalibrationConfig": "bubblecal.workflows.calibrate",
+    "CalibrationError": "bubblecal.workflows.calibrate",
+    "config_from_agents": "bubblecal.workflows.calibrate",
+    "make_plan": "bubblecal.workflows.calibrate",
+    "run_calibration": "bubblecal.workflows.calibrate",
+    "run_agent": "bubblecal.workflows.calibrate",
+    "read_phase": "bubblecal.workflows.calibrate",
+    "app": "bubblecal.workflows.cli",
+    "main": "bubblecal.workflows.cli",
+}
+
+
+def __getattr__(name: str):
+    """Import an exported pipeline entry point on first access."""
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -177,8 +177,17 @@ class CurveBatch:
 
 
 class Tier(Protocol):
-    """A fidelity tier: ``run(request, device)`` -> :class:`CurveBatch`, the R replicas batched into the same
-    kernel launches, one status per replica."""
+    """A fidelity tier: ``run(request, device)`` -> :class:`CurveBatch`.
+
+    A tier batches the R replicas of a request into the same kernel launches and reports one status per
+    replica (:data:`bubblecal.data.names.STATUSES`); its settings are keyword arguments of its constructor
+    (``get_tier(name, **settings)``).
+
+    Attributes
+    ----------
+    name : str
+        The tier's name, one of :data:`TIER_NAMES`.
+    """
 
     name: str
 
