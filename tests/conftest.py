@@ -22,7 +22,7 @@ def shared_reference_dir() -> Path | None:
 
 
 def _load_script(relpath: str):
-    """Import a repository script that is not part of the package (e.g. ``benchmarks/device/pool_model.py``) as a
+    """Import a repository script that is not part of the package (e.g. ``benchmarks/compare_calibrations.py``) as a
     module named after its file; its own folder goes on ``sys.path`` for its sibling imports."""
     import importlib.util
     import sys
