@@ -25,6 +25,8 @@ ALLOWED = {
     "inference": set(),
     "workflows": set(LAYERS),
 }
+#: Private helpers of the root package that every layer may use (they import nothing of bubblecal).
+ROOT_HELPERS = {"_lazy"}
 FORBIDDEN_THIRD_PARTY = {
     "data": {"jax", "numpyro", "torch", "warp"},
     "priors": {"jax", "numpyro", "torch", "warp"},
@@ -50,7 +52,8 @@ def _python_files(folder):
 
 
 def _package_files():
-    return [p for layer in LAYERS for p in _python_files(layer)] + [ROOT / "__init__.py"]
+    return [p for layer in LAYERS for p in _python_files(layer)] + [ROOT / "__init__.py"] + \
+        [ROOT / f"{name}.py" for name in ROOT_HELPERS]
 
 
 def test_every_subpackage_is_listed():
@@ -75,6 +78,12 @@ def _imports(path):
             yield "<relative>"
 
 
+def test_root_helpers_import_no_layer():
+    for name in ROOT_HELPERS:
+        for module in _imports(ROOT / f"{name}.py"):
+            assert not module.startswith("bubblecal"), f"{name}.py must not import {module}"
+
+
 @pytest.mark.parametrize("layer", LAYERS)
 def test_layer_directions(layer):
     for path in _python_files(layer):
@@ -83,7 +92,7 @@ def test_layer_directions(layer):
             parts = module.split(".")
             if parts[0] == "bubblecal" and len(parts) > 1:
                 target = parts[1]
-                assert target == layer or target in ALLOWED[layer], \
+                assert target == layer or target in ALLOWED[layer] or target in ROOT_HELPERS, \
                     f"{path}: {layer} must not import bubblecal.{target}"
             assert parts[0] not in FORBIDDEN_THIRD_PARTY.get(layer, set()), \
                 f"{path}: {layer} must not import {parts[0]}"

@@ -15,7 +15,7 @@ scripts (``from bubblecal.workflows import CalibrationConfig, make_plan, run_cal
 first access, so that the command line starts without loading JAX.
 """
 
-import importlib
+from bubblecal._lazy import lazy_exports
 
 __all__ = ["CalibrationConfig", "CalibrationError", "config_from_agents", "make_plan", "run_calibration",
            "run_agent", "read_phase", "app", "main"]
@@ -32,15 +32,4 @@ _LAZY = {
     "main": "bubblecal.workflows.cli",
 }
 
-
-def __getattr__(name: str):
-    """Import an exported pipeline entry point on first access."""
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -18,8 +18,7 @@ Importing this package loads no Warp and compiles nothing: the Warp-backed class
 access.  Units: DPD (length r_c = 250 nm, energy k_BT, water bead mass 1; :mod:`bubblecal.data.units`).
 """
 
-import importlib
-
+from bubblecal._lazy import lazy_exports
 from bubblecal.sim.engine.geometry import dihedral_angles, lim_reference, mesh_volume, triangle_areas
 from bubblecal.sim.engine.implicit_settings import GAS_P0_DEFAULT, default_vertex_friction
 from bubblecal.sim.engine.kernels.shell import (
@@ -100,15 +99,4 @@ __all__ = [
     "DeviceFire", "DeviceFireResult", "numpy_force_fn", "cuda_threads_per_replica", "ChunkGraph",
 ]
 
-
-def __getattr__(name: str):
-    """Import the Warp-backed exports on first access."""
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

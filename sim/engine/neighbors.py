@@ -38,17 +38,8 @@ __all__ = ["neighbor_kernels", "grid_for_boxes", "NeighbourLists"]
 
 @functools.cache
 def neighbor_kernels(dtype):
-    """Build (once per scalar type) the cell-list, sorting and neighbour-list kernels (module docstring).
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        Name -> ``wp.Kernel``.
+    """Build (once per scalar type) the cell-list, sorting and neighbour-list kernels (module docstring); ``dtype``
+    is ``wp.float32`` or ``wp.float64``. Returns a dict: Name -> ``wp.Kernel``.
     """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "nbr")

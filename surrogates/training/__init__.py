@@ -16,8 +16,7 @@ on first access to one of their names, so that reading and filtering data never 
 Calibration code never imports this package; it loads the exported ``.npz`` with :func:`bubblecal.surrogates.load`.
 """
 
-import importlib
-
+from bubblecal._lazy import lazy_exports
 from bubblecal.surrogates.training.data_io import (
     N_META,
     PUBLISHED_META_COLUMNS,
@@ -52,13 +51,14 @@ from bubblecal.surrogates.training.synthetic import (
     truth,
 )
 
-#: Names of the torch modules, imported on first access (module ``__getattr__``).
-_LAZY: dict[str, str] = {
-    **dict.fromkeys(("TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"), "train"),
-    **dict.fromkeys(("SweepConfig", "SweepResult", "run_sweep", "MIN_SWEEP_CURVES"), "sweep"),
-    **dict.fromkeys(("checkpoint_key", "checkpoint_path", "save_checkpoint", "load_checkpoint"), "checkpoints"),
-    **dict.fromkeys(("surrogate_metadata", "export_npz", "export_sweep", "export_onnx", "HOLDOUT_METRIC"), "export"),
+#: Torch-side names, imported on first access: module -> the names it exports.
+_TORCH_SIDE: dict[str, tuple[str, ...]] = {
+    "train": ("TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"),
+    "sweep": ("SweepConfig", "SweepResult", "run_sweep", "MIN_SWEEP_CURVES"),
+    "checkpoints": ("checkpoint_key", "checkpoint_path", "save_checkpoint", "load_checkpoint"),
+    "export": ("surrogate_metadata", "export_npz", "export_sweep", "export_onnx", "HOLDOUT_METRIC"),
 }
+_LAZY = {name: f"{__name__}.{module}" for module, names in _TORCH_SIDE.items() for name in names}
 
 __all__ = [
     # training set, data I/O, filtering
@@ -75,17 +75,4 @@ __all__ = [
     *_LAZY,
 ]
 
-
-def __getattr__(name: str):
-    """Import a torch-side name on first access (module docstring)."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """Every public name, the lazy ones included."""
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

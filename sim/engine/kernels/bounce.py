@@ -34,17 +34,8 @@ from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
 
 @functools.cache
 def bounce_kernels(dtype):
-    """Build (once per scalar type) the bounce-back kernel (module docstring).
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``bounce`` (name -> ``wp.Kernel``).
+    """Build (once per scalar type) the bounce-back kernel (module docstring); ``dtype`` is ``wp.float32`` or
+    ``wp.float64``. Returns a dict: ``bounce`` (name -> ``wp.Kernel``).
     """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "bounce")

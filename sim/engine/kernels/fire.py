@@ -30,17 +30,8 @@ FROZEN = 4
 
 @functools.cache
 def fire_kernels(dtype):
-    """Build (once per scalar type) the FIRE kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        Name -> ``wp.Kernel`` (reset, restart, row passes, replica update, Euler step, mixing).
+    """Build (once per scalar type) the FIRE kernels; ``dtype`` is ``wp.float32`` or ``wp.float64``. Returns a dict:
+    Name -> ``wp.Kernel`` (reset, restart, row passes, replica update, Euler step, mixing).
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

@@ -25,18 +25,9 @@ N_TAB = 7
 
 @functools.cache
 def implicit_kernels(dtype) -> dict:
-    """Build (once per scalar type) the implicit-system kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``volume_kernel``, ``pressure_kernel`` (p dV/dx per triangle corner), ``force_sum_kernel``,
-        ``finish_kick``, ``kick_drift_thermo``, ``drift_half``, ``increment``, ``kinetic_kernel``.
+    """Build (once per scalar type) the implicit-system kernels; ``dtype`` is ``wp.float32`` or ``wp.float64``.
+    Returns a dict: ``volume_kernel``, ``pressure_kernel`` (p dV/dx per triangle corner), ``force_sum_kernel``,
+    ``finish_kick``, ``kick_drift_thermo``, ``drift_half``, ``increment``, ``kinetic_kernel``.
     """
     T = dtype
     V = wp.types.vector(3, T)

@@ -23,17 +23,9 @@ from bubblecal.sim.engine.kernels.common import kernel_decorator
 
 @functools.cache
 def integrate_kernels(dtype):
-    """Build (once per scalar type) the kick-drift kernels (module docstring).
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``kick_drift_solvent``, ``kick_vertices``, ``drift_vertices``, ``motion_stats``, ``increment``.
+    """Build (once per scalar type) the kick-drift kernels (module docstring); ``dtype`` is ``wp.float32`` or
+    ``wp.float64``. Returns a dict: ``kick_drift_solvent``, ``kick_vertices``, ``drift_vertices``,
+    ``motion_stats``, ``increment``.
     """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "integ")

@@ -129,18 +129,9 @@ def wrap_delta(d: float, L: float) -> float:
 
 @functools.cache
 def pair_kernels(dtype):
-    """Build (once per scalar type) the DPD pair-force kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        The kernels ``solvent_forces``, ``vertex_solvent_forces``, ``solvent_virial`` and the Warp functions
-        ``min_image`` and ``dpd_pair``.
+    """Build (once per scalar type) the DPD pair-force kernels; ``dtype`` is ``wp.float32`` or ``wp.float64``.
+    Returns a dict: The kernels ``solvent_forces``, ``vertex_solvent_forces``, ``solvent_virial`` and the Warp
+    functions ``min_image`` and ``dpd_pair``.
     """
     vec3 = wp.types.vector(3, dtype)
     kern = kernel_decorator(dtype, "pairs")

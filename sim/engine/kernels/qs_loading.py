@@ -34,17 +34,8 @@ AX_ZMAX, AX_ZMIN, AX_TOP, AX_BOTTOM = 0, 1, 2, 3
 
 @functools.cache
 def qs_kernels(dtype):
-    """Build (once per scalar type) the loading and observable kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        Name -> ``wp.Kernel``.
+    """Build (once per scalar type) the loading and observable kernels; ``dtype`` is ``wp.float32`` or
+    ``wp.float64``. Returns a dict: Name -> ``wp.Kernel``.
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

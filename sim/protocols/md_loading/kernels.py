@@ -15,17 +15,9 @@ __all__ = ["md_loading_kernels"]
 
 @functools.cache
 def md_loading_kernels(dtype):
-    """The protocol's Warp kernels for one scalar type (compiled on first launch, cached per type).
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``plates``, ``pole_forces``, ``anchor_forces`` and ``z_extent`` kernels.
+    """The protocol's Warp kernels for one scalar type (compiled on first launch, cached per type); ``dtype`` is
+    ``wp.float32`` or ``wp.float64``. Returns a dict: ``plates``, ``pole_forces``, ``anchor_forces`` and
+    ``z_extent`` kernels.
     """
     T = dtype
     V = wp.types.vector(3, T)

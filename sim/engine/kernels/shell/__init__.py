@@ -13,8 +13,7 @@ Importing this package loads no Warp: :class:`ShellForceField` is imported on fi
 code can use :class:`ShellParams` cheaply.
 """
 
-import importlib
-
+from bubblecal._lazy import lazy_exports
 from bubblecal.sim.engine.kernels.shell.layout import AREA_CLAMP, ENERGY_TERMS
 from bubblecal.sim.engine.kernels.shell.params import (
     BENDING_MODELS,
@@ -28,15 +27,4 @@ __all__ = ["ShellForceField", "ShellParams", "FORCE_MODES", "BENDING_MODELS", "s
 
 _LAZY = {"ShellForceField": "bubblecal.sim.engine.kernels.shell.field"}
 
-
-def __getattr__(name: str):
-    """Import the Warp-backed exports on first access."""
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -24,19 +24,10 @@ __all__ = ["bending_kernels"]
 
 @functools.cache
 def bending_kernels(dtype) -> dict:
-    """Build (once per scalar type) the Kantor and Juelicher bending kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"kantor_edge"`` (Warp function: sin / cos (theta - theta0) and the gradients of theta of one edge),
-        ``"kantor_kernel"``, and the Juelicher passes ``"jul_accum_edges"``, ``"tri_accum_vertex_area"``,
-        ``"jul_force_edges"``, ``"jul_force_tris"``, ``"jul_energy"``.
+    """Build (once per scalar type) the Kantor and Juelicher bending kernels; ``dtype`` is ``wp.float32`` or
+    ``wp.float64``. Returns a dict: ``"kantor_edge"`` (Warp function: sin / cos (theta - theta0) and the
+    gradients of theta of one edge), ``"kantor_kernel"``, and the Juelicher passes ``"jul_accum_edges"``,
+    ``"tri_accum_vertex_area"``, ``"jul_force_edges"``, ``"jul_force_tris"``, ``"jul_energy"``.
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

@@ -19,19 +19,10 @@ __all__ = ["constraint_kernels"]
 
 @functools.cache
 def constraint_kernels(dtype) -> dict:
-    """Build (once per scalar type) the area / volume kernel and the gas-pressure function.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"area_volume_kernel"`` (one thread per triangle: ``avr[r] += (A_t, V_t)``, DPD length^2 and
-        length^3, volumes relative to the replica's first vertex) and ``"gas_pressure"`` (Warp function:
-        p0 V0 / V - p_ambient of replica r, or 0 when no gas is bound).
+    """Build (once per scalar type) the area / volume kernel and the gas-pressure function; ``dtype`` is
+    ``wp.float32`` or ``wp.float64``. Returns a dict: ``"area_volume_kernel"`` (one thread per triangle: ``avr[r]
+    += (A_t, V_t)``, DPD length^2 and length^3, volumes relative to the replica's first vertex) and
+    ``"gas_pressure"`` (Warp function: p0 V0 / V - p_ambient of replica r, or 0 when no gas is bound).
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

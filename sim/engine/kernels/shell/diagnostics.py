@@ -17,18 +17,9 @@ __all__ = ["diagnostic_kernels"]
 
 @functools.cache
 def diagnostic_kernels(dtype) -> dict:
-    """Build (once per scalar type) the health kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"health_tris"`` (``out[r, 0]`` max |A/A0 - 1|, ``out[r, 1]`` min A/A0) and ``"health_edges"``
-        (``out[r, 2]`` max |theta - theta0| in radians, wrapped to [0, pi]).
+    """Build (once per scalar type) the health kernels; ``dtype`` is ``wp.float32`` or ``wp.float64``. Returns a
+    dict: ``"health_tris"`` (``out[r, 0]`` max |A/A0 - 1|, ``out[r, 1]`` min A/A0) and ``"health_edges"``
+    (``out[r, 2]`` max |theta - theta0| in radians, wrapped to [0, pi]).
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

@@ -25,17 +25,8 @@ __all__ = ["gather_kernels"]
 
 @functools.cache
 def gather_kernels(dtype) -> dict:
-    """Build (once per scalar type) the per-vertex Lim + Kantor gather kernel.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"vertex_gather_kernel"``.
+    """Build (once per scalar type) the per-vertex Lim + Kantor gather kernel; ``dtype`` is ``wp.float32`` or
+    ``wp.float64``. Returns a dict: ``"vertex_gather_kernel"``.
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

@@ -16,19 +16,10 @@ __all__ = ["geometry_funcs"]
 
 @functools.cache
 def geometry_funcs(dtype) -> dict:
-    """Build (once per scalar type) the dihedral Warp functions.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"dihedral_terms"``: ``(xa, xb, xc, xd) -> (y, x, ga, gb, gc, gd)`` with theta = atan2(y, x) and the
-        gradients of theta with respect to the four vertices [1 / DPD length]; ``"dihedral"``:
-        ``(xa, xb, xc, xd) -> (theta, ga, gb, gc, gd)``.
+    """Build (once per scalar type) the dihedral Warp functions; ``dtype`` is ``wp.float32`` or ``wp.float64``.
+    Returns a dict: ``"dihedral_terms"``: ``(xa, xb, xc, xd) -> (y, x, ga, gb, gc, gd)`` with theta = atan2(y, x)
+    and the gradients of theta with respect to the four vertices [1 / DPD length]; ``"dihedral"``: ``(xa, xb, xc,
+    xd) -> (theta, ga, gb, gc, gd)``.
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

@@ -24,17 +24,9 @@ __all__ = ["shell_kernels", "launch_forces"]
 
 @functools.cache
 def shell_kernels(dtype) -> dict:
-    """Every shell kernel of one scalar type (built once per type), name -> ``wp.Kernel``.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        The kernels of all force families; the shared Warp functions are left out.
+    """Every shell kernel of one scalar type (built once per type), name -> ``wp.Kernel``; ``dtype`` is
+    ``wp.float32`` or ``wp.float64``. Returns a dict: The kernels of all force families; the shared Warp
+    functions are left out.
     """
     out = {}
     for family in (lim_kernels, bending_kernels, gather_kernels, constraint_kernels, self_avoid_kernels,

@@ -37,18 +37,9 @@ __all__ = ["lim_kernels"]
 
 @functools.cache
 def lim_kernels(dtype) -> dict:
-    """Build (once per scalar type) the Lim triangle function and its scatter kernel.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"lim_triangle"`` (Warp function: forces on the three corners of one triangle and its energy W)
-        and ``"lim_kernel"`` (one thread per triangle, atomics into the three vertices).
+    """Build (once per scalar type) the Lim triangle function and its scatter kernel; ``dtype`` is ``wp.float32`` or
+    ``wp.float64``. Returns a dict: ``"lim_triangle"`` (Warp function: forces on the three corners of one
+    triangle and its energy W) and ``"lim_kernel"`` (one thread per triangle, atomics into the three vertices).
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

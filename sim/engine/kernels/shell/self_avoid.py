@@ -93,18 +93,10 @@ def self_avoid_grid_plan(meshes: Sequence[ShellMesh], offsets: Sequence[int], ma
 
 @functools.cache
 def self_avoid_kernels(dtype) -> dict:
-    """Build (once per scalar type) the self-avoidance kernels.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"grid_positions_kernel"`` (shell vertices moved into their replica's slot, float32 for the hash grid)
-        and ``"self_avoid_kernel"`` (one thread per shell vertex: WCA forces and energy from the grid query).
+    """Build (once per scalar type) the self-avoidance kernels; ``dtype`` is ``wp.float32`` or ``wp.float64``.
+    Returns a dict: ``"grid_positions_kernel"`` (shell vertices moved into their replica's slot, float32 for the
+    hash grid) and ``"self_avoid_kernel"`` (one thread per shell vertex: WCA forces and energy from the grid
+    query).
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f

@@ -18,17 +18,8 @@ __all__ = ["viscosity_kernels"]
 
 @functools.cache
 def viscosity_kernels(dtype) -> dict:
-    """Build (once per scalar type) the bond-viscosity kernel.
-
-    Parameters
-    ----------
-    dtype : warp scalar type
-        ``wp.float32`` or ``wp.float64``.
-
-    Returns
-    -------
-    dict
-        ``"bond_viscosity_kernel"`` (one thread per edge, atomics into its two vertices).
+    """Build (once per scalar type) the bond-viscosity kernel; ``dtype`` is ``wp.float32`` or ``wp.float64``.
+    Returns a dict: ``"bond_viscosity_kernel"`` (one thread per edge, atomics into its two vertices).
     """
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f
