@@ -1,7 +1,7 @@
 """bubblecal: DPD microbubble shell models calibrated against AFM and acoustic data.
 
-Subpackages (layers point one way: workflows -> inference, models -> surrogates, priors -> data;
-campaigns -> sim, priors, data; sim depends on data only):
+Subpackages (layers point one way, ARCHITECTURE.md: workflows -> every layer; campaigns -> sim, priors, data;
+models -> surrogates, priors, data; surrogates, priors, sim -> data; inference knows no physics):
 
 - ``bubblecal.data``        units, reference curves, acoustic observations, loaders
 - ``bubblecal.priors``      prior/hyperprior TOML files and their typed loader
