@@ -29,6 +29,10 @@ Design
 * ``design='grid'`` (ringdown sweeps): ``ka`` takes ``ka_values`` (or ``n_samples`` values evenly spaced
   over ``ranges['ka']``), every other parameter is fixed (``lo == hi``), mu = ka/3 (the shell model's
   rule); several diameters may be listed and the design is diameters x ka values.
+* A design over a diameter range (``diameter_range_um`` with ``diameter_step_um``; 'lhs' only): the
+  hypercube's last dimension is the diameter, mapped evenly onto the levels lo, lo + step, ..., hi, one mesh
+  and one batch per level; compression grids are then fractions of the diameter (``loading_fractions``),
+  indentation forces absolute (:mod:`~bubblecal.campaigns.diameters`).
 
 Sample ``i`` has the id ``f"{name}-{i:06d}"`` and the seed :func:`sample_seed` ``(config.seed, i)``.
 
@@ -71,9 +75,17 @@ from bubblecal.campaigns.config import (
     DESIGN_FIELDS,
     DESIGNS,
     EXECUTION_ONLY_TIER_SETTINGS,
+    OPTIONAL_DESIGN_FIELDS,
     CampaignConfig,
 )
 from bubblecal.campaigns.design import design_points, grid_design, lhs_design, sample_ids, sample_seed
+from bubblecal.campaigns.diameters import (
+    DIAMETER_DESIGN_RANGE_UM,
+    MAX_COMPRESSION_FRACTION,
+    diameter_levels,
+    fraction_grid,
+    published_grid,
+)
 from bubblecal.campaigns.errors import CampaignConfigError, CampaignError, CampaignFileError
 from bubblecal.campaigns.files import (
     CampaignFile,
@@ -97,7 +109,9 @@ from bubblecal.campaigns.tasks import (
 
 __all__ = [
     # configuration and errors
-    "DESIGNS", "DESIGN_FIELDS", "EXECUTION_ONLY_TIER_SETTINGS", "CampaignConfig",
+    "DESIGNS", "DESIGN_FIELDS", "OPTIONAL_DESIGN_FIELDS", "EXECUTION_ONLY_TIER_SETTINGS", "CampaignConfig",
+    # diameters and loading grids
+    "DIAMETER_DESIGN_RANGE_UM", "MAX_COMPRESSION_FRACTION", "diameter_levels", "fraction_grid", "published_grid",
     "CampaignError", "CampaignConfigError", "CampaignFileError",
     # campaign files
     "CampaignFile", "available_campaigns", "campaign_path", "load_campaign_file", "load_campaign_config",

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.campaigns.diameters import check_loading, diameter_levels, fraction_grid, published_grid
 from bubblecal.campaigns.errors import CampaignConfigError
 from bubblecal.data import PROTOCOLS, RECORD_STATUSES, RETRY_STATUSES, SHELL_PARAMETERS, jsonable
 from bubblecal.sim.tiers import TIER_NAMES
@@ -24,6 +25,7 @@ from bubblecal.sim.tiers import TIER_NAMES
 __all__ = [
     "DESIGNS",
     "DESIGN_FIELDS",
+    "OPTIONAL_DESIGN_FIELDS",
     "EXECUTION_ONLY_TIER_SETTINGS",
     "CampaignConfig",
 ]
@@ -33,6 +35,9 @@ DESIGNS = ("lhs", "grid")
 #: Fields that define the design (and the meaning of the records): a store refuses a config that changes them.
 DESIGN_FIELDS = ("name", "protocol", "diameter_um", "ranges", "n_samples", "seed", "tier", "tier_settings",
                  "design", "ka_values", "loading_grid", "subdivisions")
+#: Design-defining fields of designs over a diameter range or with a scaled grid: hashed only when set, so the
+#: designs of the other campaigns keep their hashes.
+OPTIONAL_DESIGN_FIELDS = ("diameter_range_um", "diameter_step_um", "loading_fractions")
 #: [tier] keys that change how curves are scheduled on the device, not the curves: left out of the design hash.
 EXECUTION_ONLY_TIER_SETTINGS = ("schedule", "max_replicas")
 
@@ -60,8 +65,9 @@ class CampaignConfig:
         Sample-id prefix and default store name (letters, digits, '.', '_', '-'; starts with a letter or digit).
     protocol : str
         One of :data:`bubblecal.data.names.PROTOCOLS`: 'compression', 'indentation' or 'ringdown'.
-    diameter_um : float or tuple of float
-        Bubble diameter [um] in [0.5, 20]; a tuple of several diameters only with ``design='grid'``.
+    diameter_um : float or tuple of float or None
+        Bubble diameter [um] in [0.5, 20]; a tuple of several diameters only with ``design='grid'``; None
+        with ``diameter_range_um``.
     ranges : Mapping[str, tuple[float, float]]
         ``{ka, kb, b1, b2, a3, a4: (lo, hi)}`` in DPD units (ka DPD 2-D modulus, lo > 0; kb DPD energy, lo >= 0;
         b1..a4 dimensionless); ``lo == hi`` fixes a parameter.
@@ -90,6 +96,15 @@ class CampaignConfig:
         Campaign store directory.
     retry_statuses : tuple of str
         Record statuses a restart re-runs (default :data:`bubblecal.data.names.RETRY_STATUSES`; never 'ok').
+    diameter_range_um : tuple of float, optional
+        (lo, hi) [um]: the diameter is a dimension of the Latin hypercube, on the levels lo, lo + step, ..., hi
+        (:mod:`bubblecal.campaigns.diameters`); 'lhs' compression or indentation only, within
+        :data:`~bubblecal.campaigns.diameters.DIAMETER_DESIGN_RANGE_UM`.
+    diameter_step_um : float, optional
+        Level spacing [um] of ``diameter_range_um`` (required with it).
+    loading_fractions : tuple of float, optional
+        Compression only: total plate displacements as fractions of the diameter (the grid at diameter D is
+        ``fraction * D`` in DPD length); required by compression over a diameter range.
 
     Raises
     ------
@@ -113,6 +128,9 @@ class CampaignConfig:
     subdivisions: int | None = None
     store: str | Path = "campaign.store"
     retry_statuses: tuple[str, ...] = RETRY_STATUSES
+    diameter_range_um: tuple[float, float] | None = None
+    diameter_step_um: float | None = None
+    loading_fractions: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         # the checks run in this order, so a config with several errors always reports the same one
@@ -136,7 +154,10 @@ class CampaignConfig:
             raise CampaignConfigError("design", f"must be one of {', '.join(DESIGNS)}, got {self.design!r}")
 
     def _check_diameters(self) -> None:
-        """diameter_um: a float, or a tuple of several for 'grid'."""
+        """diameter_um: a float, or a tuple of several for 'grid'; or a range with its level spacing."""
+        if self.diameter_range_um is not None or self.diameter_step_um is not None:
+            self._check_diameter_range()
+            return
         d = self.diameter_um
         many = isinstance(d, (list, tuple))
         values = list(d) if many else [d]
@@ -153,6 +174,28 @@ class CampaignConfig:
                                                      "(ringdown sweeps); use one campaign per diameter for 'lhs'")
         object.__setattr__(self, "diameter_um",
                            tuple(float(v) for v in values) if many and len(values) > 1 else float(values[0]))
+
+    def _check_diameter_range(self) -> None:
+        """diameter_range_um and diameter_step_um of a design over the diameter."""
+        if self.diameter_range_um is None or self.diameter_step_um is None:
+            missing = "diameter_step_um" if self.diameter_range_um is not None else "ranges.diameter_um"
+            raise CampaignConfigError(missing, "a design over a diameter range needs both [ranges].diameter_um = "
+                                               "[lo, hi] and diameter_step_um (the level spacing, um)")
+        if self.diameter_um is not None:
+            raise CampaignConfigError("diameter_um", "give either diameter_um (one diameter) or a diameter range "
+                                                     "([ranges].diameter_um = [lo, hi]), not both")
+        if self.design != "lhs" or self.protocol == "ringdown":
+            raise CampaignConfigError("ranges.diameter_um", "a diameter range is a dimension of a Latin hypercube "
+                                                            "(design = 'lhs', compression or indentation); ringdown "
+                                                            "sweeps list their diameters in diameter_um")
+        r = self.diameter_range_um
+        if not isinstance(r, (list, tuple)) or len(r) != 2:
+            raise CampaignConfigError("ranges.diameter_um", f"must be [lo, hi] in um, got {r!r}")
+        levels = diameter_levels(r[0], r[1], self.diameter_step_um)
+        object.__setattr__(self, "diameter_range_um", (float(r[0]), float(r[1])))
+        object.__setattr__(self, "diameter_step_um", float(self.diameter_step_um))
+        if len(levels) < 2:
+            raise CampaignConfigError("diameter_step_um", "the range needs at least two levels")
 
     def _check_ranges(self) -> None:
         """ranges: every shell parameter, (lo, hi) finite with lo <= hi, in SHELL_PARAMETERS order."""
@@ -232,27 +275,10 @@ class CampaignConfig:
                                                       f"{self.subdivisions!r}")
 
     def _check_loading_grid(self) -> None:
-        """loading_grid: none for ringdown; else explicit and increasing, or a published grid must exist."""
-        if self.protocol == "ringdown":
-            if self.loading_grid is not None:
-                raise CampaignConfigError("loading_grid", "ringdown records R(t); it takes no loading grid")
-        elif self.loading_grid is not None:
-            g = self.loading_grid
-            ok = isinstance(g, (list, tuple)) and len(g) >= 2 and all(_is_number(v) and math.isfinite(v) for v in g)
-            a = np.asarray(g, dtype=float) if ok else None
-            if not ok or np.any(a < 0) or np.any(np.diff(a) <= 0):
-                unit = "DPD length" if self.protocol == "compression" else "DPD force"
-                raise CampaignConfigError("loading_grid", f">= 2 finite, non-negative, strictly increasing values "
-                                                          f"[{unit}] needed, got {g!r}")
-            object.__setattr__(self, "loading_grid", tuple(float(v) for v in a))
-        else:
-            for dia in self.diameters:
-                try:
-                    _published_grid(self.protocol, dia)
-                except ValueError as exc:
-                    raise CampaignConfigError("loading_grid", f"no published grid for {self.protocol} at "
-                                                              f"{dia:g} um ({exc}); give loading_grid "
-                                                              "explicitly") from None
+        """loading_grid / loading_fractions (:func:`bubblecal.campaigns.diameters.check_loading`)."""
+        grid, fractions = check_loading(self)
+        object.__setattr__(self, "loading_grid", grid)
+        object.__setattr__(self, "loading_fractions", fractions)
 
     def _check_retry_and_store(self) -> None:
         """retry_statuses (record statuses other than 'ok'), store (a non-empty path)."""
@@ -268,7 +294,9 @@ class CampaignConfig:
     # -- derived ----------------------------------------------------------------------------------
     @property
     def diameters(self) -> tuple[float, ...]:
-        """The campaign's diameters [um] (one unless a grid over several)."""
+        """The campaign's diameters [um]: one, a grid's several, or the levels of a diameter range."""
+        if self.diameter_range_um is not None:
+            return diameter_levels(*self.diameter_range_um, self.diameter_step_um)
         d = self.diameter_um
         return tuple(d) if isinstance(d, tuple) else (float(d),)
 
@@ -290,8 +318,13 @@ class CampaignConfig:
     @property
     def n_tasks(self) -> int:
         """Tasks of a full run (chunks of ``replicas_per_task`` per diameter)."""
-        per = math.ceil(self.n_design / len(self.diameters) / self.replicas_per_task)
-        return per * len(self.diameters)
+        n_levels = len(self.diameters)
+        if self.diameter_range_um is not None:  # n // L or n // L + 1 points per level (diameters.level_of_unit)
+            q, r = divmod(self.n_samples, n_levels)
+            rpt = self.replicas_per_task
+            return r * math.ceil((q + 1) / rpt) + (n_levels - r) * math.ceil(q / rpt)
+        per = math.ceil(self.n_design / n_levels / self.replicas_per_task)
+        return per * n_levels
 
     @property
     def store_path(self) -> Path:
@@ -310,13 +343,15 @@ class CampaignConfig:
         -------
         tuple of float or None
             Compression total displacements [DPD length] or indentation forces [DPD force]: ``loading_grid``,
-            else the published grid; None for ringdown.
+            ``loading_fractions`` times the diameter, else the published grid; None for ringdown.
         """
         if self.protocol == "ringdown":
             return None
+        if self.loading_fractions is not None:
+            return fraction_grid(self.loading_fractions, diameter_um)
         if self.loading_grid is not None:
             return self.loading_grid
-        return _published_grid(self.protocol, diameter_um)
+        return published_grid(self.protocol, diameter_um)
 
     def design_dict(self) -> dict:
         """The fields that define the design and the records' meaning (:data:`DESIGN_FIELDS`), JSON-able.
@@ -324,8 +359,10 @@ class CampaignConfig:
         ``tier_settings`` leaves out :data:`EXECUTION_ONLY_TIER_SETTINGS`.
         """
         out = {}
-        for k in DESIGN_FIELDS:
+        for k in DESIGN_FIELDS + OPTIONAL_DESIGN_FIELDS:
             v = getattr(self, k)
+            if k in OPTIONAL_DESIGN_FIELDS and v is None:
+                continue
             if k == "ranges":
                 v = {p: list(b) for p, b in v.items()}
             elif isinstance(v, tuple):
@@ -348,15 +385,3 @@ class CampaignConfig:
         out.update(replicas_per_task=self.replicas_per_task, device=self.device, store=str(self.store),
                    retry_statuses=list(self.retry_statuses))
         return out
-
-
-def _published_grid(protocol: str, diameter_um: float) -> tuple[float, ...]:
-    """The published loading grid of a compression or indentation protocol (DPD length or DPD force)."""
-    from bubblecal.sim.protocols.loading import (
-        published_compression_protocol,
-        published_indentation_protocol,
-    )
-
-    if protocol == "compression":
-        return published_compression_protocol().displacements_dpd
-    return published_indentation_protocol(diameter_um).forces_dpd

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from bubblecal.campaigns.config import CampaignConfig
+from bubblecal.campaigns.diameters import level_of_unit
 from bubblecal.data import SHELL_PARAMETERS
 
 __all__ = ["sample_ids", "sample_seed", "lhs_design", "grid_design", "design_points"]
@@ -49,10 +50,12 @@ def sample_seed(seed: int, index: int) -> int:
 
 
 def lhs_design(config: CampaignConfig) -> dict[str, np.ndarray]:
-    """Latin hypercube over the free parameters.
+    """Latin hypercube over the free parameters (and the diameter of a design over a diameter range).
 
     ``scipy.stats.qmc.LatinHypercube(d, seed=config.seed)`` with d = number of free parameters (lo < hi),
-    scaled to ``config.ranges``; fixed parameters (lo == hi) are constant.
+    scaled to ``config.ranges``; fixed parameters (lo == hi) are constant.  With ``config.diameter_range_um``
+    the hypercube has one more (last) dimension, mapped onto the diameter levels
+    (:func:`bubblecal.campaigns.diameters.level_of_unit`: n / n_levels points per level).
 
     Parameters
     ----------
@@ -63,15 +66,21 @@ def lhs_design(config: CampaignConfig) -> dict[str, np.ndarray]:
     -------
     dict of str to numpy.ndarray
         ``{ka, kb, b1, b2, a3, a4: array[n_samples]}`` in DPD units (ka DPD 2-D modulus, kb DPD energy,
-        b1..a4 dimensionless).
+        b1..a4 dimensionless), plus ``'diameter_um'`` [um] for a design over a diameter range.
     """
     from scipy.stats import qmc
 
     free = config.free_names
     n = config.n_samples
     out = {k: np.full(n, config.ranges[k][0]) for k in SHELL_PARAMETERS}
+    over_diameter = config.diameter_range_um is not None
+    if free or over_diameter:
+        unit = qmc.LatinHypercube(len(free) + int(over_diameter), seed=config.seed).random(n)
+        if over_diameter:
+            levels = np.asarray(config.diameters, dtype=np.float64)
+            out["diameter_um"] = levels[level_of_unit(unit[:, -1], len(levels))]
+            unit = unit[:, :-1]
     if free:
-        unit = qmc.LatinHypercube(len(free), seed=config.seed).random(n)
         lo = np.array([config.ranges[k][0] for k in free])
         hi = np.array([config.ranges[k][1] for k in free])
         scaled = qmc.scale(unit, lo, hi)
@@ -126,6 +135,6 @@ def design_points(config: CampaignConfig) -> dict[str, np.ndarray]:
         out = grid_design(config)
     else:
         out = lhs_design(config)
-        out["diameter_um"] = np.full(config.n_samples, config.diameters[0])
+        out.setdefault("diameter_um", np.full(config.n_samples, config.diameters[0]))
     out["seed"] = np.array([sample_seed(config.seed, i) for i in range(config.n_design)], dtype=np.int64)
     return out

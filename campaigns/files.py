@@ -15,12 +15,16 @@ Format (every key is checked; an error names the file, the field and the allowed
     store = "stores/def21"               # campaign store directory; relative = against this file's folder;
                                          # absent: ./<name>.store in the current directory
     # optional: subdivisions = 4 (icosphere level), loading_grid = [...] (default: the published grid),
+    #           loading_fractions = [...] (compression: total displacement / diameter at each point),
+    #           diameter_step_um = 0.1 (levels of a diameter range; then no diameter_um here),
     #           ka_values = [...] (grid design), retry_statuses = ["failed", "timeout"], description = "..."
 
     [ranges]                             # DPD units: ka 2-D modulus, kb energy, b1..a4 dimensionless
     priors = "definity_full"             # shipped workflow name or a priors TOML path: its shell box; a list
                                          # of them (["definity_full", "definity_reduced_acoustic"]): the union box
     kb = 389.23                          # a number fixes a parameter, [lo, hi] samples it (overrides priors)
+    # diameter_um = [1.5, 8.0]           # the diameter as a Latin-hypercube dimension [um] (lhs; needs
+                                         # [campaign].diameter_step_um; bubblecal.campaigns.diameters)
 
     [tier]                               # keyword settings of the tier (e.g. ftol, max_steps for quasistatic)
 
@@ -63,6 +67,8 @@ _CAMPAIGN_KEYS = {
     "store": "a directory path (relative to this file's folder)",
     "subdivisions": "an integer 0 - 7",
     "loading_grid": "a list of >= 2 increasing non-negative numbers (DPD length or force)",
+    "loading_fractions": "compression: a list of >= 2 increasing fractions of the diameter in [0, 0.5]",
+    "diameter_step_um": "the level spacing [um] of [ranges].diameter_um = [lo, hi], >= 0.01",
     "ka_values": "a list of ka values > 0 (DPD 2-D modulus)",
     "retry_statuses": "a list of statuses to re-run (failed, timeout, unstable, ruptured, invalid)",
     "description": "free text",
@@ -241,7 +247,8 @@ def _campaign_table(path: Path, raw: dict) -> dict:
         if key not in _CAMPAIGN_KEYS:
             raise CampaignFileError(path, f"[campaign].{key}", f"unknown key (allowed: "
                                                                f"{', '.join(_CAMPAIGN_KEYS)})")
-    for key in ("name", "protocol", "diameter_um"):
+    required = ("name", "protocol") if "diameter_um" in raw.get("ranges", {}) else ("name", "protocol", "diameter_um")
+    for key in required:
         if key not in camp:
             raise CampaignFileError(path, f"[campaign].{key}", f"missing; must be {_CAMPAIGN_KEYS[key]}")
     design = camp.get("design", "lhs")
@@ -310,7 +317,8 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
     camp = _campaign_table(path, raw)
     if "ranges" not in raw:
         raise CampaignFileError(path, "[ranges]", "missing section: priors = '<workflow>' and/or ka = [lo, hi], ...")
-    ranges, priors = _ranges(path, raw["ranges"])
+    ranges, priors = _ranges(path, raw["ranges"])  # the shell box; [ranges].diameter_um is the diameter range
+    diameter_range = raw["ranges"].get("diameter_um")
     tier_settings = raw.get("tier", {})
     if not isinstance(tier_settings, dict):
         raise CampaignFileError(path, "[tier]", "must be a table of setting = value")
@@ -320,14 +328,17 @@ def load_campaign_file(name_or_path: str | Path, *, store: str | Path | None = N
 
     kwargs = dict(name=camp["name"], protocol=camp["protocol"], ranges=ranges, tier_settings=tier_settings,
                   store=str(_store_path(path, camp, store)))
-    d = camp["diameter_um"]
+    d = camp.get("diameter_um")
     kwargs["diameter_um"] = tuple(d) if isinstance(d, list) else d
-    for key in ("tier", "design", "n_samples", "seed", "replicas_per_task", "device", "subdivisions"):
+    if diameter_range is not None:
+        kwargs["diameter_range_um"] = tuple(diameter_range) if isinstance(diameter_range, list) else diameter_range
+    for key in ("tier", "design", "n_samples", "seed", "replicas_per_task", "device", "subdivisions",
+                "diameter_step_um"):
         if key in camp:
             kwargs[key] = camp[key]
     if "n_samples" not in camp:
         kwargs["n_samples"] = None
-    for key in ("loading_grid", "ka_values", "retry_statuses"):
+    for key in ("loading_grid", "loading_fractions", "ka_values", "retry_statuses"):
         if key in camp:
             if not isinstance(camp[key], list):
                 raise CampaignFileError(path, f"[campaign].{key}", f"must be {_CAMPAIGN_KEYS[key]}, got "

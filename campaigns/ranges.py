@@ -37,7 +37,7 @@ def _ranges(path: Path, raw: dict) -> tuple[dict, str | None]:
     """The [ranges] table -> {param: (lo, hi)} (priors box, then explicit overrides)."""
     if not isinstance(raw, dict):
         raise CampaignFileError(path, "[ranges]", "must be a table")
-    allowed = ("priors",) + SHELL_PARAMETERS
+    allowed = ("priors",) + SHELL_PARAMETERS + ("diameter_um",)
     for key in raw:
         if key not in allowed:
             raise CampaignFileError(path, f"[ranges].{key}", f"unknown key (allowed: {', '.join(allowed)})")

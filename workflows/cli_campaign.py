@@ -50,14 +50,24 @@ def _design_tables(cf, where, store_note: str) -> None:
     grid = c.grid_for(c.diameters[0])
     unit = {"compression": "DPD length (total displacement)", "indentation": "DPD force (per pole)"}.get(c.protocol)
     summary = make_table(f"campaign {c.name} ({cf.path})", ("setting", "value"))
-    rows = [("protocol", c.protocol), ("diameter(s) [um]", ", ".join(_fmt(d) for d in c.diameters)),
+    diameters = ", ".join(_fmt(d) for d in c.diameters)
+    if c.diameter_range_um is not None:
+        diameters = (f"{_fmt(c.diameter_range_um[0])} - {_fmt(c.diameter_range_um[1])} (Latin-hypercube dimension, "
+                     f"{len(c.diameters)} levels {_fmt(c.diameter_step_um)} apart)")
+    loading = ("t, R(t) [DPD time, DPD length]" if grid is None else
+               f"{len(grid)} points {_fmt(grid[0])} .. {_fmt(grid[-1])} [{unit}]")
+    if c.loading_fractions is not None:
+        top = c.grid_for(c.diameters[-1])
+        loading = (f"{len(grid)} points, total displacement {_fmt(c.loading_fractions[0])} .. "
+                   f"{_fmt(c.loading_fractions[-1])} x diameter ({_fmt(grid[-1])} [DPD length] at "
+                   f"{_fmt(c.diameters[0])} um, {_fmt(top[-1])} at {_fmt(c.diameters[-1])} um)")
+    rows = [("protocol", c.protocol), ("diameter(s) [um]", diameters),
             ("tier", f"{c.tier} {json.dumps(c.tier_settings) if c.tier_settings else '(defaults)'}"),
             ("design", f"{c.design}, seed {c.seed}" + (f", box from priors {cf.priors}" if cf.priors else "")),
             ("design points", str(c.n_design)),
             ("replicas per task", str(c.replicas_per_task)), ("tasks (full run)", str(c.n_tasks)),
             ("device", c.device), ("subdivisions", "mesh default" if c.subdivisions is None else str(c.subdivisions)),
-            ("loading grid", "t, R(t) [DPD time, DPD length]" if grid is None else
-             f"{len(grid)} points {_fmt(grid[0])} .. {_fmt(grid[-1])} [{unit}]"),
+            ("loading grid", loading),
             ("store", f"{c.store} {store_note}")]
     if where.n_done is not None:
         rows.append(("done / pending", f"{where.n_done} / {where.n_pending}"))

@@ -25,7 +25,8 @@ def write(tmp_path, text=GOOD, name="c.toml") -> Path:
 
 def test_shipped_campaigns_are_valid():
     names = available_campaigns()
-    mech = [n for n in names if "ringdown" not in n]
+    # the designs over the diameter are checked in test_diameters.py
+    mech = [n for n in names if "ringdown" not in n and "1.5-8um" not in n]
     mirheo = [n for n in mech if n.endswith("_mirheo")]
     assert len(mech) == 9 and {"definity_ringdown", "sonovue_ringdown"} <= set(names)
     # the Mirheo-convention twins of the three indentation sets: same box, seed and grid, another design
@@ -129,5 +130,5 @@ def test_missing_sections_and_bad_toml(tmp_path):
         load_campaign_config(write(tmp_path, "[ranges]\nka = 1.0\n"))
     with pytest.raises(CampaignFileError, match="not valid TOML"):
         load_campaign_config(write(tmp_path, "[campaign\n"))
-    with pytest.raises(CampaignFileError, match="shipped: definity_compression_2.1um"):
+    with pytest.raises(CampaignFileError, match="shipped: .*definity_compression_2.1um"):
         load_campaign_config("no_such_campaign")
