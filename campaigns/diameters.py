@@ -29,8 +29,8 @@ __all__ = [
     "published_grid",
 ]
 
-#: Diameters [um] a diameter-range design may span: where the quasi-static tier in the shipped conventions is
-#: validated against the explicit tier (docs/physics.md section 7).
+#: Diameters [um] a diameter-range design may span: the range of the diameter-aware training sets, over which the
+#: quasi-static tier's conventions are checked against the explicit tier (docs/physics.md sections 5 and 7).
 DIAMETER_DESIGN_RANGE_UM = (1.5, 8.0)
 #: The deepest compression a fraction grid may reach (total plate displacement / diameter): the plates meet at 1.
 MAX_COMPRESSION_FRACTION = 0.5
@@ -62,8 +62,8 @@ def diameter_levels(lo: float, hi: float, step: float) -> tuple[float, ...]:
     rlo, rhi = DIAMETER_DESIGN_RANGE_UM
     for v in (lo, hi):
         if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and rlo <= v <= rhi):
-            raise CampaignConfigError("ranges.diameter_um", f"must be [lo, hi] within [{rlo:g}, {rhi:g}] um (where "
-                                                            f"the quasi-static tier is validated), got "
+            raise CampaignConfigError("ranges.diameter_um", f"must be [lo, hi] within [{rlo:g}, {rhi:g}] um (the "
+                                                            f"range of the diameter-aware training sets), got "
                                                             f"[{lo!r}, {hi!r}]")
     if not lo < hi:
         raise CampaignConfigError("ranges.diameter_um", f"needs lo < hi [um], got [{lo:g}, {hi:g}]; a single "
