@@ -316,8 +316,17 @@ class CampaignConfig:
         return self.n_samples * len(self.diameters) if self.design == "grid" else self.n_samples
 
     @property
+    def pools_levels(self) -> bool:
+        """Whether a task may hold several diameter levels (one refill pool over bubble sizes): quasi-static
+        indentation over a diameter range on one mesh level."""
+        return (self.diameter_range_um is not None and self.protocol == "indentation" and self.tier == "quasistatic"
+                and self.subdivisions is not None)
+
+    @property
     def n_tasks(self) -> int:
-        """Tasks of a full run (chunks of ``replicas_per_task`` per diameter)."""
+        """Tasks of a full run (chunks of ``replicas_per_task`` per diameter, or over the levels)."""
+        if self.pools_levels:
+            return math.ceil(self.n_design / self.replicas_per_task)
         n_levels = len(self.diameters)
         if self.diameter_range_um is not None:  # n // L or n // L + 1 points per level (diameters.level_of_unit)
             q, r = divmod(self.n_samples, n_levels)

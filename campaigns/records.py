@@ -66,7 +66,6 @@ def task_records(config: CampaignConfig, task: CampaignTask, res: TaskResult | N
         (DPD length / DPD force / DPD time; DPD force / DPD length), ``radius_dpd`` in DPD length.
     """
     R = task.n_replicas
-    radius = radius_dpd_from_diameter_um(task.diameter_um)
     recs = []
     if res is not None:
         x = np.asarray(res.x, dtype=np.float64)
@@ -75,7 +74,7 @@ def task_records(config: CampaignConfig, task: CampaignTask, res: TaskResult | N
         shapes_ok = y.ndim == 2 and y.shape[0] == R and x2.shape == y.shape and len(res.status) == R
     for r in range(R):
         prov = {"campaign": config.name, "design_hash": design_hash, "task": task.index, "replicas_in_task": R,
-                "device": task.device, "diameter_um": task.diameter_um}
+                "device": task.device, "diameter_um": task.replica_diameter(r)}
         message = None
         if res is None:
             status, xs, ys, message = "failed", [], [], error
@@ -98,7 +97,8 @@ def task_records(config: CampaignConfig, task: CampaignTask, res: TaskResult | N
             prov.update(provenance)
         recs.append(make_record(
             sample_id=task.sample_ids[r], setup=config.protocol,
-            params={k: float(task.params[k][r]) for k in SHELL_PARAMETERS}, radius_dpd=radius, x=xs, y=ys,
+            params={k: float(task.params[k][r]) for k in SHELL_PARAMETERS},
+            radius_dpd=radius_dpd_from_diameter_um(task.replica_diameter(r)), x=xs, y=ys,
             status=status, seed=task.seeds[r], tier=task.tier, curve_id=f"{config.name}/{task.sample_ids[r]}",
             provenance=prov, message=message, code_version=code_version))
     return recs

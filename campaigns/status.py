@@ -163,5 +163,8 @@ def design_progress(config: CampaignConfig) -> DesignProgress:
         diameter = design_points(config)["diameter_um"]
         for i in pending:
             per_diameter[float(diameter[i])] = per_diameter.get(float(diameter[i]), 0) + 1
-    n_tasks = sum(-(-n // config.replicas_per_task) for n in per_diameter.values())
+    if config.pools_levels:
+        n_tasks = -(-len(pending) // config.replicas_per_task)
+    else:
+        n_tasks = sum(-(-n // config.replicas_per_task) for n in per_diameter.values())
     return DesignProgress(state, config.n_design - len(pending), len(pending), n_tasks)

@@ -27,7 +27,8 @@ __all__ = ["CampaignTask", "TaskResult", "make_tasks", "pending_indices", "simul
 
 @dataclass(frozen=True)
 class CampaignTask:
-    """R replicas of one diameter, simulated together (one CurveRequest / one GPU launch).
+    """R replicas, simulated together (one CurveRequest / one GPU launch): of one diameter, or of several
+    diameter levels on one mesh level (``diameters_um``, :attr:`CampaignConfig.pools_levels`).
 
     Parameters
     ----------
@@ -58,6 +59,9 @@ class CampaignTask:
         ``{ka..a4: array[R]}`` in DPD units.
     seeds : tuple of int
         Per-replica seeds.
+    diameters_um : tuple of float, optional
+        Per-replica diameters [um] of a task over several levels (``diameter_um`` is then the first); None:
+        every replica at ``diameter_um``.
     """
 
     index: int
@@ -73,11 +77,16 @@ class CampaignTask:
     sample_ids: tuple[str, ...]
     params: Mapping[str, np.ndarray]
     seeds: tuple[int, ...]
+    diameters_um: tuple[float, ...] | None = None
 
     @property
     def n_replicas(self) -> int:
         """Number of replicas R."""
         return len(self.sample_ids)
+
+    def replica_diameter(self, r: int) -> float:
+        """Diameter [um] of replica ``r``."""
+        return self.diameter_um if self.diameters_um is None else self.diameters_um[r]
 
 
 @dataclass
@@ -182,24 +191,27 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
     Returns
     -------
     list of CampaignTask
-        Tasks numbered from 0, grouped by diameter in order of first appearance.
+        Tasks numbered from 0, grouped by diameter in order of first appearance; when
+        :attr:`CampaignConfig.pools_levels`, chunks of the indices in order over all their levels.
     """
     design = design if design is not None else design_points(config)
     ids = sample_ids(config)
-    by_diameter: dict[float, list[int]] = {}
+    groups: dict[float | None, list[int]] = {}
     for i in indices:
-        by_diameter.setdefault(float(design["diameter_um"][i]), []).append(int(i))
+        groups.setdefault(None if config.pools_levels else float(design["diameter_um"][i]), []).append(int(i))
     tasks = []
     settings = dict(config.tier_settings)
-    for dia, idx in by_diameter.items():
+    for key, idx in groups.items():
         for start in range(0, len(idx), config.replicas_per_task):
             chunk = idx[start:start + config.replicas_per_task]
+            sizes = tuple(float(design["diameter_um"][i]) for i in chunk)
+            dia = sizes[0] if key is None else key
             tasks.append(CampaignTask(
                 index=len(tasks), campaign=config.name, protocol=config.protocol, diameter_um=dia, tier=config.tier,
                 tier_settings=settings, grid=config.grid_for(dia), device=config.device,
                 subdivisions=config.subdivisions, indices=tuple(chunk), sample_ids=tuple(ids[i] for i in chunk),
                 params={k: np.asarray(design[k][chunk], dtype=np.float64) for k in SHELL_PARAMETERS},
-                seeds=tuple(int(design["seed"][i]) for i in chunk)))
+                seeds=tuple(int(design["seed"][i]) for i in chunk), diameters_um=sizes if key is None else None))
     return tasks
 
 
@@ -248,7 +260,8 @@ def simulate_task(task: CampaignTask,
 
     tier = get_tier(task.tier, **dict(task.tier_settings))
     request = CurveRequest(protocol=task.protocol, diameter_um=task.diameter_um, grid=task.grid,
-                           params=task.params, seeds=task.seeds, subdivisions=task.subdivisions)
+                           params=task.params, seeds=task.seeds, subdivisions=task.subdivisions,
+                           diameters_um=task.diameters_um)
     if on_curve is not None and _takes_on_curve(tier.run):
         batch = tier.run(request, task.device, on_curve=on_curve)
     else:

@@ -47,6 +47,9 @@ class CurveRequest:
         One per replica.
     subdivisions : int, optional
         Icosphere level (None = the mesh's default for the diameter).
+    diameters_um : tuple of float, optional
+        One diameter [um] per replica, in [0.5, 20], for a pool of several bubble sizes on one mesh level
+        (``subdivisions`` required; the quasi-static tier's indentation only); None: ``diameter_um`` for all.
 
     Raises
     ------
@@ -60,6 +63,7 @@ class CurveRequest:
     params: Mapping[str, np.ndarray]
     seeds: tuple[int, ...]
     subdivisions: int | None = None
+    diameters_um: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.protocol not in LOADING_PROTOCOLS:
@@ -92,6 +96,19 @@ class CurveRequest:
             raise ValueError(f"CurveRequest.seeds must have one seed per replica ({self.n_replicas}), "
                              f"got {len(seeds)}")
         object.__setattr__(self, "seeds", seeds)
+        if self.diameters_um is not None:
+            ds = tuple(float(v) for v in self.diameters_um)
+            if len(ds) != self.n_replicas or not all(math.isfinite(v) and 0.5 <= v <= 20.0 for v in ds):
+                raise ValueError(f"CurveRequest.diameters_um must hold one diameter in [0.5, 20] um per replica "
+                                 f"({self.n_replicas}), got {self.diameters_um!r}")
+            if self.subdivisions is None:
+                raise ValueError("CurveRequest.diameters_um needs subdivisions (one mesh level for every size)")
+            object.__setattr__(self, "diameters_um", ds)
+
+    @property
+    def several_sizes(self) -> bool:
+        """Whether the replicas have different diameters (``diameters_um`` not all ``diameter_um``)."""
+        return self.diameters_um is not None and any(d != self.diameter_um for d in self.diameters_um)
 
     @property
     def n_replicas(self) -> int:

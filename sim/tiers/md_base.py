@@ -59,6 +59,8 @@ class _MDTierBase:
         """The reference mesh of ``request`` (the tier's ``subdivisions`` override the request's)."""
         from bubblecal.sim.engine.mesh import mesh_for_diameter
 
+        if request.several_sizes:
+            raise ValueError(f"{self.name} tier: one bubble size per request (CurveRequest.diameters_um differ)")
         sub = self.subdivisions if self.subdivisions is not None else request.subdivisions
         return mesh_for_diameter(request.diameter_um, sub)
 

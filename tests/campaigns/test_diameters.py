@@ -126,10 +126,42 @@ def test_shipped_diameter_campaigns():
         per_diameter = load_campaign_config(twin)
         assert c.ranges == per_diameter.ranges  # the shell box of the per-diameter sets
         assert c.diameters[0] == 1.5 and c.diameters[-1] == 8.0 and len(c.diameters) == 66
-        assert c.n_samples == 33000 and c.n_tasks == 66 and c.subdivisions == 4
+        assert c.n_samples == 33000 and c.subdivisions == 4
         assert c.tier == "quasistatic" and c.design_dict()["tier_settings"]["dtype"] == "float64"
     # compression reaches past the published grid's deepest fraction (1.68 DPD length at 2.1 um)
     assert comp.grid_for(2.1)[-1] >= 1.68 and comp.tier_settings["thermal_contact"] is True
     # indentation forces cover the published grids and the largest measured force (8,227 DPD force)
     assert ind.grid_for(1.5) == ind.grid_for(8.0) and ind.grid_for(3.2)[-1] >= 8227
     assert ind.tier_settings["indentation_convention"] == "mirheo"
+    # indentation runs one refill pool over all levels, compression one task per level (its sub-steps scale with D)
+    assert ind.pools_levels and ind.n_tasks == 1 and not comp.pools_levels and comp.n_tasks == 66
+
+
+def test_indentation_levels_share_one_pool_and_keep_their_curves(tmp_path):
+    pytest.importorskip("warp")
+    from bubblecal.campaigns import run_campaign
+    from bubblecal.data import CampaignStore
+    from bubblecal.sim.tiers import CurveRequest, get_tier
+
+    box = {**{k: (0.0, 0.0) for k in SHELL_PARAMETERS}, "ka": (3000.0, 20000.0), "kb": (100.0, 1000.0)}
+    settings = {"max_steps": 3000, "max_replicas": 2}
+    c = CampaignConfig(name="pool", protocol="indentation", diameter_um=None, ranges=box, n_samples=6, seed=2,
+                       diameter_range_um=(2.0, 3.0), diameter_step_um=0.5, loading_grid=(0.0, 20.0, 40.0),
+                       subdivisions=2, tier_settings=settings, replicas_per_task=6, store=str(tmp_path / "s"))
+    assert c.pools_levels and c.n_tasks == 1
+    tasks = make_tasks(c, range(6))
+    assert len(tasks) == 1 and sorted(set(tasks[0].diameters_um)) == [2.0, 2.5, 3.0]
+    run_campaign(c, scheduler_address="inline", progress=False)
+    records = {r["sample_id"]: r for r in CampaignStore(c.store_path).read()}
+    design = design_points(c)
+    tier = get_tier("quasistatic", **settings)
+    for d in c.diameters:  # each level alone gives the pooled records' curves, bit for bit
+        idx = [i for i in range(6) if design["diameter_um"][i] == d]
+        alone = tier.run(CurveRequest(protocol="indentation", diameter_um=d, grid=(0.0, 20.0, 40.0),
+                                      params={k: design[k][idx] for k in SHELL_PARAMETERS},
+                                      seeds=tuple(int(design["seed"][i]) for i in idx), subdivisions=2))
+        for row, i in enumerate(idx):
+            rec = records[f"pool-{i:06d}"]
+            assert rec["provenance"]["diameter_um"] == d and rec["radius_dpd"] == pytest.approx(2 * d)
+            assert rec["status"] == alone.status[row]
+            np.testing.assert_array_equal(np.asarray(rec["y"], dtype=float), alone.observable[row])

@@ -52,13 +52,17 @@ class _DeviceChain:
         from bubblecal.sim.engine.kernels.shell import ShellForceField
         from bubblecal.sim.engine.minimize_device import DeviceFire
 
+        meshes = list(mesh) if isinstance(mesh, (list, tuple)) else None  # one reference per replica
+        mesh = meshes[0] if meshes else mesh
+        if meshes is not None and len(meshes) != len(params):
+            raise ValueError(f"{len(meshes)} meshes for {len(params)} parameter sets")
         params = _check_params(params, mesh, gas)
         wp.config.quiet = True
         wp.init()
         self.wp = wp
         T = wp.float64 if dtype is None else dtype
         self.R, self.nv = R, nv = len(params), mesh.n_vertices
-        self.ff = ShellForceField(mesh, params, device=device, dtype=T, force_mode=fire.force_mode)
+        self.ff = ShellForceField(meshes or mesh, params, device=device, dtype=T, force_mode=fire.force_mode)
         self.dtype, self.vec3, dev = T, self.ff.vec3, self.ff.device
         self.device = dev
         npf = np.float64 if T is wp.float64 else np.float32
@@ -79,10 +83,11 @@ class _DeviceChain:
         faces = mesh.faces.astype(np.int64)
         self.tri = wp.array(faces.astype(np.int32), dtype=wp.vec3i, device=dev)
         self.gas_on = gas is not None
-        v0 = mesh.volume()
+        self._gas_model = gas
         g = np.zeros((R, 2))
         if gas is not None:
-            g[:] = (gas.p0 * v0, gas.ambient)
+            g[:, 0] = gas.p0 * (np.array([m.volume() for m in meshes]) if meshes else mesh.volume())
+            g[:, 1] = gas.ambient
         self.gas = wp.array(g.astype(npf), dtype=T, device=dev)
         self.vol = wp.zeros(R, dtype=T, device=dev)
         self.vol_meas = wp.zeros(R, dtype=T, device=dev)
@@ -106,6 +111,8 @@ class _DeviceChain:
         self.pc = [T(c.epsilon), T(c.sigma), T(c.cutoff), T(h_cap), T(c.force_cap)]
         # thermal contact: per-replica rms normal fluctuation, hard wall at the WCA's Barker-Henderson distance
         self.thermal = thermal if self.plate_on else None
+        if meshes is not None and self.thermal is not None:
+            raise ValueError("per-replica meshes are not combined with the thermal contact (one radius per batch)")
         self._radius = float(mesh.radius_dpd) if radius_dpd is None else float(radius_dpd)
         self.tsig = wp.array(self._sigmas(params).astype(npf), dtype=T, device=dev)
         hw = hard_wall_distance(c, thermal.kT) if self.thermal is not None else 0.0
@@ -235,13 +242,26 @@ class _DeviceChain:
                            inputs=[self.fire.x, self.x_prev, self.row_rep, self.flag, coef], device=self.device)
         self.fire.restart(flags)
 
-    def load_samples(self, rows: np.ndarray, params: Sequence[ShellParams]) -> None:
-        """Reuse replica slots ``rows`` for new samples: their shells get ``params`` and return to the
-        stress-free reference (the caller then restarts them at load point 0 with :meth:`start_rows`)."""
+    def load_samples(self, rows: np.ndarray, params: Sequence[ShellParams],
+                     meshes: Sequence[ShellMesh] | None = None) -> None:
+        """Reuse replica slots ``rows`` for new samples: their shells get ``params`` (and the stress-free
+        references ``meshes``, same topology, when given) and return to the reference (the caller then restarts
+        them at load point 0 with :meth:`start_rows`)."""
         rows = np.asarray(rows, dtype=np.int64)
         if len(rows) == 0:
             return
-        self.ff.set_params_rows(rows, list(params))
+        if meshes is None:
+            self.ff.set_params_rows(rows, list(params))
+        else:
+            self.ff.set_reference_rows(rows, list(meshes), list(params))
+            x_ref = self.x_ref.numpy()
+            for r, m in zip(rows, meshes, strict=True):
+                x_ref[r * self.nv:(r + 1) * self.nv] = m.vertices
+            self.x_ref.assign(x_ref)
+            if self._gas_model is not None:
+                g = self.gas.numpy()
+                g[rows, 0] = [self._gas_model.p0 * m.volume() for m in meshes]
+                self.gas.assign(g)
         if self.thermal is not None:
             sig = self.tsig.numpy()
             sig[rows] = self._sigmas(list(params))
@@ -264,6 +284,7 @@ class _DeviceChain:
         self.load.assign(old.load.numpy()[slots])
         self.plates.assign(old.plates.numpy()[slots])
         self.tsig.assign(old.tsig.numpy()[slots])
+        self.gas.assign(old.gas.numpy()[slots])
         self.n_evaluations = old.n_evaluations
 
     def row_positions(self, r: int) -> np.ndarray:

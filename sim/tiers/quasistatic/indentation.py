@@ -42,14 +42,37 @@ class _IndentationPlan:
     z0: np.ndarray  # reference z of every vertex (DPD length)
     top: np.ndarray  # loaded vertices of the top pole
     bottom: np.ndarray  # loaded vertices of the bottom pole
-    h0: float  # reference axial extent (DPD length)
+    h0: np.ndarray  # [R] reference axial extent of each replica's mesh (DPD length)
     free_v: np.ndarray  # [Nv, 3] movable components (the equator is anchored in z)
     unit: np.ndarray  # [Nv, 3] pole-load direction per unit total load
     static_settings: dict
+    meshes: list | None = None  # one reference per replica (same topology), or None: ``mesh`` for all
+
+
+def _replica_meshes(meshes, mesh, n: int, patch_kw: dict, anchors: np.ndarray) -> list | None:
+    """Check per-replica references: one per parameter set, ``mesh``'s faces, the same loaded and anchored
+    vertices (a scaled copy of ``mesh`` has them)."""
+    from bubblecal.sim.engine import pole_patches
+
+    if meshes is None:
+        return None
+    meshes = list(meshes)
+    if len(meshes) != n:
+        raise ValueError(f"meshes: {len(meshes)} references for {n} parameter sets")
+    top, bottom = pole_patches(mesh.vertices, **patch_kw)
+    for m in {id(m): m for m in meshes}.values():
+        zm = m.vertices[:, 2]
+        eq = np.nonzero(np.abs(zm - zm.mean()) < 0.25 * m.min_edge_length())[0]
+        t, b = pole_patches(m.vertices, **patch_kw)
+        if not (np.array_equal(m.faces, mesh.faces) and np.array_equal(t, top) and np.array_equal(b, bottom)
+                and np.array_equal(eq, anchors)):
+            raise ValueError("meshes: every reference must have the topology, loaded poles and anchored equator "
+                             "of mesh (e.g. icospheres of one subdivision level)")
+    return meshes
 
 
 def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fraction_loaded, pole_patch,
-                      dtype, extrapolate, schedule, max_replicas, first_load_ramp) -> _IndentationPlan:
+                      dtype, extrapolate, schedule, max_replicas, first_load_ramp, meshes=None) -> _IndentationPlan:
     """Check the arguments of :func:`quasistatic_indentation` and lay out the run."""
     from bubblecal.sim.engine import pole_patches
 
@@ -73,8 +96,10 @@ def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fr
     zc = float(mesh.vertices[:, 2].mean())
     top, bottom = pole_patches(mesh.vertices, **patch_kw)
     k = len(top)
-    h0 = float(z0.max() - z0.min())
     equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
+    meshes = _replica_meshes(meshes, mesh, len(params), patch_kw, equator)
+    h0 = np.array([float(np.ptp(m.vertices[:, 2])) for m in meshes]) if meshes else np.full(len(params),
+                                                                                            float(np.ptp(z0)))
     free_v = np.ones((nv, 3), dtype=bool)
     free_v[equator, 2] = False
     unit = np.zeros((nv, 3))
@@ -91,7 +116,7 @@ def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fr
                        "schedule": schedule, "max_replicas": max_replicas, "first_load_ramp": int(first_load_ramp)}
     return _IndentationPlan(forces=forces, chain_forces=chain_forces, keep=keep, schedule=schedule, params=params,
                             z0=z0, top=top, bottom=bottom, h0=h0, free_v=free_v, unit=unit,
-                            static_settings=static_settings)
+                            static_settings=static_settings, meshes=meshes)
 
 
 def _indentation_result(plan: _IndentationPlan, out: dict, t0: float) -> IndentationResult:
@@ -99,12 +124,14 @@ def _indentation_result(plan: _IndentationPlan, out: dict, t0: float) -> Indenta
     out = _select_points(out, plan.keep)
     R, nf = len(plan.params), len(plan.forces)
     z0, top, bottom = plan.z0, plan.top, plan.bottom
-    patch0 = float(z0[top].mean() - z0[bottom].mean())
+    refs = plan.meshes or [None] * R
+    patch0 = np.array([float(z[top].mean() - z[bottom].mean())
+                       for z in ((z0 if m is None else m.vertices[:, 2]) for m in refs)])
     H = out["obs"].get("H", np.full((R, nf), np.nan))
     P = out["obs"].get("patch", np.full((R, nf), np.nan))
     settings = {**plan.static_settings, "fire_evaluations": out["fire_evaluations"]}
-    return IndentationResult(forces=plan.forces, displacement=plan.h0 - H, axial_diameter=H,
-                             axial_diameter0=np.full(R, plan.h0), d_patch=patch0 - P, volume=out["volume"],
+    return IndentationResult(forces=plan.forces, displacement=plan.h0[:, None] - H, axial_diameter=H,
+                             axial_diameter0=plan.h0.copy(), d_patch=patch0[:, None] - P, volume=out["volume"],
                              max_area_strain=out["max_area_strain"], fmax=out["fmax"],
                              fire_steps=out["fire_steps"], status=out["status"],
                              point_status=out["point_status"], x_final=out["x"], settings=settings,
@@ -119,7 +146,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
                             max_replicas: int | None = None, first_load_ramp: int = 0,
                             progress: Callable[[int, int, float], None] | None = None,
-                            on_curve: Callable[[int, dict], None] | None = None) -> IndentationResult:
+                            on_curve: Callable[[int, dict], None] | None = None,
+                            meshes: Sequence[ShellMesh] | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
 
     Parameters
@@ -172,6 +200,11 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         {"displacement" [P] (DPD length), "status", "point_status", "fire_steps" [P], "fire_steps_chain" (FIRE
         updates per chain point, the ramp's sub-points included), "settings" (the result's, less the batch total
         ``fire_evaluations``)}: the same numbers as the returned rows.
+    meshes : sequence of ShellMesh, optional
+        One stress-free reference per parameter set, each with ``mesh``'s faces, loaded poles and anchored
+        equator (icospheres of one level at several diameters): one pool then holds several bubble sizes, each
+        replica's depth measured from its own reference extent, with the curves of separate runs.  None:
+        ``mesh`` for every replica.
 
     Returns
     -------
@@ -187,13 +220,14 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     plan = _indentation_plan(params, mesh, forces_dpd, gas=gas, fire=fire, rupture_strain=rupture_strain,
                              fraction_loaded=fraction_loaded, pole_patch=pole_patch, dtype=dtype,
                              extrapolate=extrapolate, schedule=schedule, max_replicas=max_replicas,
-                             first_load_ramp=first_load_ramp)
+                             first_load_ramp=first_load_ramp, meshes=meshes)
     nv, chain_forces, keep = mesh.n_vertices, plan.chain_forces, plan.keep
     tag = np.zeros(nv, dtype=np.int32)
     tag[plan.top], tag[plan.bottom] = 1, -1
 
-    def make_chain(ps):
-        return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=plan.free_v, remove_mean=(True, True, True),
+    def make_chain(ps, ms=None):
+        return _DeviceChain(ps, ms or mesh, gas, device, dtype, fire, free_v=plan.free_v,
+                            remove_mean=(True, True, True),
                             unit=plan.unit, tag=tag, sync_every=sync_every,
                             loads=chain_forces if extrapolate else None)
 
@@ -202,7 +236,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         if on_curve is not None:
             def finish(i, row):
                 h = row["obs"].get("H", np.full(len(chain_forces), np.nan))[keep]
-                on_curve(i, {"displacement": plan.h0 - h, "status": row["status"],
+                on_curve(i, {"displacement": plan.h0[i] - h, "status": row["status"],
                              "point_status": [row["point_status"][j] for j in keep],
                              "fire_steps": _sum_substeps(row["fire_steps"], keep),
                              "fire_steps_chain": np.asarray(row["fire_steps"]).copy(),
@@ -210,9 +244,10 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
 
         out = _run_device_async(make_chain, plan.params, len(chain_forces), rupture_strain,
                                 lambda dc: (lambda jj: dc.set_load_rows(chain_forces[jj])), max_replicas,
-                                progress, on_finish=finish, stop_unstable=fire.stop_at_max_steps)
+                                progress, on_finish=finish, stop_unstable=fire.stop_at_max_steps,
+                                meshes=plan.meshes)
     else:
-        dc = make_chain(plan.params)
+        dc = make_chain(plan.params, plan.meshes)
         out = _run_chain(dc, len(chain_forces), rupture_strain, set_point=lambda j: dc.set_load(chain_forces[j]),
                          progress=progress, stop_unstable=fire.stop_at_max_steps)
     return _indentation_result(plan, out, t0)

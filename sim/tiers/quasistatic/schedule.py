@@ -116,7 +116,8 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
                      batch_fraction: float = 0.05, samples: Sequence[ShellParams] | None = None,
                      compact: Callable[[_DeviceChain, np.ndarray, list], tuple] | None = None,
                      compact_below: float = 0.125, compact_min: int = 8,
-                     on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False) -> dict:
+                     on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False,
+                     sample_meshes: Sequence | None = None) -> dict:
     """Chain the load points with every replica at its own point (device FIRE only).
 
     A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
@@ -132,13 +133,16 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     runs at full occupancy until the pool is empty; the wall time then follows the pool's total FIRE
     work instead of its slowest sample.  Each sample's iterates are those it would have had in its own
     slot.  ``progress(k, S, seconds)`` then counts finished samples (k = samples finished - 1).
-    ``compact(backend, slots, params) -> (new backend, new assign)``: once the pool is empty and at most
-    ``compact_below`` of the slots (and more than ``compact_min`` slots in all) still relax, they move to a
-    batch of their own size (an iteration of a big batch costs a fixed floor however few of its replicas
+    ``compact(backend, slots, held) -> (new backend, new assign)`` (``held``: the pool indices of the slots'
+    samples): once the pool is empty and at most ``compact_below`` of the slots (and more than
+    ``compact_min`` slots in all) still relax, they move to a batch of their own size
+    (an iteration of a big batch costs a fixed floor however few of its replicas
     relax; same iterates).  ``on_finish(s, row)``: called as soon as sample (or replica) ``s`` has
     finished its curve, with its ``status``, ``point_status``, ``fire_steps`` [P] and ``obs`` {name: [P]}
     (a campaign writes the record at once, so an interrupted batch keeps its finished curves).
     ``stop_unstable``: a 'not_converged' point ends the curve (its slot is free at once).
+    ``sample_meshes`` (S references of one topology, with ``samples``): a refilled slot also takes its
+    sample's stress-free reference, so one pool may hold several diameters.
     Returns the dict of :func:`_run_chain`, rows = samples.
     """
     from bubblecal.sim.engine.kernels.fire import ACTIVE
@@ -209,7 +213,11 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
             if len(refill):
                 new = np.arange(next_sample, next_sample + len(refill))
                 next_sample += len(refill)
-                backend.load_samples(refill, [samples[int(k)] for k in new])
+                if sample_meshes is None:
+                    backend.load_samples(refill, [samples[int(k)] for k in new])
+                else:
+                    backend.load_samples(refill, [samples[int(k)] for k in new],
+                                         [sample_meshes[int(k)] for k in new])
                 sample[refill], j[refill], done[refill] = new, 0, False
                 restart[refill] = True
         assign(np.minimum(j, n_points - 1))
@@ -218,7 +226,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
         if (compact is not None and stream and next_sample >= S and 0 < n_left <= compact_below * R
                 and R > compact_min):
             keep = np.nonzero(~done)[0]
-            backend, assign = compact(backend, keep, [samples[int(k)] for k in sample[keep]])
+            backend, assign = compact(backend, keep, [int(k) for k in sample[keep]])
             fire = backend.fire
             R = backend.R
             sample, j, done = sample[keep], j[keep], np.zeros(R, dtype=bool)
@@ -243,32 +251,41 @@ _COMPACT_BELOW = 0.125
 _COMPACT_MIN = 8
 
 
-def _run_device_async(dc_factory: Callable[[list], _DeviceChain], params: list, n_points: int,
+def _run_device_async(dc_factory: Callable[..., _DeviceChain], params: list, n_points: int,
                       rupture_strain: float, assign_factory: Callable[[_DeviceChain], Callable],
                       max_replicas: int | None, progress,
-                      on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False) -> dict:
+                      on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False,
+                      meshes: Sequence | None = None) -> dict:
     """Async chain over ``params``; with ``max_replicas`` < len(params) at most that many slots run at once
     and finished slots take the next sample, softest (smallest k_a) first: FIRE work grows as k_a falls,
     so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order.
-    ``on_finish(i, row)``: each finished curve at once (``i`` indexes ``params``)."""
+    ``on_finish(i, row)``: each finished curve at once (``i`` indexes ``params``).  ``meshes``: one
+    stress-free reference per parameter set (one topology), passed as ``dc_factory(params, meshes)``; without
+    them ``dc_factory(params)``."""
     S = len(params)
+
+    def factory(idx) -> _DeviceChain:
+        ps = [params[int(i)] for i in idx]
+        return dc_factory(ps) if meshes is None else dc_factory(ps, [meshes[int(i)] for i in idx])
+
     if max_replicas is None or max_replicas >= S:
-        dc = dc_factory(params)
+        dc = factory(range(S))
         return _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress,
                                 on_finish=on_finish, stop_unstable=stop_unstable)
     order = np.argsort([p.ka for p in params], kind="stable")
     pool = [params[int(i)] for i in order]
-    dc = dc_factory(pool[:max_replicas])
+    pool_meshes = None if meshes is None else [meshes[int(i)] for i in order]
+    dc = factory(order[:max_replicas])
 
-    def compact(old: _DeviceChain, slots: np.ndarray, ps: list):
-        new = dc_factory(ps)
+    def compact(old: _DeviceChain, slots: np.ndarray, held: list):
+        new = factory(order[np.asarray(held, dtype=np.int64)])
         new.take_over(old, slots)
         return new, assign_factory(new)
 
     finish = None if on_finish is None else (lambda s, row: on_finish(int(order[s]), row))
     out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool,
                            compact=compact, compact_below=_COMPACT_BELOW, compact_min=_COMPACT_MIN,
-                           on_finish=finish, stop_unstable=stop_unstable)
+                           on_finish=finish, stop_unstable=stop_unstable, sample_meshes=pool_meshes)
     inv = np.empty(S, dtype=np.int64)
     inv[order] = np.arange(S)
     nv = dc.nv

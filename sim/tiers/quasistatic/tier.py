@@ -144,7 +144,8 @@ class QuasistaticTier:
         Parameters
         ----------
         request : CurveRequest
-            The curves (units: :class:`CurveRequest`).
+            The curves (units: :class:`CurveRequest`); indentation may mix bubble sizes
+            (``CurveRequest.diameters_um``), each curve then as in a request of its own size.
         device : str
             Warp device.
         on_curve : callable, optional
@@ -176,6 +177,13 @@ class QuasistaticTier:
         t0 = time.perf_counter()
         sub = self.subdivisions if self.subdivisions is not None else request.subdivisions
         mesh = mesh_for_diameter(request.diameter_um, sub)
+        meshes = None
+        if request.several_sizes:  # one pool of several sizes on one mesh level
+            if request.protocol != "indentation":
+                raise ValueError("quasistatic tier: several bubble sizes per request for indentation only (a "
+                                 "compression grid's sub-steps depend on the size)")
+            by_size = {d: mesh_for_diameter(d, mesh.subdivisions) for d in sorted(set(request.diameters_um))}
+            meshes = [by_size[d] for d in request.diameters_um]
         fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable,
                             force_mode=self.force_mode)
         gas = IdealGas(p0=self.gas_p0)
@@ -205,7 +213,7 @@ class QuasistaticTier:
                               "settings": row["settings"]})
 
             res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,
-                                          first_load_ramp=self.first_load_ramp, **common)
+                                          first_load_ramp=self.first_load_ramp, meshes=meshes, **common)
             obs = res.displacement
         status = [_QS_STATUS[s] for s in res.status]
         info = {**static, "fire_steps": res.fire_steps.sum(axis=1).tolist(), "settings": res.settings}

@@ -158,6 +158,8 @@ class ShellForceField(ShellFieldMeasurements):
         self._dih_start, self._dih_slot = (wp.array(a, **i32) for a in vertex_csr(comp_d, n_shell))
         self.n_triangles = tri.shape[0]
         self.n_edges = dih.shape[0]
+        self._tri_rows = [np.flatnonzero(tri_rep == r) for r in range(R)]
+        self._edge_rows = [np.flatnonzero(edge_rep == r) for r in range(R)]
         # NumPy <-> Warp staging for the NumPy convenience interface (CPU / tests / minimiser)
         self._np_x = None
         self._scratch_f = None
@@ -209,6 +211,53 @@ class ShellForceField(ShellFieldMeasurements):
         for r, p in zip(rows, params, strict=True):
             self.params[int(r)] = p
         self._params.assign(self.param_table.astype(np.float64 if self.dtype is wp.float64 else np.float32))
+
+    def set_reference_rows(self, rows: Sequence[int] | np.ndarray, meshes: Sequence[ShellMesh],
+                           params: Sequence[ShellParams]) -> None:
+        """Give replicas new stress-free references of the same topology, and their parameters, in place.
+
+        A slot of a refill pool can so take a sample of another diameter (a scaled mesh of the same level); the
+        Lim reference, the reference dihedrals and the parameter rows that depend on the mesh are rewritten.
+
+        Parameters
+        ----------
+        rows : sequence of int
+            Distinct replica indices in [0, R).
+        meshes : sequence of ShellMesh
+            One reference per row, with the faces and dihedral list of the row's current mesh (DPD length).
+        params : sequence of ShellParams
+            One parameter set per row (DPD units), as :meth:`set_params_rows`.
+
+        Raises
+        ------
+        ValueError
+            When the counts differ, a mesh's topology differs from its row's, or the field uses self-avoidance
+            (its hash grid is planned for the construction meshes); else as :meth:`set_params_rows`.
+        """
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if len(rows) != len(meshes):
+            raise ValueError(f"{len(rows)} rows but {len(meshes)} meshes")
+        if self.use_self_avoid:
+            raise ValueError("set_reference_rows: not with self-avoidance (its grid is planned for the first meshes)")
+        for r, m in zip(rows, meshes, strict=True):
+            old = self.meshes[int(r)]
+            if not (np.array_equal(m.faces, old.faces) and np.array_equal(m.dihedrals, old.dihedrals)):
+                raise ValueError(f"set_reference_rows: the mesh for row {int(r)} has another topology")
+        if len(rows) == 0:
+            return
+        # the same float64 values, rounded once to the field's type, as at construction
+        ref, theta0, cs0 = self._ref.numpy(), self._theta0.numpy(), self._cs0.numpy()
+        for r, m in zip(rows, meshes, strict=True):
+            r = int(r)
+            ref[self._tri_rows[r]] = np.stack([m.l1**2, m.l2**2, m.d0, m.A0], axis=1)
+            theta0[self._edge_rows[r]] = m.theta0
+            cs0[self._edge_rows[r]] = np.stack([np.cos(m.theta0), np.sin(m.theta0)], axis=1)
+            self.meshes[r] = m
+            self.area0[r], self.volume0[r] = m.area(), m.volume()
+        self._ref.assign(ref)
+        self._theta0.assign(theta0)
+        self._cs0.assign(cs0)
+        self.set_params_rows(rows, params)
 
     def _check_array(self, a, name: str) -> None:
         """Raise unless ``a`` is a vec3 array of this field's dtype and device with enough rows."""
