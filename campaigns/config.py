@@ -317,10 +317,9 @@ class CampaignConfig:
 
     @property
     def pools_levels(self) -> bool:
-        """Whether a task may hold several diameter levels (one refill pool over bubble sizes): quasi-static
-        indentation over a diameter range on one mesh level."""
-        return (self.diameter_range_um is not None and self.protocol == "indentation" and self.tier == "quasistatic"
-                and self.subdivisions is not None)
+        """Whether a task may hold several diameter levels (one refill pool over bubble sizes): the quasi-static
+        tier over a diameter range on one mesh level."""
+        return self.diameter_range_um is not None and self.tier == "quasistatic" and self.subdivisions is not None
 
     @property
     def n_tasks(self) -> int:

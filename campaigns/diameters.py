@@ -2,8 +2,10 @@
 
 A Latin-hypercube design may take the bubble diameter D as one of its dimensions (``[ranges] diameter_um =
 [lo, hi]`` in a campaign file).  Each design point's D is one of the *levels* lo, lo + step, ..., hi
-(``diameter_step_um``): the points of one level share one mesh and run as one batch, and the hypercube's
-strata of D map evenly onto the levels, so every level holds n / n_levels points (rounded up or down).  The
+(``diameter_step_um``): the points of one level share one mesh, and the hypercube's strata of D map evenly
+onto the levels, so every level holds n / n_levels points (rounded up or down).  On one mesh level
+(``subdivisions`` set) the quasi-static tier runs several levels in one refill pool
+(:attr:`CampaignConfig.pools_levels`), each curve as in a run of its own size.  The
 loading grid must mean the same thing at every D: compression displacements are fractions of the diameter
 (``loading_fractions``), indentation forces are absolute (an AFM's set point is a force).  The rules and the
 measurements behind them: docs/physics.md section 5.

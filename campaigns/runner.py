@@ -183,8 +183,10 @@ class _RecordWriter:
             return 0
         one = dataclasses.replace(task, indices=(task.indices[r],), sample_ids=(sid,), seeds=(task.seeds[r],),
                                   params={k: np.asarray(v)[r:r + 1] for k, v in task.params.items()},
-                                  diameter_um=task.replica_diameter(r), diameters_um=None)
-        res = TaskResult(x=np.asarray(task.grid, dtype=np.float64), y=np.asarray(y_row, dtype=np.float64)[None, :],
+                                  diameter_um=task.replica_diameter(r), diameters_um=None, grids=None,
+                                  grid=task.replica_grid(r))
+        res = TaskResult(x=np.asarray(task.replica_grid(r), dtype=np.float64),
+                         y=np.asarray(y_row, dtype=np.float64)[None, :],
                          status=[status], info=dict(info), compute_seconds=time.perf_counter() - t_task,
                          host=socket.gethostname(), pid=os.getpid())
         recs = task_records(self.config, one, res, code_version=self.version, design_hash=self.design_hash,

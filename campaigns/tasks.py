@@ -62,6 +62,9 @@ class CampaignTask:
     diameters_um : tuple of float, optional
         Per-replica diameters [um] of a task over several levels (``diameter_um`` is then the first); None:
         every replica at ``diameter_um``.
+    grids : tuple of tuple of float, optional
+        Per-replica loading grids of such a task when the grid scales with the diameter (``grid`` is then the
+        first replica's); None: ``grid`` for every replica.
     """
 
     index: int
@@ -78,6 +81,7 @@ class CampaignTask:
     params: Mapping[str, np.ndarray]
     seeds: tuple[int, ...]
     diameters_um: tuple[float, ...] | None = None
+    grids: tuple[tuple[float, ...], ...] | None = None
 
     @property
     def n_replicas(self) -> int:
@@ -87,6 +91,10 @@ class CampaignTask:
     def replica_diameter(self, r: int) -> float:
         """Diameter [um] of replica ``r``."""
         return self.diameter_um if self.diameters_um is None else self.diameters_um[r]
+
+    def replica_grid(self, r: int) -> tuple[float, ...] | None:
+        """Loading grid of replica ``r`` (DPD length or DPD force; None for ringdown)."""
+        return self.grid if self.grids is None else self.grids[r]
 
 
 @dataclass
@@ -192,13 +200,15 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
     -------
     list of CampaignTask
         Tasks numbered from 0, grouped by diameter in order of first appearance; when
-        :attr:`CampaignConfig.pools_levels`, chunks of the indices in order over all their levels.
+        :attr:`CampaignConfig.pools_levels`, chunks of the indices sorted by diameter, over the levels.
     """
     design = design if design is not None else design_points(config)
     ids = sample_ids(config)
     groups: dict[float | None, list[int]] = {}
     for i in indices:
         groups.setdefault(None if config.pools_levels else float(design["diameter_um"][i]), []).append(int(i))
+    if None in groups:  # chunks of neighbouring levels: a compression chunk then mostly has one chain length
+        groups[None].sort(key=lambda i: (float(design["diameter_um"][i]), i))
     tasks = []
     settings = dict(config.tier_settings)
     for key, idx in groups.items():
@@ -211,7 +221,8 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
                 tier_settings=settings, grid=config.grid_for(dia), device=config.device,
                 subdivisions=config.subdivisions, indices=tuple(chunk), sample_ids=tuple(ids[i] for i in chunk),
                 params={k: np.asarray(design[k][chunk], dtype=np.float64) for k in SHELL_PARAMETERS},
-                seeds=tuple(int(design["seed"][i]) for i in chunk), diameters_um=sizes if key is None else None))
+                seeds=tuple(int(design["seed"][i]) for i in chunk), diameters_um=sizes if key is None else None,
+                grids=tuple(config.grid_for(d) for d in sizes) if key is None and config.loading_fractions else None))
     return tasks
 
 
@@ -261,7 +272,7 @@ def simulate_task(task: CampaignTask,
     tier = get_tier(task.tier, **dict(task.tier_settings))
     request = CurveRequest(protocol=task.protocol, diameter_um=task.diameter_um, grid=task.grid,
                            params=task.params, seeds=task.seeds, subdivisions=task.subdivisions,
-                           diameters_um=task.diameters_um)
+                           diameters_um=task.diameters_um, grids=None if task.grids is None else np.array(task.grids))
     if on_curve is not None and _takes_on_curve(tier.run):
         batch = tier.run(request, task.device, on_curve=on_curve)
     else:

@@ -49,7 +49,10 @@ class CurveRequest:
         Icosphere level (None = the mesh's default for the diameter).
     diameters_um : tuple of float, optional
         One diameter [um] per replica, in [0.5, 20], for a pool of several bubble sizes on one mesh level
-        (``subdivisions`` required; the quasi-static tier's indentation only); None: ``diameter_um`` for all.
+        (``subdivisions`` required; the quasi-static tier only); None: ``diameter_um`` for all.
+    grids : numpy.ndarray, optional
+        [R, P] one loading grid per replica (a compression grid that scales with each replica's size), each
+        valid as ``grid``; None: ``grid`` for all.
 
     Raises
     ------
@@ -64,6 +67,7 @@ class CurveRequest:
     seeds: tuple[int, ...]
     subdivisions: int | None = None
     diameters_um: tuple[float, ...] | None = None
+    grids: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.protocol not in LOADING_PROTOCOLS:
@@ -104,6 +108,13 @@ class CurveRequest:
             if self.subdivisions is None:
                 raise ValueError("CurveRequest.diameters_um needs subdivisions (one mesh level for every size)")
             object.__setattr__(self, "diameters_um", ds)
+        if self.grids is not None:
+            g = np.asarray(self.grids, dtype=np.float64)
+            ok = g.shape == (self.n_replicas, len(self.grid)) and np.all(np.isfinite(g)) and np.all(g >= 0)
+            if not ok or np.any(np.diff(g, axis=1) <= 0):
+                raise ValueError(f"CurveRequest.grids must be [R, P] = [{self.n_replicas}, {len(self.grid)}] finite, "
+                                 "non-negative grids, each strictly increasing")
+            object.__setattr__(self, "grids", g)
 
     @property
     def several_sizes(self) -> bool:
@@ -116,8 +127,9 @@ class CurveRequest:
         return int(self.params["ka"].shape[0])
 
     def grid_array(self) -> np.ndarray:
-        """The loading grid [P] as float64 (DPD length for compression, DPD force for indentation)."""
-        return np.asarray(self.grid, dtype=np.float64)
+        """The loading grid [P] as float64 (DPD length for compression, DPD force for indentation); [R, P] when
+        the replicas have their own ``grids``."""
+        return np.asarray(self.grid if self.grids is None else self.grids, dtype=np.float64)
 
     def shell_params(self, convention: str = DEFAULT_INDENTATION_CONVENTION) -> list:
         """One kernel parameter set per replica, with the published kb mapped to our kernel's.

@@ -59,8 +59,9 @@ class _MDTierBase:
         """The reference mesh of ``request`` (the tier's ``subdivisions`` override the request's)."""
         from bubblecal.sim.engine.mesh import mesh_for_diameter
 
-        if request.several_sizes:
-            raise ValueError(f"{self.name} tier: one bubble size per request (CurveRequest.diameters_um differ)")
+        if request.several_sizes or request.grids is not None:
+            raise ValueError(f"{self.name} tier: one bubble size and one grid per request (CurveRequest.diameters_um "
+                             "/ grids are for the quasi-static tier)")
         sub = self.subdivisions if self.subdivisions is not None else request.subdivisions
         return mesh_for_diameter(request.diameter_um, sub)
 

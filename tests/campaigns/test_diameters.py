@@ -133,11 +133,13 @@ def test_shipped_diameter_campaigns():
     # indentation forces cover the published grids and the largest measured force (8,227 DPD force)
     assert ind.grid_for(1.5) == ind.grid_for(8.0) and ind.grid_for(3.2)[-1] >= 8227
     assert ind.tier_settings["indentation_convention"] == "mirheo"
-    # indentation runs one refill pool over all levels, compression one task per level (its sub-steps scale with D)
-    assert ind.pools_levels and ind.n_tasks == 1 and not comp.pools_levels and comp.n_tasks == 66
+    # one refill pool over the levels: indentation one task, compression tasks of ~8 neighbouring levels
+    assert ind.pools_levels and ind.n_tasks == 1 and comp.pools_levels and comp.n_tasks == 9
+    assert [len(set(t.diameters_um)) for t in make_tasks(comp, range(comp.n_design))] == [8] * 8 + [2]
 
 
-def test_indentation_levels_share_one_pool_and_keep_their_curves(tmp_path):
+@pytest.mark.parametrize("protocol", ["indentation", "compression"])
+def test_levels_share_one_pool_and_keep_their_curves(tmp_path, protocol):
     pytest.importorskip("warp")
     from bubblecal.campaigns import run_campaign
     from bubblecal.data import CampaignStore
@@ -145,9 +147,14 @@ def test_indentation_levels_share_one_pool_and_keep_their_curves(tmp_path):
 
     box = {**{k: (0.0, 0.0) for k in SHELL_PARAMETERS}, "ka": (3000.0, 20000.0), "kb": (100.0, 1000.0)}
     settings = {"max_steps": 3000, "max_replicas": 2}
-    c = CampaignConfig(name="pool", protocol="indentation", diameter_um=None, ranges=box, n_samples=6, seed=2,
-                       diameter_range_um=(2.0, 3.0), diameter_step_um=0.5, loading_grid=(0.0, 20.0, 40.0),
-                       subdivisions=2, tier_settings=settings, replicas_per_task=6, store=str(tmp_path / "s"))
+    # compression: 0.015 D steps make one plate sub-step at 2 um and two at 2.5 and 3 um (two pools)
+    loading = (dict(loading_grid=(0.0, 20.0, 40.0)) if protocol == "indentation" else
+               dict(loading_fractions=(0.0, 0.015, 0.03)))
+    if protocol == "compression":
+        settings["thermal_contact"] = True
+    c = CampaignConfig(name="pool", protocol=protocol, diameter_um=None, ranges=box, n_samples=6, seed=2,
+                       diameter_range_um=(2.0, 3.0), diameter_step_um=0.5, subdivisions=2, tier_settings=settings,
+                       replicas_per_task=6, store=str(tmp_path / "s"), **loading)
     assert c.pools_levels and c.n_tasks == 1
     tasks = make_tasks(c, range(6))
     assert len(tasks) == 1 and sorted(set(tasks[0].diameters_um)) == [2.0, 2.5, 3.0]
@@ -157,11 +164,12 @@ def test_indentation_levels_share_one_pool_and_keep_their_curves(tmp_path):
     tier = get_tier("quasistatic", **settings)
     for d in c.diameters:  # each level alone gives the pooled records' curves, bit for bit
         idx = [i for i in range(6) if design["diameter_um"][i] == d]
-        alone = tier.run(CurveRequest(protocol="indentation", diameter_um=d, grid=(0.0, 20.0, 40.0),
+        alone = tier.run(CurveRequest(protocol=protocol, diameter_um=d, grid=c.grid_for(d),
                                       params={k: design[k][idx] for k in SHELL_PARAMETERS},
                                       seeds=tuple(int(design["seed"][i]) for i in idx), subdivisions=2))
         for row, i in enumerate(idx):
             rec = records[f"pool-{i:06d}"]
             assert rec["provenance"]["diameter_um"] == d and rec["radius_dpd"] == pytest.approx(2 * d)
             assert rec["status"] == alone.status[row]
+            np.testing.assert_array_equal(np.asarray(rec["x"], dtype=float), np.asarray(c.grid_for(d)))
             np.testing.assert_array_equal(np.asarray(rec["y"], dtype=float), alone.observable[row])

@@ -40,7 +40,7 @@ refill), :mod:`.grids` (sub-steps, first-load ramp), :mod:`.compression`, :mod:`
 and :mod:`.tier` (:class:`QuasistaticTier`).  Importing this package does not import Warp.
 """
 
-from bubblecal.sim.tiers.quasistatic.compression import quasistatic_compression
+from bubblecal.sim.tiers.quasistatic.compression import compression_pools, quasistatic_compression
 from bubblecal.sim.tiers.quasistatic.indentation import quasistatic_indentation
 from bubblecal.sim.tiers.quasistatic.results import CompressionResult, IndentationResult
 from bubblecal.sim.tiers.quasistatic.settings import (
@@ -67,6 +67,7 @@ from bubblecal.sim.tiers.quasistatic.tier import QuasistaticTier
 __all__ = [
     "QuasistaticTier",
     "quasistatic_compression",
+    "compression_pools",
     "quasistatic_indentation",
     "CompressionResult",
     "IndentationResult",

@@ -37,7 +37,11 @@ class _DeviceChain:
     as Warp kernels on ``device``; per load point only R-sized arrays come back to the host.
     ``free_v [Nv, 3]`` (per mesh vertex), ``remove_mean`` (components), ``unit [Nv, 3]`` (pole-load
     direction per unit load, or None), ``tag [Nv]`` (1 top patch, -1 bottom patch, or None),
-    ``contact`` (plates, or None).
+    ``contact`` (plates, or None).  Several bubble sizes in one batch: ``mesh`` a list of per-replica
+    references of one topology, ``replica_loads [R, n]`` each replica's chain loads (the predictor's, instead
+    of the shared ``loads``), ``radii [R]`` (thermal contact), ``plate_heights [R, n]`` (top-plate height at each
+    chain point) and ``centers [R]`` (the plates are symmetric about them); :meth:`load_samples` swaps them with a
+    slot's sample and :meth:`assign_plates` sets each slot's plates.
     """
 
     def __init__(self, params, mesh: ShellMesh, gas: IdealGas | None, device: str, dtype, fire: FireSettings, *,
@@ -45,7 +49,9 @@ class _DeviceChain:
                  tag: np.ndarray | None = None, contact: PlateContact | None = None,
                  thermal: ThermalContact | None = None, radius_dpd: float | None = None,
                  sync_every: int | None = None, use_graph: bool | None = None,
-                 loads: np.ndarray | None = None):
+                 loads: np.ndarray | None = None, replica_loads: np.ndarray | None = None,
+                 radii: Sequence[float] | None = None, plate_heights: np.ndarray | None = None,
+                 centers: Sequence[float] | None = None):
         import warp as wp
 
         from bubblecal.sim.engine.kernels.qs_loading import qs_kernels
@@ -111,10 +117,11 @@ class _DeviceChain:
         self.pc = [T(c.epsilon), T(c.sigma), T(c.cutoff), T(h_cap), T(c.force_cap)]
         # thermal contact: per-replica rms normal fluctuation, hard wall at the WCA's Barker-Henderson distance
         self.thermal = thermal if self.plate_on else None
-        if meshes is not None and self.thermal is not None:
-            raise ValueError("per-replica meshes are not combined with the thermal contact (one radius per batch)")
         self._radius = float(mesh.radius_dpd) if radius_dpd is None else float(radius_dpd)
-        self.tsig = wp.array(self._sigmas(params).astype(npf), dtype=T, device=dev)
+        self.slot_radius = np.full(R, self._radius) if radii is None else np.asarray(radii, dtype=np.float64)
+        self.slot_plates = None if plate_heights is None else np.array(plate_heights, dtype=np.float64).reshape(R, -1)
+        self.slot_center = None if centers is None else np.array(centers, dtype=np.float64).reshape(R)
+        self.tsig = wp.array(self._sigmas(params, self.slot_radius).astype(npf), dtype=T, device=dev)
         hw = hard_wall_distance(c, thermal.kT) if self.thermal is not None else 0.0
         p0, dp0 = psi_continuation()
         self.tc = [self.tsig, int(self.thermal is not None), T(hw),
@@ -125,7 +132,11 @@ class _DeviceChain:
         self.n_evaluations = 0
         # load values of the chain (plate displacement or pole force) for the linear start predictor
         self.loads = None if loads is None else np.asarray(loads, dtype=np.float64)
-        self.x_prev = wp.clone(self.fire.x) if self.loads is not None else None
+        if replica_loads is not None:
+            self.slot_loads = np.array(replica_loads, dtype=np.float64).reshape(R, -1)
+        else:
+            self.slot_loads = None if self.loads is None else np.tile(self.loads, (R, 1))
+        self.x_prev = wp.clone(self.fire.x) if self.slot_loads is not None else None
 
     # ----- forces (graph-capturable: all varying inputs live in device arrays) -----
     def _forces(self, x, f) -> None:
@@ -143,13 +154,18 @@ class _DeviceChain:
                       inputs=[x, f, self.row_start, self.fire.status, self.nthr, self.plates, *self.pc, *self.tc],
                       device=dev)
 
-    def _sigmas(self, params) -> np.ndarray:
-        """rms normal fluctuation of each shell for the thermal contact (ones when athermal: unused)."""
+    def _sigmas(self, params, radii: np.ndarray) -> np.ndarray:
+        """rms normal fluctuation of each shell (radius ``radii[i]``) for the thermal contact (ones when
+        athermal: unused)."""
         if self.thermal is None:
             return np.ones(len(params))
         if self.thermal.sigma is not None:
             return np.full(len(params), float(self.thermal.sigma))
-        return shell_fluctuation_sigma(params, self._radius, self.thermal.kT)
+        out = np.empty(len(params))
+        for r in np.unique(radii):  # one call per size, as a batch of that size alone computes it
+            idx = np.flatnonzero(radii == r)
+            out[idx] = shell_fluctuation_sigma([params[int(i)] for i in idx], float(r), self.thermal.kT)
+        return out
 
     def set_load(self, value: float) -> None:
         """Pole load (total force per pole, DPD force) for every replica."""
@@ -158,6 +174,11 @@ class _DeviceChain:
     def set_plates(self, z_top: float, z_bottom: float) -> None:
         """Plate heights (DPD length) for every replica."""
         self.plates.assign(np.tile([z_top, z_bottom], (self.R, 1)).astype(self._npf))
+
+    def assign_plates(self, j: np.ndarray) -> None:
+        """Plates of each slot at its chain point ``j[r]`` from its own ``plate_heights`` and centre."""
+        top = self.slot_plates[np.arange(self.R), np.asarray(j, dtype=np.int64)]
+        self.set_plate_rows(top, 2 * self.slot_center - top)
 
     def set_load_rows(self, values: np.ndarray) -> None:
         """Pole load of each replica (``[R]``, total force per pole, DPD force)."""
@@ -219,13 +240,13 @@ class _DeviceChain:
     # ----- replica-asynchronous chain backend -----
     def predictor_coefficients(self, j: np.ndarray) -> np.ndarray:
         """Linear-predictor coefficient of each replica's next point j[r] (0 = start from the last minimum)."""
-        L = self.loads
+        L = self.slot_loads  # [R, n]: each slot's own chain (one row per slot, equal rows for one size)
         jj = np.asarray(j, dtype=np.int64)
         c = np.zeros(jj.shape)
-        ok = (jj >= 2) & (jj < len(L))
-        jo = jj[ok]
-        den = L[jo - 1] - L[jo - 2]
-        c[ok] = np.where(den > 0, (L[jo] - L[jo - 1]) / np.where(den > 0, den, 1.0), 0.0)
+        ok = (jj >= 2) & (jj < L.shape[1])
+        rows, jo = np.flatnonzero(ok), jj[ok]
+        den = L[rows, jo - 1] - L[rows, jo - 2]
+        c[ok] = np.where(den > 0, (L[rows, jo] - L[rows, jo - 1]) / np.where(den > 0, den, 1.0), 0.0)
         return c
 
     def start_rows(self, j: np.ndarray, flags: np.ndarray) -> None:
@@ -234,7 +255,7 @@ class _DeviceChain:
         flags = np.asarray(flags, dtype=bool)
         if not flags.any():
             return
-        if self.loads is not None:
+        if self.slot_loads is not None:
             self.flag.assign(flags.astype(np.int32))
             coef = self.wp.array(self.predictor_coefficients(j).astype(self._npf), dtype=self.dtype,
                                  device=self.device)
@@ -243,13 +264,23 @@ class _DeviceChain:
         self.fire.restart(flags)
 
     def load_samples(self, rows: np.ndarray, params: Sequence[ShellParams],
-                     meshes: Sequence[ShellMesh] | None = None) -> None:
-        """Reuse replica slots ``rows`` for new samples: their shells get ``params`` (and the stress-free
-        references ``meshes``, same topology, when given) and return to the reference (the caller then restarts
-        them at load point 0 with :meth:`start_rows`)."""
+                     meshes: Sequence[ShellMesh] | None = None, loads: np.ndarray | None = None,
+                     radii: Sequence[float] | None = None, plate_heights: np.ndarray | None = None,
+                     centers: Sequence[float] | None = None) -> None:
+        """Reuse replica slots ``rows`` for new samples: their shells get ``params`` (and, for samples of other
+        sizes, the stress-free references ``meshes`` of the same topology, chain ``loads [k, n]``, ``radii``,
+        ``plate_heights [k, n]`` and ``centers``) and return to the reference (the caller then restarts them at
+        load point 0 with :meth:`start_rows`)."""
         rows = np.asarray(rows, dtype=np.int64)
         if len(rows) == 0:
             return
+        if loads is not None:
+            self.slot_loads[rows] = np.asarray(loads, dtype=np.float64)
+        if plate_heights is not None:
+            self.slot_plates[rows] = np.asarray(plate_heights, dtype=np.float64)
+            self.slot_center[rows] = np.asarray(centers, dtype=np.float64)
+        if radii is not None:
+            self.slot_radius[rows] = np.asarray(radii, dtype=np.float64)
         if meshes is None:
             self.ff.set_params_rows(rows, list(params))
         else:
@@ -264,7 +295,7 @@ class _DeviceChain:
                 self.gas.assign(g)
         if self.thermal is not None:
             sig = self.tsig.numpy()
-            sig[rows] = self._sigmas(list(params))
+            sig[rows] = self._sigmas(list(params), self.slot_radius[rows])
             self.tsig.assign(sig)
         fl = np.zeros(self.R, dtype=bool)
         fl[rows] = True
@@ -285,6 +316,11 @@ class _DeviceChain:
         self.plates.assign(old.plates.numpy()[slots])
         self.tsig.assign(old.tsig.numpy()[slots])
         self.gas.assign(old.gas.numpy()[slots])
+        self.slot_radius = old.slot_radius[slots].copy()
+        if old.slot_loads is not None:
+            self.slot_loads = old.slot_loads[slots].copy()
+        if old.slot_plates is not None:
+            self.slot_plates, self.slot_center = old.slot_plates[slots].copy(), old.slot_center[slots].copy()
         self.n_evaluations = old.n_evaluations
 
     def row_positions(self, r: int) -> np.ndarray:

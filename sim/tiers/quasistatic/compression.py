@@ -46,12 +46,55 @@ class _CompressionPlan:
     zc: float  # reference centre height (DPD length)
     h0: float  # reference half extent in z (DPD length)
     plate: np.ndarray  # top plate height per chain point (DPD length); the bottom one is 2 zc - plate
+    sizes: _Sizes | None = None  # several bubble sizes: per-replica references, grids and plates
+
+
+@dataclass
+class _Sizes:
+    """Per-replica geometry of a compression batch of several bubble sizes (one mesh topology, one chain length)."""
+
+    meshes: list
+    requested: np.ndarray  # [R, P] requested total displacements
+    disp: np.ndarray  # [R, n] chain displacements
+    radius: np.ndarray  # [R] mean vertex distance from the centroid
+    zc: np.ndarray  # [R] reference centre heights
+    plate: np.ndarray  # [R, n] top plate heights
+
+
+def _geometry(mesh) -> tuple[float, float, float]:
+    """(radius, z_c, h0) of a reference: mean vertex distance from the centroid, centre height, half extent."""
+    radius = float(np.linalg.norm(mesh.vertices - mesh.vertices.mean(axis=0), axis=1).mean())
+    zc = float(mesh.vertices[:, 2].mean())
+    return radius, zc, float(np.max(np.abs(mesh.vertices[:, 2] - zc)))
+
+
+def _sizes_plan(meshes, mesh, grids, n: int, contact, max_step: float, keep0: np.ndarray) -> _Sizes:
+    """Check and lay out a batch of several sizes: one reference and one grid per replica, equal chains."""
+    meshes = list(meshes) if meshes is not None else [mesh] * n
+    if len(meshes) != n or len(grids) != n:
+        raise ValueError(f"meshes / displacements_dpd: {len(meshes)} references and {len(grids)} grids for {n} "
+                         "parameter sets")
+    if any(not np.array_equal(m.faces, mesh.faces) for m in {id(m): m for m in meshes}.values()):
+        raise ValueError("meshes: every reference must have the topology of mesh (one icosphere level)")
+    rows = [_refine_grid(validate_grid(g, "displacements_dpd"), max_step) for g in grids]
+    if any(len(d) != len(rows[0][0]) or not np.array_equal(k, keep0) for d, k in rows):
+        raise ValueError("displacements_dpd: the replicas' grids refine to chains of different lengths "
+                         "(max_plate_step); run each chain length as its own batch")
+    geo = {id(m): _geometry(m) for m in meshes}
+    radius, zc, h0 = (np.array([geo[id(m)][i] for m in meshes]) for i in range(3))
+    disp = np.stack([d for d, _ in rows])
+    if np.any(disp / 2 >= (h0 + contact.gap)[:, None]):
+        raise ValueError("displacements_dpd must stay below 2 (h0 + gap) of each replica's reference")
+    plate = (zc + h0 + contact.gap)[:, None] - disp / 2.0
+    return _Sizes(meshes=meshes, requested=np.array([np.asarray(g, dtype=float) for g in grids]), disp=disp,
+                  radius=radius, zc=zc, plate=plate)
 
 
 def _compression_plan(params, mesh, displacements_dpd, *, gas, contact, thermal, fire, rupture_strain,
-                      max_plate_step, schedule, max_replicas) -> _CompressionPlan:
+                      max_plate_step, schedule, max_replicas, meshes=None) -> _CompressionPlan:
     """Check the arguments of :func:`quasistatic_compression` and lay out the run."""
-    requested = validate_grid(displacements_dpd, "displacements_dpd")
+    grids = np.asarray(displacements_dpd, dtype=float) if np.ndim(displacements_dpd) == 2 else None
+    requested = validate_grid(displacements_dpd if grids is None else grids[0], "displacements_dpd")
     schedule = _check_common(rupture_strain, fire, schedule)
     _check_max_replicas(max_replicas, schedule)
     if not (math.isfinite(max_plate_step) and max_plate_step > 0):
@@ -62,14 +105,18 @@ def _compression_plan(params, mesh, displacements_dpd, *, gas, contact, thermal,
     if thermal is not None and not isinstance(thermal, ThermalContact):
         raise ValueError(f"thermal must be None or a ThermalContact, got {type(thermal).__name__}")
     params = _check_params(params, mesh, gas)
-    radius = float(np.linalg.norm(mesh.vertices - mesh.vertices.mean(axis=0), axis=1).mean())
-    zc = float(mesh.vertices[:, 2].mean())
-    h0 = float(np.max(np.abs(mesh.vertices[:, 2] - zc)))
+    sizes = None
+    if meshes is not None or grids is not None:
+        if schedule != "async":
+            raise ValueError("several bubble sizes in one batch need schedule = 'async'")
+        sizes = _sizes_plan(meshes, mesh, grids if grids is not None else [requested] * len(params), len(params),
+                            contact, 2.0 * max_plate_step, keep)
+    radius, zc, h0 = _geometry(mesh)
     if np.any(disp / 2 >= h0 + contact.gap):
         raise ValueError(f"displacements_dpd must stay below 2 (h0 + gap) = {2 * (h0 + contact.gap):.3f}")
     plate = zc + h0 + contact.gap - disp / 2.0  # top plate z; bottom = 2 zc - plate
     return _CompressionPlan(requested=requested, disp=disp, keep=keep, schedule=schedule, params=params,
-                            radius=radius, zc=zc, h0=h0, plate=plate)
+                            radius=radius, zc=zc, h0=h0, plate=plate, sizes=sizes)
 
 
 def _compression_result(plan: _CompressionPlan, out: dict, t0: float, *, gas, contact, thermal, fire,
@@ -91,9 +138,11 @@ def _compression_result(plan: _CompressionPlan, out: dict, t0: float, *, gas, co
                 "minimizer": "device", "dtype": _dtype_name(dtype), "fire_evaluations": fire_evaluations,
                 "start": "linear extrapolation" if extrapolate else "previous minimum",
                 "schedule": plan.schedule, "max_replicas": max_replicas}
-    return CompressionResult(displacements=plan.requested, force=out["obs"].get("top", nan),
-                             force_bottom=out["obs"].get("bottom", nan),
-                             n_contacts=out["obs"].get("contacts", nan), plate_z=plan.plate[keep],
+    sizes = plan.sizes
+    return CompressionResult(displacements=plan.requested if sizes is None else sizes.requested,
+                             force=out["obs"].get("top", nan), force_bottom=out["obs"].get("bottom", nan),
+                             n_contacts=out["obs"].get("contacts", nan),
+                             plate_z=plan.plate[keep] if sizes is None else sizes.plate[:, keep],
                              volume=out["volume"], max_area_strain=out["max_area_strain"], fmax=out["fmax"],
                              fire_steps=out["fire_steps"], status=out["status"],
                              point_status=out["point_status"], x_final=out["x"], settings=settings,
@@ -108,7 +157,8 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                             rupture_strain: float = 1.0, max_plate_step: float = 0.06,
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
                             max_replicas: int | None = None,
-                            progress: Callable[[int, int, float], None] | None = None) -> CompressionResult:
+                            progress: Callable[[int, int, float], None] | None = None,
+                            meshes: Sequence[ShellMesh] | None = None) -> CompressionResult:
     """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
 
     Parameters
@@ -119,7 +169,7 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         Stress-free reference shell (DPD length).
     displacements_dpd : sequence of float
         Imposed total plate displacement d at each point (DPD length, >= 0, strictly increasing); each plate
-        moves d/2.
+        moves d/2.  [R, P]: one grid per replica (several bubble sizes; equal chain lengths after sub-steps).
     gas : IdealGas or None
         Enclosed ideal gas, or None.
     contact : bubblecal.sim.protocols.PlateContact
@@ -136,6 +186,11 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         sub-steps (a 0.12 jump into the stiff WCA wall makes FIRE diverge).  0.06 = one minimisation per point
         of the published grid.
 
+    meshes : sequence of ShellMesh, optional
+        One stress-free reference per parameter set, with ``mesh``'s faces (icospheres of one level at several
+        diameters): one pool then holds several bubble sizes, each with its own plates, thermal fluctuation and
+        grid row, with the curves of separate runs (async schedule).  None: ``mesh`` for every replica.
+
     Returns
     -------
     CompressionResult
@@ -150,23 +205,101 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
     t0 = time.perf_counter()
     plan = _compression_plan(params, mesh, displacements_dpd, gas=gas, contact=contact, thermal=thermal, fire=fire,
                              rupture_strain=rupture_strain, max_plate_step=max_plate_step, schedule=schedule,
-                             max_replicas=max_replicas)
-    nv, zc, plate, disp = mesh.n_vertices, plan.zc, plan.plate, plan.disp
+                             max_replicas=max_replicas, meshes=meshes)
+    nv, zc, plate, disp, sizes = mesh.n_vertices, plan.zc, plan.plate, plan.disp, plan.sizes
 
-    def make_chain(ps):
-        return _DeviceChain(ps, mesh, gas, device, dtype, fire, free_v=np.ones((nv, 3), dtype=bool),
-                            remove_mean=(True, True, False), contact=contact, thermal=thermal,
-                            radius_dpd=plan.radius, sync_every=sync_every, loads=disp if extrapolate else None)
+    def make_chain(idx):
+        ps = [plan.params[int(i)] for i in idx]
+        common = dict(free_v=np.ones((nv, 3), dtype=bool), remove_mean=(True, True, False), contact=contact,
+                      thermal=thermal, sync_every=sync_every)
+        if sizes is None:
+            return _DeviceChain(ps, mesh, gas, device, dtype, fire, radius_dpd=plan.radius,
+                                loads=disp if extrapolate else None, **common)
+        return _DeviceChain(ps, [sizes.meshes[int(i)] for i in idx], gas, device, dtype, fire,
+                            replica_loads=sizes.disp[idx] if extrapolate else None, radii=sizes.radius[idx],
+                            plate_heights=sizes.plate[idx], centers=sizes.zc[idx], **common)
 
-    if plan.schedule == "async":
+    def load_slots(dc, slots, idx):
+        dc.load_samples(slots, [plan.params[int(i)] for i in idx], [sizes.meshes[int(i)] for i in idx],
+                        loads=sizes.disp[idx] if extrapolate else None, radii=sizes.radius[idx],
+                        plate_heights=sizes.plate[idx], centers=sizes.zc[idx])
+
+    if sizes is not None:
+        out = _run_device_async(make_chain, plan.params, len(disp), rupture_strain,
+                                lambda dc: dc.assign_plates, max_replicas, progress,
+                                stop_unstable=fire.stop_at_max_steps, load_slots=load_slots)
+    elif plan.schedule == "async":
         out = _run_device_async(make_chain, plan.params, len(disp), rupture_strain,
                                 lambda dc: (lambda jj: dc.set_plate_rows(plate[jj], 2 * zc - plate[jj])),
                                 max_replicas, progress, stop_unstable=fire.stop_at_max_steps)
     else:
-        dc = make_chain(plan.params)
+        dc = make_chain(np.arange(len(plan.params)))
         out = _run_chain(dc, len(disp), rupture_strain,
                          set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress,
                          stop_unstable=fire.stop_at_max_steps)
     return _compression_result(plan, out, t0, gas=gas, contact=contact, thermal=thermal, fire=fire,
                                rupture_strain=rupture_strain, n_vertices=nv, dtype=dtype, extrapolate=extrapolate,
                                max_replicas=max_replicas)
+
+
+def compression_pools(params: Sequence[ShellParams], mesh: ShellMesh, meshes: Sequence[ShellMesh] | None,
+                      grids: np.ndarray, *, max_plate_step: float = 0.06, **kwargs) -> CompressionResult:
+    """Compression of replicas of several sizes or grids: one :func:`quasistatic_compression` pool per chain length.
+
+    Replicas whose grids refine to the same chain (``max_plate_step`` sub-steps) share one pool, so every curve is
+    the one a run of its own size gives.
+
+    Parameters
+    ----------
+    params : sequence of ShellParams
+        One parameter set per replica (DPD units).
+    mesh : ShellMesh
+        The topology (and the reference when ``meshes`` is None).
+    meshes : sequence of ShellMesh or None
+        One reference per replica with ``mesh``'s faces, or None.
+    grids : numpy.ndarray
+        [P] or [R, P] total displacements (DPD length).
+    max_plate_step : float
+        As in :func:`quasistatic_compression`.
+    **kwargs
+        The other keyword arguments of :func:`quasistatic_compression` (``schedule`` must be async).
+
+    Returns
+    -------
+    CompressionResult
+        Rows in ``params`` order; ``displacements`` and ``plate_z`` [R, P]; ``settings`` of the first pool with
+        the pools' total ``fire_evaluations``; ``seconds`` their sum.
+
+    Raises
+    ------
+    ValueError
+        As :func:`quasistatic_compression`.
+    """
+    params = list(params)
+    n = len(params)
+    rows = np.broadcast_to(np.asarray(grids, dtype=float), (n, np.shape(grids)[-1]))
+    refs = list(meshes) if meshes is not None else [mesh] * n
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(len(_refine_grid(validate_grid(rows[i], "displacements_dpd"), 2.0 * max_plate_step)[0]),
+                          []).append(i)
+    parts = [(idx, quasistatic_compression([params[i] for i in idx], mesh, rows[idx], meshes=[refs[i] for i in idx],
+                                           max_plate_step=max_plate_step, **kwargs)) for idx in groups.values()]
+    first = parts[0][1]
+    merged = {}
+    for name in ("displacements", "force", "force_bottom", "n_contacts", "plate_z", "volume", "max_area_strain",
+                 "fmax", "fire_steps"):
+        out = np.empty((n,) + getattr(first, name).shape[1:], dtype=getattr(first, name).dtype)
+        for idx, res in parts:
+            out[idx] = getattr(res, name)
+        merged[name] = out
+    status, point_status = [None] * n, [None] * n
+    nv = mesh.n_vertices
+    x = np.empty((n, nv, 3))
+    for idx, res in parts:
+        for k, i in enumerate(idx):
+            status[i], point_status[i] = res.status[k], res.point_status[k]
+        x[idx] = res.x_final.reshape(len(idx), nv, 3)
+    settings = {**first.settings, "fire_evaluations": sum(r.settings["fire_evaluations"] for _, r in parts)}
+    return CompressionResult(**merged, status=status, point_status=point_status, x_final=x.reshape(-1, 3),
+                             settings=settings, seconds=sum(r.seconds for _, r in parts))

@@ -225,11 +225,14 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     tag = np.zeros(nv, dtype=np.int32)
     tag[plan.top], tag[plan.bottom] = 1, -1
 
-    def make_chain(ps, ms=None):
-        return _DeviceChain(ps, ms or mesh, gas, device, dtype, fire, free_v=plan.free_v,
-                            remove_mean=(True, True, True),
-                            unit=plan.unit, tag=tag, sync_every=sync_every,
-                            loads=chain_forces if extrapolate else None)
+    def make_chain(idx):
+        ms = None if plan.meshes is None else [plan.meshes[int(i)] for i in idx]
+        return _DeviceChain([plan.params[int(i)] for i in idx], ms or mesh, gas, device, dtype, fire,
+                            free_v=plan.free_v, remove_mean=(True, True, True), unit=plan.unit, tag=tag,
+                            sync_every=sync_every, loads=chain_forces if extrapolate else None)
+
+    def load_slots(dc, slots, idx):
+        dc.load_samples(slots, [plan.params[int(i)] for i in idx], [plan.meshes[int(i)] for i in idx])
 
     if plan.schedule == "async":
         finish = None
@@ -245,9 +248,9 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         out = _run_device_async(make_chain, plan.params, len(chain_forces), rupture_strain,
                                 lambda dc: (lambda jj: dc.set_load_rows(chain_forces[jj])), max_replicas,
                                 progress, on_finish=finish, stop_unstable=fire.stop_at_max_steps,
-                                meshes=plan.meshes)
+                                load_slots=None if plan.meshes is None else load_slots)
     else:
-        dc = make_chain(plan.params, plan.meshes)
+        dc = make_chain(np.arange(len(plan.params)))
         out = _run_chain(dc, len(chain_forces), rupture_strain, set_point=lambda j: dc.set_load(chain_forces[j]),
                          progress=progress, stop_unstable=fire.stop_at_max_steps)
     return _indentation_result(plan, out, t0)

@@ -92,7 +92,7 @@ class CompressionResult(_ChainResult):
     seconds : float
         Wall time (s).
     displacements : numpy.ndarray
-        [P] imposed total displacements (DPD length).
+        [P] imposed total displacements (DPD length); [R, P] for a batch of several sizes.
     force : numpy.ndarray
         [R, P] compressive force on the top plate (ONE plate; DPD force); NaN after a failure.
     force_bottom : numpy.ndarray
@@ -100,7 +100,7 @@ class CompressionResult(_ChainResult):
     n_contacts : numpy.ndarray
         [R, P] vertices in range of the top plate.
     plate_z : numpy.ndarray
-        [P] top plate height (DPD length); the bottom plate is mirrored about z_c.
+        [P] top plate height (DPD length), [R, P] for several sizes; the bottom plate is mirrored about z_c.
     """
 
     displacements: np.ndarray

@@ -117,7 +117,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
                      compact: Callable[[_DeviceChain, np.ndarray, list], tuple] | None = None,
                      compact_below: float = 0.125, compact_min: int = 8,
                      on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False,
-                     sample_meshes: Sequence | None = None) -> dict:
+                     load_slots: Callable[[_DeviceChain, np.ndarray, np.ndarray], None] | None = None) -> dict:
     """Chain the load points with every replica at its own point (device FIRE only).
 
     A replica that stops (converged, ``max_steps`` or non-finite) is measured, then restarted at its next
@@ -141,8 +141,9 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
     finished its curve, with its ``status``, ``point_status``, ``fire_steps`` [P] and ``obs`` {name: [P]}
     (a campaign writes the record at once, so an interrupted batch keeps its finished curves).
     ``stop_unstable``: a 'not_converged' point ends the curve (its slot is free at once).
-    ``sample_meshes`` (S references of one topology, with ``samples``): a refilled slot also takes its
-    sample's stress-free reference, so one pool may hold several diameters.
+    ``load_slots(backend, slots, k)`` (with ``samples``): give the refilled slots the samples ``k`` (pool
+    indices) -- their parameters and, for a pool of several bubble sizes, their references and loads; default
+    ``backend.load_samples(slots, [samples[i] for i in k])``.
     Returns the dict of :func:`_run_chain`, rows = samples.
     """
     from bubblecal.sim.engine.kernels.fire import ACTIVE
@@ -213,11 +214,10 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
             if len(refill):
                 new = np.arange(next_sample, next_sample + len(refill))
                 next_sample += len(refill)
-                if sample_meshes is None:
+                if load_slots is None:
                     backend.load_samples(refill, [samples[int(k)] for k in new])
                 else:
-                    backend.load_samples(refill, [samples[int(k)] for k in new],
-                                         [sample_meshes[int(k)] for k in new])
+                    load_slots(backend, refill, new)
                 sample[refill], j[refill], done[refill] = new, 0, False
                 restart[refill] = True
         assign(np.minimum(j, n_points - 1))
@@ -251,41 +251,36 @@ _COMPACT_BELOW = 0.125
 _COMPACT_MIN = 8
 
 
-def _run_device_async(dc_factory: Callable[..., _DeviceChain], params: list, n_points: int,
+def _run_device_async(dc_factory: Callable[[np.ndarray], _DeviceChain], params: list, n_points: int,
                       rupture_strain: float, assign_factory: Callable[[_DeviceChain], Callable],
                       max_replicas: int | None, progress,
                       on_finish: Callable[[int, dict], None] | None = None, stop_unstable: bool = False,
-                      meshes: Sequence | None = None) -> dict:
+                      load_slots: Callable[[_DeviceChain, np.ndarray, np.ndarray], None] | None = None) -> dict:
     """Async chain over ``params``; with ``max_replicas`` < len(params) at most that many slots run at once
     and finished slots take the next sample, softest (smallest k_a) first: FIRE work grows as k_a falls,
     so starting the longest chains first keeps the pool's tail short.  Rows come back in ``params`` order.
-    ``on_finish(i, row)``: each finished curve at once (``i`` indexes ``params``).  ``meshes``: one
-    stress-free reference per parameter set (one topology), passed as ``dc_factory(params, meshes)``; without
-    them ``dc_factory(params)``."""
+    ``dc_factory(idx)``: a chain for ``params[idx]``.  ``on_finish(i, row)``: each finished curve at once (``i``
+    indexes ``params``).  ``load_slots(backend, slots, idx)``: give slots the samples ``params[idx]`` (default:
+    their parameters; a pool of several sizes also swaps references and loads)."""
     S = len(params)
-
-    def factory(idx) -> _DeviceChain:
-        ps = [params[int(i)] for i in idx]
-        return dc_factory(ps) if meshes is None else dc_factory(ps, [meshes[int(i)] for i in idx])
-
     if max_replicas is None or max_replicas >= S:
-        dc = factory(range(S))
+        dc = dc_factory(np.arange(S))
         return _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress,
                                 on_finish=on_finish, stop_unstable=stop_unstable)
     order = np.argsort([p.ka for p in params], kind="stable")
     pool = [params[int(i)] for i in order]
-    pool_meshes = None if meshes is None else [meshes[int(i)] for i in order]
-    dc = factory(order[:max_replicas])
+    dc = dc_factory(order[:max_replicas])
 
     def compact(old: _DeviceChain, slots: np.ndarray, held: list):
-        new = factory(order[np.asarray(held, dtype=np.int64)])
+        new = dc_factory(order[np.asarray(held, dtype=np.int64)])
         new.take_over(old, slots)
         return new, assign_factory(new)
 
+    refill = None if load_slots is None else (lambda b, slots, k: load_slots(b, slots, order[np.asarray(k)]))
     finish = None if on_finish is None else (lambda s, row: on_finish(int(order[s]), row))
     out = _run_chain_async(dc, n_points, rupture_strain, assign_factory(dc), progress=progress, samples=pool,
                            compact=compact, compact_below=_COMPACT_BELOW, compact_min=_COMPACT_MIN,
-                           on_finish=finish, stop_unstable=stop_unstable, sample_meshes=pool_meshes)
+                           on_finish=finish, stop_unstable=stop_unstable, load_slots=refill)
     inv = np.empty(S, dtype=np.int64)
     inv[order] = np.arange(S)
     nv = dc.nv

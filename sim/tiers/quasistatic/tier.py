@@ -170,6 +170,7 @@ class QuasistaticTier:
             FireSettings,
             IdealGas,
             ThermalContact,
+            compression_pools,
             quasistatic_compression,
             quasistatic_indentation,
         )
@@ -179,9 +180,6 @@ class QuasistaticTier:
         mesh = mesh_for_diameter(request.diameter_um, sub)
         meshes = None
         if request.several_sizes:  # one pool of several sizes on one mesh level
-            if request.protocol != "indentation":
-                raise ValueError("quasistatic tier: several bubble sizes per request for indentation only (a "
-                                 "compression grid's sub-steps depend on the size)")
             by_size = {d: mesh_for_diameter(d, mesh.subdivisions) for d in sorted(set(request.diameters_um))}
             meshes = [by_size[d] for d in request.diameters_um]
         fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable,
@@ -195,12 +193,17 @@ class QuasistaticTier:
         static = self._static_info(request, mesh, conv)
         params = [dataclasses.replace(p, self_avoid=bool(self.self_avoid))
                   for p in request.shell_params(conv.name)]
+        if request.protocol == "indentation" and grid.ndim == 2:
+            raise ValueError("quasistatic tier: indentation takes one force grid per request (CurveRequest.grids)")
         if request.protocol == "compression":
             if self.first_load_ramp:
                 raise ValueError("quasistatic tier: first_load_ramp applies to indentation only (compression "
                                  "refines its plate steps itself)")
             thermal = ThermalContact(kT=float(self.kT)) if self.thermal_contact else None
-            res = quasistatic_compression(params, mesh, grid, thermal=thermal, **common)
+            if meshes is None and grid.ndim == 1:
+                res = quasistatic_compression(params, mesh, grid, thermal=thermal, **common)
+            else:  # one pool per chain length (the plate sub-steps depend on each grid)
+                res = compression_pools(params, mesh, meshes, grid, thermal=thermal, **common)
             obs = res.force + res.force_bottom  # both plates (DISPLACEMENT_CONVENTION)
         else:
             row_cb = None

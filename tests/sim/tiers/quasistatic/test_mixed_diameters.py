@@ -47,3 +47,34 @@ def test_references_must_share_the_topology():
     with pytest.raises(ValueError, match="topology"):
         quasistatic_indentation([params(5000.0)] * 2, icosphere(4.0, 2), GRID,
                                 meshes=[icosphere(4.0, 2), icosphere(4.0, 1)])
+
+
+@pytest.mark.parametrize("thermal", [False, True])
+def test_one_compression_pool_of_two_sizes_equals_one_run_per_size(thermal):
+    from bubblecal.sim.tiers.quasistatic import ThermalContact, quasistatic_compression
+
+    small, large = mesh_for_diameter(2.0, 2), mesh_for_diameter(3.0, 2)
+    ps = [params(16751.0), params(4000.0), params(9000.0, 50.0), params(2500.0), params(12000.0)]
+    sizes = [small, large, small, large, large]
+    fractions = np.array([0.0, 0.01, 0.02])  # total displacement / diameter (4 DPD lengths per um)
+    grid = {id(small): fractions * 8.0, id(large): fractions * 12.0}
+    contact = ThermalContact() if thermal else None
+    mixed = quasistatic_compression(ps, small, [grid[id(m)] for m in sizes], meshes=sizes, fire=FIRE,
+                                    thermal=contact, max_replicas=2)
+    for mesh in (small, large):
+        idx = [i for i, m in enumerate(sizes) if m is mesh]
+        alone = quasistatic_compression([ps[i] for i in idx], mesh, grid[id(mesh)], fire=FIRE, thermal=contact)
+        assert [mixed.status[i] for i in idx] == alone.status
+        np.testing.assert_array_equal(mixed.force[idx], alone.force)
+        np.testing.assert_array_equal(mixed.fire_steps[idx], alone.fire_steps)
+        np.testing.assert_array_equal(mixed.plate_z[idx], np.tile(alone.plate_z, (len(idx), 1)))
+        np.testing.assert_array_equal(mixed.displacements[idx], np.tile(alone.displacements, (len(idx), 1)))
+    assert np.all(mixed.force[:, -1] > mixed.force[:, 1])  # the plates press harder as they close
+
+
+def test_compression_chains_of_different_lengths_are_refused():
+    from bubblecal.sim.tiers.quasistatic import quasistatic_compression
+
+    small, large = mesh_for_diameter(2.0, 2), mesh_for_diameter(3.0, 2)
+    with pytest.raises(ValueError, match="chains of different lengths"):
+        quasistatic_compression([params(5000.0)] * 2, small, [[0.0, 0.1], [0.0, 0.5]], meshes=[small, large])
