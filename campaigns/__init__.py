@@ -41,8 +41,9 @@ Execution
 ``pending`` = design minus the samples whose latest store record is final (every status except
 ``config.retry_statuses``, default 'failed' and 'timeout': a sample that ruptured, went unstable or
 produced a non-finite curve ('invalid') is not re-run).  Pending samples are chunked into tasks of
-``replicas_per_task`` replicas of one diameter -- one :class:`~bubblecal.sim.tiers.CurveRequest` (one
-batched GPU launch) per task -- and submitted to Dask.  Results are collected with ``as_completed`` and
+``replicas_per_task`` replicas of one diameter (of neighbouring diameter levels when
+:attr:`CampaignConfig.pools_levels`) -- one :class:`~bubblecal.sim.tiers.CurveRequest` (one batched GPU
+launch) per task -- and submitted to Dask.  Results are collected with ``as_completed`` and
 appended by the CLIENT process only (single writer; every task's records go out in one atomic,
 fsync'ed append), so a killed worker (Dask reschedules its task) or an interrupted client (the next run
 skips what is stored) loses and duplicates nothing.  The per-task compute time is measured inside the
