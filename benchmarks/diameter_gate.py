@@ -1,0 +1,112 @@
+"""The fidelity gate where no published curve exists: explicit tier against quasi-static at new diameters.
+
+For each diameter level, the first ``--n`` design points of a campaign over the diameter (its Latin hypercube,
+loading grid, tier settings and mesh level) run with the campaign's quasi-static tier and with the explicit-solvent
+tier (the same mesh level and indentation convention, MD protocol scale ``--scale``).  Reported per diameter: the
+median [IQR] relative L2 of quasi-static against explicit over the curves 'ok' in both (the gate: median <= 3 %),
+statuses and wall seconds.  ``--out`` receives ``diameter_gate.json`` (rewritten after every diameter) and
+``curves_<campaign>_<d>um.csv``.
+
+Usage::
+
+    python benchmarks/diameter_gate.py --campaign definity_compression_1.5-8um --diameters 1.8,4.5,7.0 --n 8 \
+        --device cuda --scale 0.25 --out OUT
+    python benchmarks/diameter_gate.py --campaign sonovue_indentation_1.5-8um_mirheo --diameters 1.8 --n 2 \
+        --device cpu --scale 0.002 --subdivisions 2 --out /tmp/gate      # CPU smoke
+
+Prints one table and one JSON line (``{"benchmark": "diameter_gate", ...}``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.campaigns import design_points, load_campaign_file
+from bubblecal.data import SHELL_PARAMETERS
+from bubblecal.sim.tiers import CurveRequest, get_tier
+
+#: explicit-tier settings that the campaign's quasi-static settings carry over
+SHARED = ("indentation_convention",)
+
+
+def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None) -> dict:
+    """Quasi-static and explicit curves of the first ``n`` design points of one level."""
+    design = design_points(config)
+    idx = np.nonzero(np.isclose(design["diameter_um"], diameter_um))[0][:n]
+    if len(idx) == 0:
+        raise SystemExit(f"{config.name}: no design point at {diameter_um} um")
+    sub = subdivisions if subdivisions is not None else config.subdivisions
+    request = CurveRequest(protocol=config.protocol, diameter_um=float(diameter_um),
+                           grid=config.grid_for(float(diameter_um)),
+                           params={k: np.asarray(design[k][idx]) for k in SHELL_PARAMETERS},
+                           seeds=tuple(int(s) for s in design["seed"][idx]), subdivisions=sub)
+    qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"}
+    md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED}
+    out = {"indices": idx.tolist(), "grid": list(request.grid)}
+    for name, tier in (("quasistatic", get_tier("quasistatic", **qs_settings)),
+                       ("explicit", get_tier("explicit", scale=scale, **md_settings))):
+        t0 = time.perf_counter()
+        batch = tier.run(request, device)
+        out[name] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
+                     "seconds": time.perf_counter() - t0}
+    ok = [i for i in range(len(idx)) if out["quasistatic"]["status"][i] == out["explicit"]["status"][i] == "ok"]
+    yq, ye = out["quasistatic"]["y"], out["explicit"]["y"]
+    rel = np.array([np.linalg.norm(yq[i] - ye[i]) / np.linalg.norm(ye[i]) for i in ok])
+    out["rel_l2"] = rel.tolist()
+    out["summary"] = {"n_ok": len(ok), "n": len(idx),
+                      "median": float(np.median(rel)) if len(rel) else None,
+                      "iqr": [float(v) for v in np.quantile(rel, [0.25, 0.75])] if len(rel) else None}
+    return out
+
+
+def write_curves(path: Path, res: dict, protocol: str) -> None:
+    """One CSV row per curve and tier: design index, tier, status, then the curve."""
+    unit = "force" if protocol == "compression" else "depth"
+    with open(path, "w") as fh:
+        fh.write("index,tier,status," + ",".join(f"{unit}_at_{g:g}" for g in res["grid"]) + "\n")
+        for tier in ("quasistatic", "explicit"):
+            for i, row in zip(res["indices"], res[tier]["y"], strict=True):
+                status = res[tier]["status"][res["indices"].index(i)]
+                fh.write(f"{i},{tier},{status}," + ",".join(f"{v:.9g}" for v in row) + "\n")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--campaign", required=True, help="a campaign over the diameter (name or file)")
+    ap.add_argument("--diameters", default="1.8,4.5,7.0", help="comma-separated levels [um]")
+    ap.add_argument("--n", type=int, default=8, help="design points per diameter")
+    ap.add_argument("--device", default="cuda")
+    ap.add_argument("--scale", type=float, default=0.25, help="explicit MD protocol scale")
+    ap.add_argument("--subdivisions", type=int, default=None, help="mesh level (default: the campaign's)")
+    ap.add_argument("--out", default="diameter_gate_out")
+    args = ap.parse_args()
+    config = load_campaign_file(args.campaign).config
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    print(f"{'campaign':36s} {'D [um]':>6s} {'ok/n':>6s} {'median':>8s} {'IQR':>16s} {'QS s':>7s} {'MD s':>7s}")
+    for d in (float(v) for v in args.diameters.split(",") if v):
+        res = run_level(config, d, args.n, args.device, args.scale, args.subdivisions)
+        write_curves(out / f"curves_{config.name}_{d:g}um.csv", res, config.protocol)
+        s = res["summary"]
+        row = {"diameter_um": d, **s, "seconds_quasistatic": res["quasistatic"]["seconds"],
+               "seconds_explicit": res["explicit"]["seconds"], "status_explicit": res["explicit"]["status"],
+               "rel_l2": res["rel_l2"]}
+        rows.append(row)
+        med = "-" if s["median"] is None else f"{100 * s['median']:.2f}%"
+        iqr = "-" if s["iqr"] is None else f"[{100 * s['iqr'][0]:.2f}, {100 * s['iqr'][1]:.2f}]%"
+        print(f"{config.name:36s} {d:6.2f} {s['n_ok']:>2d}/{s['n']:<3d} {med:>8s} {iqr:>16s} "
+              f"{row['seconds_quasistatic']:7.1f} {row['seconds_explicit']:7.1f}", flush=True)
+        line = {"benchmark": "diameter_gate", "campaign": config.name, "device": args.device, "scale": args.scale,
+                "n": args.n, "rows": rows}
+        (out / "diameter_gate.json").write_text(json.dumps(line, indent=1))
+    print(json.dumps(line))
+
+
+if __name__ == "__main__":
+    main()
