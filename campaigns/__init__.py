@@ -49,6 +49,10 @@ fsync'ed append), so a killed worker (Dask reschedules its task) or an interrupt
 skips what is stored) loses and duplicates nothing.  The per-task compute time is measured inside the
 task, so Dask's overhead is ``1 - sum(task compute) / (wall x workers)`` (:class:`CampaignSummary`).
 
+Before any task, a campaign on 'cuda' checks that the device exists (on this machine, or on every Dask
+worker: :func:`check_device`); a call whose samples all fail is reported as such
+(:attr:`CampaignSummary.all_failed`; the CLI exits 1).
+
 ``scheduler_address='inline'`` runs the same loop in-process without Dask (debugging, or a machine
 without dask installed), and there the quasi-static indentation tier (async schedule) streams: each curve's
 record is appended as soon as the curve is finished (provenance ``streamed``), so a large task (one long
@@ -80,6 +84,7 @@ from bubblecal.campaigns.config import (
     CampaignConfig,
 )
 from bubblecal.campaigns.design import design_points, grid_design, lhs_design, sample_ids, sample_seed
+from bubblecal.campaigns.devices import check_device, cuda_device_count
 from bubblecal.campaigns.diameters import (
     DIAMETER_DESIGN_RANGE_UM,
     MAX_COMPRESSION_FRACTION,
@@ -113,6 +118,8 @@ __all__ = [
     "DESIGNS", "DESIGN_FIELDS", "OPTIONAL_DESIGN_FIELDS", "EXECUTION_ONLY_TIER_SETTINGS", "CampaignConfig",
     # diameters and loading grids
     "DIAMETER_DESIGN_RANGE_UM", "MAX_COMPRESSION_FRACTION", "diameter_levels", "fraction_grid", "published_grid",
+    # devices
+    "check_device", "cuda_device_count",
     "CampaignError", "CampaignConfigError", "CampaignFileError",
     # campaign files
     "CampaignFile", "available_campaigns", "campaign_path", "load_campaign_file", "load_campaign_config",

@@ -21,6 +21,7 @@ import numpy as np
 
 from bubblecal.campaigns.config import CampaignConfig, _is_int
 from bubblecal.campaigns.design import design_points
+from bubblecal.campaigns.devices import check_device, cuda_device_count
 from bubblecal.campaigns.errors import CampaignConfigError, CampaignError
 from bubblecal.campaigns.progress import _Progress
 from bubblecal.campaigns.records import task_records
@@ -103,6 +104,11 @@ class CampaignSummary:
     def n_remaining(self) -> int:
         """Design points still pending after this call."""
         return self.n_pending - sum(v for s, v in self.counts.items() if s not in self.retry_statuses)
+
+    @property
+    def all_failed(self) -> bool:
+        """Whether this call wrote samples and every one of them 'failed' or came back 'invalid'."""
+        return self.n_written > 0 and self.counts.get("failed", 0) + self.counts.get("invalid", 0) == self.n_written
 
     @property
     def efficiency(self) -> float:
@@ -313,6 +319,9 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     own_client = own_cluster = None
     workers = 1
     scheduler = "inline"
+    check_here = tasks and simulate is simulate_task and config.device.startswith("cuda")
+    if check_here and client is None and scheduler_address in (None, "inline"):
+        check_device(config.device)  # before any task: a missing GPU fails every sample otherwise
     try:
         if not tasks:
             pass
@@ -332,6 +341,9 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
                     own_cluster = LocalCluster(n_workers=nw, processes=True, threads_per_worker=1,
                                                dashboard_address=":0", silence_logs=logging.ERROR)
                     own_client = client = Client(own_cluster)
+            if check_here:  # the workers' devices, not the client's
+                for address, n in client.run(cuda_device_count).items():
+                    check_device(config.device, n, where=f"Dask worker {address}")
             workers = max(len(client.scheduler_info().get("workers", {})), 1)
             scheduler = str(client.scheduler_info().get("address", "?"))
             startup = time.perf_counter() - t_start

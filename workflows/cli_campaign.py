@@ -151,7 +151,8 @@ def campaign(
     Raises
     ------
     typer.Exit
-        Code 1 on an invalid file, option or store, or a campaign that stops on task errors.
+        Code 1 on an invalid file, option or store, a device this machine lacks, a campaign that stops on task
+        errors, or a run whose samples all failed.
     """
     from bubblecal.campaigns import (
         CampaignConfigError,
@@ -215,6 +216,9 @@ def campaign(
     for err in summary.task_errors[:5]:
         console.print(f"[yellow]task error[/]: {err}", markup=True, highlight=False)
     console.print(json.dumps(summary.as_dict()), markup=False, highlight=False, soft_wrap=True)
+    if summary.all_failed:
+        raise fail(f"every one of the {summary.n_written} samples of this run failed (see the records' messages: "
+                   f"bubblecal sim campaign-status {c.store}); they stay pending for the next run")
 
 
 def campaign_status(store: Path = typer.Argument(..., help="Campaign store directory (or .jsonl file)."),
