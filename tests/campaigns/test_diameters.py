@@ -170,6 +170,6 @@ def test_levels_share_one_pool_and_keep_their_curves(tmp_path, protocol):
         for row, i in enumerate(idx):
             rec = records[f"pool-{i:06d}"]
             assert rec["provenance"]["diameter_um"] == d and rec["radius_dpd"] == pytest.approx(2 * d)
-            assert rec["status"] == alone.status[row]
+            assert rec["status"] == alone.status[row] and rec["provenance"]["streamed"] is True
             np.testing.assert_array_equal(np.asarray(rec["x"], dtype=float), np.asarray(c.grid_for(d)))
             np.testing.assert_array_equal(np.asarray(rec["y"], dtype=float), alone.observable[row])

@@ -13,7 +13,7 @@ import numpy as np
 from bubblecal.sim.protocols.loading import validate_grid
 from bubblecal.sim.protocols.plates import PlateContact
 from bubblecal.sim.tiers.quasistatic.backends import _DeviceChain
-from bubblecal.sim.tiers.quasistatic.grids import _refine_grid, _select_points
+from bubblecal.sim.tiers.quasistatic.grids import _refine_grid, _select_points, _sum_substeps
 from bubblecal.sim.tiers.quasistatic.results import CompressionResult
 from bubblecal.sim.tiers.quasistatic.schedule import _run_chain, _run_device_async
 from bubblecal.sim.tiers.quasistatic.settings import (
@@ -119,14 +119,10 @@ def _compression_plan(params, mesh, displacements_dpd, *, gas, contact, thermal,
                             radius=radius, zc=zc, h0=h0, plate=plate, sizes=sizes)
 
 
-def _compression_result(plan: _CompressionPlan, out: dict, t0: float, *, gas, contact, thermal, fire,
-                        rupture_strain, n_vertices, dtype, extrapolate, max_replicas) -> CompressionResult:
-    """The :class:`CompressionResult` of a finished chain (``out`` of the schedules) at the requested points."""
-    fire_evaluations = out["fire_evaluations"]
-    keep = plan.keep
-    out = _select_points(out, keep)
-    nan = np.full((len(plan.params), len(keep)), np.nan)
-    settings = {"gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
+def _compression_settings(plan: _CompressionPlan, *, gas, contact, thermal, fire, rupture_strain, n_vertices,
+                          dtype, extrapolate, max_replicas) -> dict:
+    """The run's choices, as the result's ``settings`` (without the batch total ``fire_evaluations``)."""
+    return {"gas": None if gas is None else {"p0": gas.p0, "p_ambient": gas.ambient},
                 "contact": {**contact.__dict__, "cutoff": contact.cutoff},
                 "thermal_contact": None if thermal is None else {
                     "kT": thermal.kT, "sigma": thermal.sigma if thermal.sigma is not None
@@ -135,9 +131,19 @@ def _compression_result(plan: _CompressionPlan, out: dict, t0: float, *, gas, co
                 "plates": "z = z_c +- (h0 + gap - d/2)", "h0": plan.h0, "com": "mean x, y force removed",
                 "observable": "force on the top plate (one plate), positive compressive",
                 "fire": fire.__dict__, "rupture_strain": rupture_strain, "n_vertices": n_vertices,
-                "minimizer": "device", "dtype": _dtype_name(dtype), "fire_evaluations": fire_evaluations,
+                "minimizer": "device", "dtype": _dtype_name(dtype),
                 "start": "linear extrapolation" if extrapolate else "previous minimum",
                 "schedule": plan.schedule, "max_replicas": max_replicas}
+
+
+def _compression_result(plan: _CompressionPlan, out: dict, t0: float, settings: dict) -> CompressionResult:
+    """The :class:`CompressionResult` of a finished chain (``out`` of the schedules) at the requested points."""
+    items = list(settings.items())
+    at = [k for k, _ in items].index("dtype") + 1  # the key order of the records' settings, as it always was
+    settings = dict(items[:at] + [("fire_evaluations", out["fire_evaluations"])] + items[at:])
+    keep = plan.keep
+    out = _select_points(out, keep)
+    nan = np.full((len(plan.params), len(keep)), np.nan)
     sizes = plan.sizes
     return CompressionResult(displacements=plan.requested if sizes is None else sizes.requested,
                              force=out["obs"].get("top", nan), force_bottom=out["obs"].get("bottom", nan),
@@ -158,7 +164,8 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                             sync_every: int | None = None, extrapolate: bool = True, schedule: str | None = None,
                             max_replicas: int | None = None,
                             progress: Callable[[int, int, float], None] | None = None,
-                            meshes: Sequence[ShellMesh] | None = None) -> CompressionResult:
+                            meshes: Sequence[ShellMesh] | None = None,
+                            on_curve: Callable[[int, dict], None] | None = None) -> CompressionResult:
     """Athermal quasi-static parallel-plate compression F(d) of R replicas of ``mesh``.
 
     Parameters
@@ -190,6 +197,11 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
         One stress-free reference per parameter set, with ``mesh``'s faces (icospheres of one level at several
         diameters): one pool then holds several bubble sizes, each with its own plates, thermal fluctuation and
         grid row, with the curves of separate runs (async schedule).  None: ``mesh`` for every replica.
+    on_curve : callable, optional
+        ``on_curve(i, row)`` as soon as ``params[i]`` has finished its curve (async schedule), ``row`` =
+        {"force", "force_bottom" [P] (DPD force, one plate each), "status", "point_status", "fire_steps" [P],
+        "fire_steps_chain" (per chain point, sub-steps included), "settings" (the result's, less the batch
+        total ``fire_evaluations``)}: the same numbers as the returned rows.
 
     Returns
     -------
@@ -207,6 +219,19 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
                              rupture_strain=rupture_strain, max_plate_step=max_plate_step, schedule=schedule,
                              max_replicas=max_replicas, meshes=meshes)
     nv, zc, plate, disp, sizes = mesh.n_vertices, plan.zc, plan.plate, plan.disp, plan.sizes
+    settings = _compression_settings(plan, gas=gas, contact=contact, thermal=thermal, fire=fire,
+                                     rupture_strain=rupture_strain, n_vertices=nv, dtype=dtype,
+                                     extrapolate=extrapolate, max_replicas=max_replicas)
+    keep = plan.keep
+    finish = None
+    if on_curve is not None:
+        def finish(i, row):
+            n = len(disp)
+            top, bottom = (row["obs"].get(k, np.full(n, np.nan))[keep] for k in ("top", "bottom"))
+            on_curve(i, {"force": top, "force_bottom": bottom, "status": row["status"],
+                         "point_status": [row["point_status"][j] for j in keep],
+                         "fire_steps": _sum_substeps(row["fire_steps"], keep),
+                         "fire_steps_chain": np.asarray(row["fire_steps"]).copy(), "settings": settings})
 
     def make_chain(idx):
         ps = [plan.params[int(i)] for i in idx]
@@ -226,20 +251,18 @@ def quasistatic_compression(params: Sequence[ShellParams] | ShellParams, mesh: S
 
     if sizes is not None:
         out = _run_device_async(make_chain, plan.params, len(disp), rupture_strain,
-                                lambda dc: dc.assign_plates, max_replicas, progress,
+                                lambda dc: dc.assign_plates, max_replicas, progress, on_finish=finish,
                                 stop_unstable=fire.stop_at_max_steps, load_slots=load_slots)
     elif plan.schedule == "async":
         out = _run_device_async(make_chain, plan.params, len(disp), rupture_strain,
                                 lambda dc: (lambda jj: dc.set_plate_rows(plate[jj], 2 * zc - plate[jj])),
-                                max_replicas, progress, stop_unstable=fire.stop_at_max_steps)
+                                max_replicas, progress, on_finish=finish, stop_unstable=fire.stop_at_max_steps)
     else:
         dc = make_chain(np.arange(len(plan.params)))
         out = _run_chain(dc, len(disp), rupture_strain,
                          set_point=lambda j: dc.set_plates(plate[j], 2 * zc - plate[j]), progress=progress,
                          stop_unstable=fire.stop_at_max_steps)
-    return _compression_result(plan, out, t0, gas=gas, contact=contact, thermal=thermal, fire=fire,
-                               rupture_strain=rupture_strain, n_vertices=nv, dtype=dtype, extrapolate=extrapolate,
-                               max_replicas=max_replicas)
+    return _compression_result(plan, out, t0, settings)
 
 
 def compression_pools(params: Sequence[ShellParams], mesh: ShellMesh, meshes: Sequence[ShellMesh] | None,
@@ -283,8 +306,14 @@ def compression_pools(params: Sequence[ShellParams], mesh: ShellMesh, meshes: Se
     for i in range(n):
         groups.setdefault(len(_refine_grid(validate_grid(rows[i], "displacements_dpd"), 2.0 * max_plate_step)[0]),
                           []).append(i)
+    on_curve = kwargs.pop("on_curve", None)
+
+    def stream(idx):  # group row k -> the caller's row idx[k]
+        return None if on_curve is None else (lambda k, row: on_curve(idx[k], row))
+
     parts = [(idx, quasistatic_compression([params[i] for i in idx], mesh, rows[idx], meshes=[refs[i] for i in idx],
-                                           max_plate_step=max_plate_step, **kwargs)) for idx in groups.values()]
+                                           max_plate_step=max_plate_step, on_curve=stream(idx), **kwargs))
+             for idx in groups.values()]
     first = parts[0][1]
     merged = {}
     for name in ("displacements", "force", "force_bottom", "n_contacts", "plate_z", "volume", "max_area_strain",

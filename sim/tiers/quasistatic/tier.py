@@ -149,9 +149,9 @@ class QuasistaticTier:
         device : str
             Warp device.
         on_curve : callable, optional
-            ``on_curve(i, observable [P], status, info)``: indentation (async schedule) reports each curve as soon
-            as it is finished, with the row, tier status and per-curve info the returned batch will hold (its
-            ``settings`` less the batch total ``fire_evaluations``).
+            ``on_curve(i, observable [P], status, info)``: each curve (async schedule) as soon as it is
+            finished, with the row, tier status and per-curve info the returned batch will hold (its ``settings``
+            less the batch total ``fire_evaluations``).
 
         Returns
         -------
@@ -200,10 +200,18 @@ class QuasistaticTier:
                 raise ValueError("quasistatic tier: first_load_ramp applies to indentation only (compression "
                                  "refines its plate steps itself)")
             thermal = ThermalContact(kT=float(self.kT)) if self.thermal_contact else None
+            row_cb = None
+            if on_curve is not None:
+                def row_cb(i, row):
+                    on_curve(i, row["force"] + row["force_bottom"], _QS_STATUS[row["status"]],
+                             {**static, "fire_steps": int(np.sum(row["fire_steps"])),
+                              "fire_steps_chain": [int(v) for v in row["fire_steps_chain"]],
+                              "settings": row["settings"]})
+
             if meshes is None and grid.ndim == 1:
-                res = quasistatic_compression(params, mesh, grid, thermal=thermal, **common)
+                res = quasistatic_compression(params, mesh, grid, thermal=thermal, on_curve=row_cb, **common)
             else:  # one pool per chain length (the plate sub-steps depend on each grid)
-                res = compression_pools(params, mesh, meshes, grid, thermal=thermal, **common)
+                res = compression_pools(params, mesh, meshes, grid, thermal=thermal, on_curve=row_cb, **common)
             obs = res.force + res.force_bottom  # both plates (DISPLACEMENT_CONVENTION)
         else:
             row_cb = None

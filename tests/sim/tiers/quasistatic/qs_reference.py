@@ -26,7 +26,11 @@ from bubblecal.sim.tiers.quasistatic import (
     shell_fluctuation_sigma,
     thermal_plate_force,
 )
-from bubblecal.sim.tiers.quasistatic.compression import _compression_plan, _compression_result
+from bubblecal.sim.tiers.quasistatic.compression import (
+    _compression_plan,
+    _compression_result,
+    _compression_settings,
+)
 from bubblecal.sim.tiers.quasistatic.indentation import _indentation_plan, _indentation_result
 from bubblecal.sim.tiers.quasistatic.schedule import _run_chain
 from bubblecal.sim.tiers.quasistatic.settings import _check_params
@@ -226,8 +230,9 @@ def reference_compression(params: Sequence[ShellParams] | ShellParams, mesh: She
 
     hc = _HostChain(b, make, np.ones((R * nv, 3), dtype=bool), fire, measure)
     out = _run_chain(hc, len(plan.disp), rupture_strain, progress=progress, stop_unstable=fire.stop_at_max_steps)
-    res = _compression_result(plan, out, t0, gas=gas, contact=contact, thermal=thermal, fire=fire,
-                              rupture_strain=rupture_strain, n_vertices=nv, dtype=dtype, extrapolate=False,
-                              max_replicas=None)
+    settings = _compression_settings(plan, gas=gas, contact=contact, thermal=thermal, fire=fire,
+                                     rupture_strain=rupture_strain, n_vertices=nv, dtype=dtype, extrapolate=False,
+                                     max_replicas=None)
+    res = _compression_result(plan, out, t0, settings)
     res.settings["minimizer"] = "numpy"
     return res

@@ -78,3 +78,26 @@ def test_compression_chains_of_different_lengths_are_refused():
     small, large = mesh_for_diameter(2.0, 2), mesh_for_diameter(3.0, 2)
     with pytest.raises(ValueError, match="chains of different lengths"):
         quasistatic_compression([params(5000.0)] * 2, small, [[0.0, 0.1], [0.0, 0.5]], meshes=[small, large])
+
+
+@pytest.mark.parametrize("several_sizes", [False, True])
+def test_compression_reports_each_curve_as_it_finishes(several_sizes):
+    from bubblecal.sim.tiers.quasistatic import ThermalContact, compression_pools, quasistatic_compression
+
+    small, large = mesh_for_diameter(2.0, 2), mesh_for_diameter(3.0, 2)
+    ps = [params(16751.0), params(4000.0), params(9000.0, 50.0)]
+    rows = {}
+    kw = dict(fire=FIRE, thermal=ThermalContact(), max_replicas=2, on_curve=lambda i, row: rows.setdefault(i, row))
+    if several_sizes:  # two chain lengths (0.018 D steps: one plate sub-step at 2 um, two at 3 um): two pools
+        sizes = [small, large, large]
+        grids = [np.array([0.0, 0.018, 0.036]) * 4.0 * d for d in (2.0, 3.0, 3.0)]
+        res = compression_pools(ps, small, sizes, np.array(grids), **kw)
+    else:
+        res = quasistatic_compression(ps, small, [0.0, 0.08, 0.16], **kw)
+    assert sorted(rows) == [0, 1, 2]
+    for i, row in rows.items():
+        assert row["status"] == res.status[i] and row["point_status"] == res.point_status[i]
+        np.testing.assert_array_equal(row["force"], res.force[i])
+        np.testing.assert_array_equal(row["force_bottom"], res.force_bottom[i])
+        np.testing.assert_array_equal(row["fire_steps"], res.fire_steps[i])
+        assert "fire_evaluations" not in row["settings"] and "fire_evaluations" in res.settings
