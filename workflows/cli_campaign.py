@@ -61,7 +61,7 @@ def _design_tables(cf, where, store_note: str) -> None:
         loading = (f"{len(grid)} points, total displacement {_fmt(c.loading_fractions[0])} .. "
                    f"{_fmt(c.loading_fractions[-1])} x diameter ({_fmt(grid[-1])} [DPD length] at "
                    f"{_fmt(c.diameters[0])} um, {_fmt(top[-1])} at {_fmt(c.diameters[-1])} um)")
-    rows = [("protocol", c.protocol), ("diameter(s) [um]", diameters),
+    rows = [("protocol", c.protocol), ("diameter(s) \\[um]", diameters),
             ("tier", f"{c.tier} {json.dumps(c.tier_settings) if c.tier_settings else '(defaults)'}"),
             ("design", f"{c.design}, seed {c.seed}" + (f", box from priors {cf.priors}" if cf.priors else "")),
             ("design points", str(c.n_design)),
@@ -99,20 +99,20 @@ def campaign(
                                                             "dask-jobqueue SLURMCluster); 'inline' = in-process, "
                                                             "no Dask (quasi-static indentation then stores each "
                                                             "curve when it is finished); 'local' = a LocalCluster. "
-                                                            "Default: [dask] of the file, else 'local'."),
-    workers: int = typer.Option(None, "--workers", min=1, help="LocalCluster worker processes (default: [dask] "
+                                                            "Default: \\[dask] of the file, else 'local'."),
+    workers: int = typer.Option(None, "--workers", min=1, help="LocalCluster worker processes (default: \\[dask] "
                                                                "n_workers, else 1 on cuda / core count on cpu)."),
     limit: int = typer.Option(None, "--limit", min=0, help="Run at most N pending samples, then stop (resume "
                                                            "later with the same command)."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the design and what is pending; simulate "
                                                           "nothing."),
-    device: str = typer.Option(None, "--device", help="Override [campaign].device: cpu, cuda or cuda:N."),
-    store: Path = typer.Option(None, "--store", help="Override [campaign].store (campaign store directory)."),
+    device: str = typer.Option(None, "--device", help="Override \\[campaign].device: cpu, cuda or cuda:N."),
+    store: Path = typer.Option(None, "--store", help="Override \\[campaign].store (campaign store directory)."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar with ETA."),
-    diameter: list[float] = typer.Option(None, "--diameter", help="Run only this diameter [um] of a "
+    diameter: list[float] = typer.Option(None, "--diameter", help="Run only this diameter \\[um] of a "
                                                                   "multi-diameter design (repeatable)."),
     tier_setting: list[str] = typer.Option(None, "--tier-setting", help="KEY=VALUE (TOML value) on top of the "
-                                           "file's [tier], e.g. first_load_ramp=6 (repeatable). Changes the design: "
+                                           "file's \\[tier], e.g. first_load_ramp=6 (repeatable). Changes the design: "
                                            "give a fresh --store."),
 ) -> None:
     """Run a training-data campaign: a seeded design over a prior box, simulated on Dask, appended to a

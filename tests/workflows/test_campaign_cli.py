@@ -109,3 +109,11 @@ def test_cli_tier_setting_overrides_the_file_and_is_validated(tmp_path):
     assert bad.exit_code == 1 and "[tier].schedule" in out and "--tier-setting schedule" in out and "c.toml" in out
     res = runner.invoke(app, ["sim", "campaign", str(path), "--dry-run", "--tier-setting", "ftol"])
     assert res.exit_code == 1 and "expected KEY=VALUE" in plain(res.output)
+
+
+def test_help_and_dry_run_keep_bracketed_words():
+    out = plain(runner.invoke(app, ["sim", "campaign", "--help"]).output)
+    for word in ("[dask]", "[campaign].device", "[campaign].store", "[um]", "[tier],"):
+        assert word in out, word
+    res = runner.invoke(app, ["sim", "campaign", "definity_compression_2.1um", "--dry-run"])
+    assert res.exit_code == 0 and "[um]" in plain(res.output)
