@@ -41,6 +41,10 @@ MIN_PARTICLES = 100
 DEFAULT_PHASE2_SAMPLES = 2000
 
 
+#: Largest TMCMC population (and chunk) a run accepts: its particle arrays then stay within a few GiB.
+MAX_POPULATION = 10_000_000
+
+
 class CalibrationError(ValueError):
     """A calibration input is invalid; the message names the file / field / range. Raised before sampling."""
 
@@ -129,6 +133,22 @@ class CalibrationConfig:
     figures: bool = True
     summaries: bool = True
     phase3: str = "published"
+
+    def __post_init__(self) -> None:
+        # integer settings: (field, lowest, highest, may be None); checked here so the library refuses what
+        # the CLI refuses, before anything is sampled
+        limits = (("population", 2, MAX_POPULATION, True), ("seed", 0, 2**32 - 1, False),
+                  ("phase2_samples", 1, MAX_POPULATION, True), ("num_mcmc_steps", 1, 10_000, False),
+                  ("chunk_size", 1, MAX_POPULATION, True), ("predictive_samples", 1, 10**6, False),
+                  ("crps_replicates", 1, 1000, False), ("nuts_warmup", 1, 10**6, False),
+                  ("nuts_samples", 1, 10**6, False), ("nuts_chains", 1, 64, False))
+        for name, lo, hi, optional in limits:
+            v = getattr(self, name)
+            if v is None and optional:
+                continue
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise CalibrationError(f"{name} (--{name.replace('_', '-').replace('num-', '')}) must be an integer in "
+                                       f"[{lo:,}, {hi:,}]{' or unset' if optional else ''}, got {v!r}")
 
     @property
     def num_particles(self) -> int:

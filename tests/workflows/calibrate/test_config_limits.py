@@ -1,0 +1,22 @@
+"""CalibrationConfig refuses integer settings outside their ranges before anything runs, naming the option."""
+
+from __future__ import annotations
+
+import pytest
+
+from bubblecal.workflows.calibrate import CalibrationConfig, CalibrationError
+
+
+@pytest.mark.parametrize("field, value, option", [
+    ("seed", -1, "--seed"), ("chunk_size", 0, "--chunk-size"), ("chunk_size", -3, "--chunk-size"),
+    ("population", 10**23, "--population"), ("population", 1, "--population"), ("num_mcmc_steps", 0, "--mcmc-steps"),
+    ("nuts_chains", 0, "--nuts-chains"), ("phase2_samples", 0, "--phase2-samples"), ("seed", 1.5, "--seed"),
+])
+def test_out_of_range_settings_name_the_option(field, value, option):
+    with pytest.raises(CalibrationError, match=rf"{field} \({option}\) must be an integer in \["):
+        CalibrationConfig(**{field: value})
+
+
+def test_defaults_and_unset_optionals_pass():
+    CalibrationConfig()
+    CalibrationConfig(population=None, chunk_size=None, phase2_samples=None, seed=2**32 - 1)
