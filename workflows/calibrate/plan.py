@@ -8,6 +8,7 @@ raises one :class:`~bubblecal.workflows.calibrate.CalibrationError` naming the f
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -201,6 +202,21 @@ def _check_choices(config: CalibrationConfig) -> None:
         raise CalibrationError(f"--data-dir {config.data_dir}: not a directory")
 
 
+def _check_out(out: Path) -> None:
+    """The output folder exists or can be made, and is writable (else one message naming it)."""
+    existing = next((p for p in (out, *out.parents) if p.exists()), None)
+    if out.exists() and not out.is_dir():
+        raise CalibrationError(f"--out {out}: exists and is not a folder")
+    if existing is not None and existing != out and not existing.is_dir():
+        raise CalibrationError(f"--out {out}: {existing} is a file, so the folder cannot be made")
+    if existing is not None and not os.access(existing, os.W_OK | os.X_OK):
+        raise CalibrationError(f"--out {out}: {existing} is not writable (or on a read-only file system)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CalibrationError(f"--out {out}: the folder cannot be made ({exc.strerror})") from None
+
+
 def make_plan(config: CalibrationConfig) -> Plan:
     """Validate the whole configuration and load every input, before any sampling starts.
 
@@ -217,7 +233,8 @@ def make_plan(config: CalibrationConfig) -> Plan:
     CalibrationError
         One clear message naming the file, field or range: a bad choice or range, a missing device, an
         unreadable bundle, priors or data file, priors for another agent or workflow, a curve without a
-        surrogate, missing acoustic data or surrogate, or a population too small for a phase.
+        surrogate, missing acoustic data or surrogate, a population too small for a phase, or an output
+        folder that cannot be made or written.
     """
     from bubblecal.priors import PriorError, load_priors
     from bubblecal.surrogates import SurrogateFormatError, load_bundle
@@ -225,6 +242,7 @@ def make_plan(config: CalibrationConfig) -> Plan:
     from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
 
     _check_choices(config)
+    _check_out(Path(config.out))
     bundle_path = resolve_bundle(config.bundle)
     try:
         bundle = load_bundle(bundle_path)

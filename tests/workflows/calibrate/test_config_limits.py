@@ -20,3 +20,14 @@ def test_out_of_range_settings_name_the_option(field, value, option):
 def test_defaults_and_unset_optionals_pass():
     CalibrationConfig()
     CalibrationConfig(population=None, chunk_size=None, phase2_samples=None, seed=2**32 - 1)
+
+
+def test_unusable_output_folders_are_named(tmp_path):
+    from bubblecal.workflows.calibrate import make_plan
+
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    with pytest.raises(CalibrationError, match="exists and is not a folder"):
+        make_plan(CalibrationConfig(agents=("definity",), out=a_file))
+    with pytest.raises(CalibrationError, match="is a file, so the folder cannot be made"):
+        make_plan(CalibrationConfig(agents=("definity",), out=a_file / "sub"))
