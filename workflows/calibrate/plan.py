@@ -200,6 +200,23 @@ def _check_choices(config: CalibrationConfig) -> None:
         raise CalibrationError(f"phase2_samples must be >= 10, got {config.phase2_samples}")
     if config.data_dir is not None and not Path(config.data_dir).is_dir():
         raise CalibrationError(f"--data-dir {config.data_dir}: not a directory")
+    if config.data_dir is not None:
+        _check_data_dir(Path(config.data_dir))
+
+
+def _check_data_dir(folder: Path) -> None:
+    """Every file of a ``--data-dir`` folder is one the run reads (else one message naming the others)."""
+    from bubblecal.data import REFERENCE_CURVES
+
+    known = {f"{name}_dpd.csv" for name in REFERENCE_CURVES} | {"acoustic_observations_published.csv"}
+    files = sorted(p.name for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
+    unknown = [f for f in files if f not in known]
+    if unknown or not files:
+        lower = {k.lower(): k for k in known}
+        hints = [f"{f} (did you mean {lower[f.lower()]}?)" if f.lower() in lower else f for f in unknown]
+        what = (f"holds files this run would not read: {', '.join(hints)}" if unknown
+                else "holds none of the files this run reads")
+        raise CalibrationError(f"--data-dir {folder}: {what}; accepted names: {', '.join(sorted(known))}")
 
 
 def _check_out(out: Path) -> None:

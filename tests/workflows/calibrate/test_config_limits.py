@@ -31,3 +31,19 @@ def test_unusable_output_folders_are_named(tmp_path):
         make_plan(CalibrationConfig(agents=("definity",), out=a_file))
     with pytest.raises(CalibrationError, match="is a file, so the folder cannot be made"):
         make_plan(CalibrationConfig(agents=("definity",), out=a_file / "sub"))
+
+
+def test_data_dir_files_are_all_read_or_named(tmp_path):
+    from bubblecal.workflows.calibrate import make_plan
+
+    data = tmp_path / "data"
+    data.mkdir()
+    with pytest.raises(CalibrationError, match="holds none of the files this run reads"):
+        make_plan(CalibrationConfig(agents=("definity",), data_dir=data, out=tmp_path / "o"))
+    (data / "definity_compression_2.1um.csv").write_text("displacement_dpd,force_dpd\n0,0\n")
+    (data / "Definity_Compression_2.9um_dpd.csv").write_text("displacement_dpd,force_dpd\n0,0\n")
+    with pytest.raises(CalibrationError) as err:
+        make_plan(CalibrationConfig(agents=("definity",), data_dir=data, out=tmp_path / "o"))
+    msg = str(err.value)
+    assert "definity_compression_2.1um.csv" in msg and "accepted names" in msg
+    assert "Definity_Compression_2.9um_dpd.csv (did you mean definity_compression_2.9um_dpd.csv?)" in msg
