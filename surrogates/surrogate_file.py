@@ -37,6 +37,7 @@ indentation x = applied force [DPD force], y = displacement [DPD length].
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -166,6 +167,32 @@ def _check_arrays(path: Path, arrays: Mapping[str, np.ndarray], md: Mapping) -> 
             raise SurrogateFormatError(f"{path}: metadata field 'param_ranges' lacks '{name}'")
 
 
+def _read_fields(path: Path, npz) -> tuple[dict, int]:
+    """The arrays of an opened surrogate archive, its format and fields checked; returns (arrays, n_layers)."""
+    with npz:
+        keys = set(npz.files)
+        for key in ("format", "format_version"):
+            if key not in keys:
+                raise SurrogateFormatError(f"{path}: missing field '{key}' (not a bubblecal surrogate file)")
+        fmt = str(npz["format"])
+        if fmt != FORMAT:
+            raise SurrogateFormatError(f"{path}: field 'format' is {fmt!r}, expected {FORMAT!r}")
+        version = int(npz["format_version"])
+        if version != FORMAT_VERSION:
+            raise SurrogateFormatError(f"{path}: field 'format_version' is {version}, this code reads "
+                                       f"version {FORMAT_VERSION}")
+        for key in ("n_layers", "in_mean", "in_std", "out_mean", "out_std", "metadata"):
+            if key not in keys:
+                raise SurrogateFormatError(f"{path}: missing field '{key}'")
+        n_layers = int(npz["n_layers"])
+        for i in range(n_layers):
+            for key in (f"W_{i}", f"b_{i}"):
+                if key not in keys:
+                    raise SurrogateFormatError(f"{path}: missing field '{key}' (n_layers = {n_layers})")
+        arrays = {k: npz[k] for k in keys}
+    return arrays, n_layers
+
+
 def load(path: str | Path) -> Surrogate:
     """Load a surrogate ``.npz`` (module docstring) as a JAX-callable :class:`~bubblecal.surrogates.Surrogate`.
 
@@ -189,31 +216,20 @@ def load(path: str | Path) -> Surrogate:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"surrogate file not found: {path}")
+    if not zipfile.is_zipfile(path):  # numpy would otherwise try, and suggest, unpickling it
+        raise SurrogateFormatError(f"{path}: not a .npz archive (a bubblecal surrogate file is a zip of arrays, "
+                                   "written by `bubblecal surrogates train` or `export`)")
     try:
         npz = np.load(path, allow_pickle=False)
     except Exception as exc:
         raise SurrogateFormatError(f"{path}: not a readable .npz file ({exc})") from exc
-    with npz:
-        keys = set(npz.files)
-        for key in ("format", "format_version"):
-            if key not in keys:
-                raise SurrogateFormatError(f"{path}: missing field '{key}' (not a bubblecal surrogate file)")
-        fmt = str(npz["format"])
-        if fmt != FORMAT:
-            raise SurrogateFormatError(f"{path}: field 'format' is {fmt!r}, expected {FORMAT!r}")
-        version = int(npz["format_version"])
-        if version != FORMAT_VERSION:
-            raise SurrogateFormatError(f"{path}: field 'format_version' is {version}, this code reads "
-                                       f"version {FORMAT_VERSION}")
-        for key in ("n_layers", "in_mean", "in_std", "out_mean", "out_std", "metadata"):
-            if key not in keys:
-                raise SurrogateFormatError(f"{path}: missing field '{key}'")
-        n_layers = int(npz["n_layers"])
-        for i in range(n_layers):
-            for key in (f"W_{i}", f"b_{i}"):
-                if key not in keys:
-                    raise SurrogateFormatError(f"{path}: missing field '{key}' (n_layers = {n_layers})")
-        arrays = {k: npz[k] for k in keys}
+    try:
+        arrays, n_layers = _read_fields(path, npz)
+    except SurrogateFormatError:
+        raise
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:  # a field's bytes are damaged
+        raise SurrogateFormatError(f"{path}: damaged .npz ({type(exc).__name__}: {exc}); restore or re-export "
+                                   "the file") from None
     try:
         md = json.loads(str(arrays["metadata"]))
     except json.JSONDecodeError as exc:
