@@ -285,10 +285,10 @@ class _DeviceChain:
             self.ff.set_params_rows(rows, list(params))
         else:
             self.ff.set_reference_rows(rows, list(meshes), list(params))
-            x_ref = self.x_ref.numpy()
-            for r, m in zip(rows, meshes, strict=True):
-                x_ref[r * self.nv:(r + 1) * self.nv] = m.vertices
-            self.x_ref.assign(x_ref)
+            wp = self.wp
+            for r, m in zip(rows, meshes, strict=True):  # only the slots' rows travel to the device
+                src = wp.array(m.vertices.astype(self._npf), dtype=self.vec3, device=self.device)
+                wp.copy(self.x_ref, src, dest_offset=int(r) * self.nv, count=self.nv)
             if self._gas_model is not None:
                 g = self.gas.numpy()
                 g[rows, 0] = [self._gas_model.p0 * m.volume() for m in meshes]

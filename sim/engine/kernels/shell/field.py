@@ -158,8 +158,9 @@ class ShellForceField(ShellFieldMeasurements):
         self._dih_start, self._dih_slot = (wp.array(a, **i32) for a in vertex_csr(comp_d, n_shell))
         self.n_triangles = tri.shape[0]
         self.n_edges = dih.shape[0]
-        self._tri_rows = [np.flatnonzero(tri_rep == r) for r in range(R)]
-        self._edge_rows = [np.flatnonzero(edge_rep == r) for r in range(R)]
+        # each replica's triangles and edges are one contiguous block (pack_topology concatenates the meshes)
+        self._tri_first = np.searchsorted(tri_rep, np.arange(R))
+        self._edge_first = np.searchsorted(edge_rep, np.arange(R))
         # NumPy <-> Warp staging for the NumPy convenience interface (CPU / tests / minimiser)
         self._np_x = None
         self._scratch_f = None
@@ -245,18 +246,15 @@ class ShellForceField(ShellFieldMeasurements):
                 raise ValueError(f"set_reference_rows: the mesh for row {int(r)} has another topology")
         if len(rows) == 0:
             return
-        # the same float64 values, rounded once to the field's type, as at construction
-        ref, theta0, cs0 = self._ref.numpy(), self._theta0.numpy(), self._cs0.numpy()
+        # only the rows' blocks travel to the device (a refill pool calls this often), converted from float64 as
+        # at construction
         for r, m in zip(rows, meshes, strict=True):
             r = int(r)
-            ref[self._tri_rows[r]] = np.stack([m.l1**2, m.l2**2, m.d0, m.A0], axis=1)
-            theta0[self._edge_rows[r]] = m.theta0
-            cs0[self._edge_rows[r]] = np.stack([np.cos(m.theta0), np.sin(m.theta0)], axis=1)
+            _write_block(self._ref, self._tri_first[r], np.stack([m.l1**2, m.l2**2, m.d0, m.A0], axis=1))
+            _write_block(self._theta0, self._edge_first[r], m.theta0)
+            _write_block(self._cs0, self._edge_first[r], np.stack([np.cos(m.theta0), np.sin(m.theta0)], axis=1))
             self.meshes[r] = m
             self.area0[r], self.volume0[r] = m.area(), m.volume()
-        self._ref.assign(ref)
-        self._theta0.assign(theta0)
-        self._cs0.assign(cs0)
         self.set_params_rows(rows, params)
 
     def _check_array(self, a, name: str) -> None:
@@ -345,3 +343,9 @@ class ShellForceField(ShellFieldMeasurements):
         if volume is None or volume.dtype != self.dtype or volume.shape != (R,) or volume.device != self.device:
             raise ValueError(f"volume must be a {self.dtype.__name__} array of shape ({R},) on {self.device}")
         self._gas, self._gas_vol, self._gas_on = gas, volume, 1
+
+
+def _write_block(dest: wp.array, first: int, values: np.ndarray) -> None:
+    """Overwrite ``len(values)`` rows of ``dest`` from row ``first`` (values converted to ``dest``'s type)."""
+    src = wp.array(values, dtype=dest.dtype, device=dest.device)
+    wp.copy(dest, src, dest_offset=int(first), count=len(values))
