@@ -30,9 +30,10 @@ Design
   over ``ranges['ka']``), every other parameter is fixed (``lo == hi``), mu = ka/3 (the shell model's
   rule); several diameters may be listed and the design is diameters x ka values.
 * A design over a diameter range (``diameter_range_um`` with ``diameter_step_um``; 'lhs' only): the
-  hypercube's last dimension is the diameter, mapped evenly onto the levels lo, lo + step, ..., hi, one mesh
-  and one batch per level; compression grids are then fractions of the diameter (``loading_fractions``),
-  indentation forces absolute (:mod:`~bubblecal.campaigns.diameters`).
+  hypercube's last dimension is the diameter, mapped evenly onto the levels lo, lo + step, ..., hi (one mesh
+  per level; on one mesh level the quasi-static tier runs the levels in one refill pool); compression grids
+  are then fractions of the diameter (``loading_fractions``), indentation forces absolute
+  (:mod:`~bubblecal.campaigns.diameters`).
 
 Sample ``i`` has the id ``f"{name}-{i:06d}"`` and the seed :func:`sample_seed` ``(config.seed, i)``.
 

@@ -191,11 +191,9 @@ class CampaignConfig:
         r = self.diameter_range_um
         if not isinstance(r, (list, tuple)) or len(r) != 2:
             raise CampaignConfigError("ranges.diameter_um", f"must be [lo, hi] in um, got {r!r}")
-        levels = diameter_levels(r[0], r[1], self.diameter_step_um)
+        diameter_levels(r[0], r[1], self.diameter_step_um)  # validates the range and the step
         object.__setattr__(self, "diameter_range_um", (float(r[0]), float(r[1])))
         object.__setattr__(self, "diameter_step_um", float(self.diameter_step_um))
-        if len(levels) < 2:
-            raise CampaignConfigError("diameter_step_um", "the range needs at least two levels")
 
     def _check_ranges(self) -> None:
         """ranges: every shell parameter, (lo, hi) finite with lo <= hi, in SHELL_PARAMETERS order."""

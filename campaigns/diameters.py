@@ -149,10 +149,8 @@ def check_loading_fractions(protocol: str, fractions) -> tuple[float, ...]:
     if protocol != "compression":
         raise CampaignConfigError("loading_fractions", f"applies to compression only (displacement as a fraction "
                                                        f"of the diameter); {protocol} takes loading_grid")
-    ok = isinstance(fractions, (list, tuple)) and len(fractions) >= 2 and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in fractions)
-    a = np.asarray(fractions, dtype=float) if ok else None
-    if not ok or np.any(a < 0) or np.any(np.diff(a) <= 0) or a[-1] > MAX_COMPRESSION_FRACTION:
+    a = _increasing(fractions)
+    if a is None or a[-1] > MAX_COMPRESSION_FRACTION:
         raise CampaignConfigError("loading_fractions", f">= 2 strictly increasing fractions of the diameter in "
                                                        f"[0, {MAX_COMPRESSION_FRACTION:g}] needed, got {fractions!r}")
     return tuple(float(v) for v in a)
@@ -188,13 +186,19 @@ def published_grid(protocol: str, diameter_um: float) -> tuple[float, ...]:
     return published_indentation_protocol(diameter_um).forces_dpd
 
 
+def _increasing(values) -> np.ndarray | None:
+    """``values`` as floats when they are >= 2 finite, non-negative, strictly increasing numbers, else None."""
+    ok = isinstance(values, (list, tuple)) and len(values) >= 2 and all(
+        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
+        for v in values)
+    a = np.asarray(values, dtype=float) if ok else None
+    return a if ok and not (np.any(a < 0) or np.any(np.diff(a) <= 0)) else None
+
+
 def _check_absolute_grid(protocol: str, grid) -> tuple[float, ...]:
     """An explicit loading grid: >= 2 finite, non-negative, strictly increasing numbers."""
-    ok = isinstance(grid, (list, tuple)) and len(grid) >= 2 and all(
-        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
-        for v in grid)
-    a = np.asarray(grid, dtype=float) if ok else None
-    if not ok or np.any(a < 0) or np.any(np.diff(a) <= 0):
+    a = _increasing(grid)
+    if a is None:
         unit = "DPD length" if protocol == "compression" else "DPD force"
         raise CampaignConfigError("loading_grid", f">= 2 finite, non-negative, strictly increasing values [{unit}] "
                                                   f"needed, got {grid!r}")

@@ -319,8 +319,9 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     own_client = own_cluster = None
     workers = 1
     scheduler = "inline"
-    check_here = tasks and simulate is simulate_task and config.device.startswith("cuda")
-    if check_here and client is None and scheduler_address in (None, "inline"):
+    check = tasks and simulate is simulate_task and config.device.startswith("cuda")
+    local = client is None and scheduler_address in (None, "inline")  # in process, or a LocalCluster here
+    if check and local:
         check_device(config.device)  # before any task: a missing GPU fails every sample otherwise
     try:
         if not tasks:
@@ -341,7 +342,7 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
                     own_cluster = LocalCluster(n_workers=nw, processes=True, threads_per_worker=1,
                                                dashboard_address=":0", silence_logs=logging.ERROR)
                     own_client = client = Client(own_cluster)
-            if check_here:  # the workers' devices, not the client's
+            if check and not local:  # remote workers: their devices, not the client's
                 for address, n in client.run(cuda_device_count).items():
                     check_device(config.device, n, where=f"Dask worker {address}")
             workers = max(len(client.scheduler_info().get("workers", {})), 1)

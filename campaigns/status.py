@@ -7,8 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bubblecal.campaigns.config import CampaignConfig
-from bubblecal.campaigns.design import design_points
-from bubblecal.campaigns.tasks import pending_indices
+from bubblecal.campaigns.tasks import make_tasks, pending_indices
 from bubblecal.data import RETRY_STATUSES, CampaignStore
 
 __all__ = ["StoreStatus", "store_status", "DesignProgress", "design_progress"]
@@ -158,13 +157,5 @@ def design_progress(config: CampaignConfig) -> DesignProgress:
         pending, state = pending_indices(config, st), "exists"
     else:
         pending, state = list(range(config.n_design)), "new"
-    per_diameter: dict[float, int] = {}
-    if pending:
-        diameter = design_points(config)["diameter_um"]
-        for i in pending:
-            per_diameter[float(diameter[i])] = per_diameter.get(float(diameter[i]), 0) + 1
-    if config.pools_levels:
-        n_tasks = -(-len(pending) // config.replicas_per_task)
-    else:
-        n_tasks = sum(-(-n // config.replicas_per_task) for n in per_diameter.values())
+    n_tasks = len(make_tasks(config, pending)) if pending else 0
     return DesignProgress(state, config.n_design - len(pending), len(pending), n_tasks)

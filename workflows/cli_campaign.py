@@ -218,7 +218,8 @@ def campaign(
     console.print(json.dumps(summary.as_dict()), markup=False, highlight=False, soft_wrap=True)
     if summary.all_failed:
         raise fail(f"every one of the {summary.n_written} samples of this run failed (see the records' messages: "
-                   f"bubblecal sim campaign-status {c.store}); they stay pending for the next run")
+                   f"bubblecal sim campaign-status {c.store}); the next run re-runs those whose status is in "
+                   "retry_statuses")
 
 
 def campaign_status(store: Path = typer.Argument(..., help="Campaign store directory (or .jsonl file)."),

@@ -138,8 +138,8 @@ class CalibrationConfig:
         # integer settings: (field, lowest, highest, may be None); checked here so the library refuses what
         # the CLI refuses, before anything is sampled
         limits = (("population", 2, MAX_POPULATION, True), ("seed", 0, 2**32 - 1, False),
-                  ("phase2_samples", 1, MAX_POPULATION, True), ("num_mcmc_steps", 1, 10_000, False),
-                  ("chunk_size", 1, MAX_POPULATION, True), ("predictive_samples", 1, 10**6, False),
+                  ("phase2_samples", 10, MAX_POPULATION, True), ("num_mcmc_steps", 1, 10_000, False),
+                  ("chunk_size", 1, MAX_POPULATION, True), ("predictive_samples", 10, 10**6, False),
                   ("crps_replicates", 1, 1000, False), ("nuts_warmup", 1, 10**6, False),
                   ("nuts_samples", 1, 10**6, False), ("nuts_chains", 1, 64, False))
         for name, lo, hi, optional in limits:

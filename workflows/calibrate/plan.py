@@ -191,13 +191,7 @@ def _check_choices(config: CalibrationConfig) -> None:
         raise CalibrationError(f"--phase3 must be one of {', '.join(PHASE3_TARGETS)}, got {config.phase3!r}")
     if config.device not in DEVICES:
         raise CalibrationError(f"--device must be one of {', '.join(DEVICES)}, got {config.device!r}")
-    check_device(config.device)
-    if config.num_mcmc_steps < 1:
-        raise CalibrationError(f"--mcmc-steps must be >= 1, got {config.num_mcmc_steps}")
-    if config.crps_replicates < 1 or config.predictive_samples < 10:
-        raise CalibrationError("crps_replicates must be >= 1 and predictive_samples >= 10")
-    if config.phase2_samples is not None and config.phase2_samples < 10:
-        raise CalibrationError(f"phase2_samples must be >= 10, got {config.phase2_samples}")
+    check_device(config.device)  # the integer settings' ranges: CalibrationConfig, on construction
     if config.data_dir is not None and not Path(config.data_dir).is_dir():
         raise CalibrationError(f"--data-dir {config.data_dir}: not a directory")
     if config.data_dir is not None:

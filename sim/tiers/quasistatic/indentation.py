@@ -49,6 +49,12 @@ class _IndentationPlan:
     meshes: list | None = None  # one reference per replica (same topology), or None: ``mesh`` for all
 
 
+def _anchored_equator(mesh) -> np.ndarray:
+    """Vertices within 0.25 l_min of the reference's mid-height (anchored in z)."""
+    z = mesh.vertices[:, 2]
+    return np.nonzero(np.abs(z - float(z.mean())) < 0.25 * mesh.min_edge_length())[0]
+
+
 def _replica_meshes(meshes, mesh, n: int, patch_kw: dict, anchors: np.ndarray) -> list | None:
     """Check per-replica references: one per parameter set, ``mesh``'s faces, the same loaded and anchored
     vertices (a scaled copy of ``mesh`` has them)."""
@@ -61,11 +67,9 @@ def _replica_meshes(meshes, mesh, n: int, patch_kw: dict, anchors: np.ndarray) -
         raise ValueError(f"meshes: {len(meshes)} references for {n} parameter sets")
     top, bottom = pole_patches(mesh.vertices, **patch_kw)
     for m in {id(m): m for m in meshes}.values():
-        zm = m.vertices[:, 2]
-        eq = np.nonzero(np.abs(zm - zm.mean()) < 0.25 * m.min_edge_length())[0]
         t, b = pole_patches(m.vertices, **patch_kw)
         if not (np.array_equal(m.faces, mesh.faces) and np.array_equal(t, top) and np.array_equal(b, bottom)
-                and np.array_equal(eq, anchors)):
+                and np.array_equal(_anchored_equator(m), anchors)):
             raise ValueError("meshes: every reference must have the topology, loaded poles and anchored equator "
                              "of mesh (e.g. icospheres of one subdivision level)")
     return meshes
@@ -93,10 +97,9 @@ def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fr
     params = _check_params(params, mesh, gas)
     nv = mesh.n_vertices
     z0 = mesh.vertices[:, 2]
-    zc = float(mesh.vertices[:, 2].mean())
     top, bottom = pole_patches(mesh.vertices, **patch_kw)
     k = len(top)
-    equator = np.nonzero(np.abs(z0 - zc) < 0.25 * mesh.min_edge_length())[0]
+    equator = _anchored_equator(mesh)
     meshes = _replica_meshes(meshes, mesh, len(params), patch_kw, equator)
     h0 = np.array([float(np.ptp(m.vertices[:, 2])) for m in meshes]) if meshes else np.full(len(params),
                                                                                             float(np.ptp(z0)))

@@ -10,7 +10,8 @@ from bubblecal.workflows.calibrate import CalibrationConfig, CalibrationError
 @pytest.mark.parametrize("field, value, option", [
     ("seed", -1, "--seed"), ("chunk_size", 0, "--chunk-size"), ("chunk_size", -3, "--chunk-size"),
     ("population", 10**23, "--population"), ("population", 1, "--population"), ("num_mcmc_steps", 0, "--mcmc-steps"),
-    ("nuts_chains", 0, "--nuts-chains"), ("phase2_samples", 0, "--phase2-samples"), ("seed", 1.5, "--seed"),
+    ("nuts_chains", 0, "--nuts-chains"), ("phase2_samples", 9, "--phase2-samples"), ("seed", 1.5, "--seed"),
+    ("predictive_samples", 9, "--predictive-samples"), ("crps_replicates", 0, "--crps-replicates"),
 ])
 def test_out_of_range_settings_name_the_option(field, value, option):
     with pytest.raises(CalibrationError, match=rf"{field} \({option}\) must be an integer in \["):
