@@ -56,7 +56,7 @@ def _anchored_equator(mesh) -> np.ndarray:
 
 
 def _replica_meshes(meshes, mesh, n: int, patch_kw: dict, anchors: np.ndarray) -> list | None:
-    """Check per-replica references: one per parameter set, ``mesh``'s faces, the same loaded and anchored
+    """Check per-replica references: one per parameter set, ``mesh``'s faces, the same sets of loaded and anchored
     vertices (a scaled copy of ``mesh`` has them)."""
     from bubblecal.sim.engine import pole_patches
 
@@ -65,9 +65,10 @@ def _replica_meshes(meshes, mesh, n: int, patch_kw: dict, anchors: np.ndarray) -
     meshes = list(meshes)
     if len(meshes) != n:
         raise ValueError(f"meshes: {len(meshes)} references for {n} parameter sets")
-    top, bottom = pole_patches(mesh.vertices, **patch_kw)
+    # as sets: vertices of one ring tie in distance to the pole, so rounding orders them differently per size
+    top, bottom = (np.sort(p) for p in pole_patches(mesh.vertices, **patch_kw))
     for m in {id(m): m for m in meshes}.values():
-        t, b = pole_patches(m.vertices, **patch_kw)
+        t, b = (np.sort(p) for p in pole_patches(m.vertices, **patch_kw))
         if not (np.array_equal(m.faces, mesh.faces) and np.array_equal(t, top) and np.array_equal(b, bottom)
                 and np.array_equal(_anchored_equator(m), anchors)):
             raise ValueError("meshes: every reference must have the topology, loaded poles and anchored equator "

@@ -105,3 +105,16 @@ def test_compression_reports_each_curve_as_it_finishes(several_sizes):
         np.testing.assert_array_equal(row["force_bottom"], res.force_bottom[i])
         np.testing.assert_array_equal(row["fire_steps"], res.fire_steps[i])
         assert "fire_evaluations" not in row["settings"] and "fire_evaluations" in res.settings
+
+
+def test_pole_rings_that_round_in_another_order_are_one_patch():
+    """At 1.5 and 1.7 um (subdivision 4, 4.6 deg caps) the first ring's vertices tie in distance to the pole and
+    sort in another order; the loaded sets are equal, so one pool takes both sizes."""
+    from bubblecal.sim.engine import pole_patches
+    from bubblecal.sim.tiers.quasistatic.indentation import _anchored_equator, _replica_meshes
+
+    small, other = mesh_for_diameter(1.5, 4), mesh_for_diameter(1.7, 4)
+    order = [pole_patches(m.vertices, cap_deg=4.6)[0] for m in (small, other)]
+    assert not np.array_equal(*order) and np.array_equal(*(np.sort(o) for o in order))
+    refs = _replica_meshes([small, other], small, 2, {"cap_deg": 4.6}, _anchored_equator(small))
+    assert refs == [small, other]
