@@ -9,6 +9,7 @@ Every public object of the layer is imported from here, e.g.::
 * loading curves: the types (:mod:`~bubblecal.data.curves`), the CSV reader (:mod:`~bubblecal.data.readers`)
   and the shipped reference curves (:mod:`~bubblecal.data.reference`);
 * acoustic resonance observations (:mod:`~bubblecal.data.acoustic`);
+* physical plausibility bounds of every measured quantity (:mod:`~bubblecal.data.plausibility`);
 * the append-only campaign store (:mod:`~bubblecal.data.records`, :mod:`~bubblecal.data.store`);
 * atomic file writes and JSON conversion (:mod:`~bubblecal.data.files`);
 * the layer's errors (:mod:`~bubblecal.data.errors`).
@@ -41,7 +42,8 @@ from bubblecal.data.names import (
     STATUSES,
     code_version,
 )
-from bubblecal.data.readers import MIN_POINTS, RETAINED_COLUMN, load_curve
+from bubblecal.data.plausibility import PLAUSIBLE_RANGES, PlausibleRange, plausibility_problems
+from bubblecal.data.readers import MIN_POINTS, RETAINED_COLUMN, load_curve, read_csv_rows, separator_hint
 from bubblecal.data.records import RECORD_VERSION, REQUIRED_FIELDS, make_record, validate_record
 from bubblecal.data.reference import (
     REFERENCE_CURVES,
@@ -64,8 +66,11 @@ __all__ = [
     "DataError", "StoreError",
     # loading curves
     "KINDS", "UNITS", "LoadingCurve", "SourceCurve", "expected_columns", "RETAINED_COLUMN", "MIN_POINTS",
-    "load_curve", "REFERENCE_CURVES", "reference_names", "resolve_reference_name", "load_reference",
+    "load_curve", "read_csv_rows", "separator_hint", "REFERENCE_CURVES", "reference_names", "resolve_reference_name",
+    "load_reference",
     "reference_curves",
+    # plausibility bounds of measured quantities
+    "PLAUSIBLE_RANGES", "PlausibleRange", "plausibility_problems",
     # acoustic observations
     "AcousticObservation", "AcousticDataset", "acoustic_observations", "acoustic_datasets", "load_acoustic_table",
     # campaign store

@@ -7,7 +7,6 @@ three datasets (docs/inference.md section 3).  Diameters are in um, frequencies 
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from importlib import resources
@@ -17,6 +16,8 @@ import numpy as np
 
 from bubblecal.data.errors import DataError
 from bubblecal.data.names import AGENTS
+from bubblecal.data.plausibility import plausibility_problems
+from bubblecal.data.readers import read_csv_rows, separator_hint
 
 __all__ = ["AcousticObservation", "AcousticDataset", "acoustic_observations", "acoustic_datasets",
            "load_acoustic_table"]
@@ -96,40 +97,48 @@ def load_acoustic_table(path: str | Path) -> list[AcousticObservation]:
     Raises
     ------
     DataError
-        If the file is missing or lacks a column, or listing every bad cell with row and column: an unknown
-        agent, a diameter or frequency that is not a finite number > 0.
+        If the file is missing, unreadable, not UTF-8 or lacks a column (a semicolon-separated header is named),
+        or listing every bad cell with row and column: a ragged row, an unknown agent, a diameter or frequency
+        that is not a finite number > 0 or lies outside its plausible range
+        (:data:`~bubblecal.data.PLAUSIBLE_RANGES`). A UTF-8 byte-order mark is accepted.
     """
     path = Path(path)
     problems: list[str] = []
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            reader = csv.DictReader(handle)
-            header = reader.fieldnames or []
-            missing = [c for c in _COLUMNS if c not in header]
-            if missing:
-                raise DataError(path, [f"header: missing column(s) {', '.join(missing)} (found: {', '.join(header)})"])
-            rows = list(reader)
-    except FileNotFoundError as exc:
-        raise DataError(path, ["file not found"]) from exc
+    rows = [r for r in read_csv_rows(path) if any(cell.strip() for cell in r)]
+    header = [h.strip() for h in rows[0]] if rows else []
+    hint = separator_hint(header)
+    missing = [c for c in _COLUMNS if c not in header]
+    if missing:
+        raise DataError(path, [f"header: missing column(s) {', '.join(missing)} (found: {', '.join(header) or 'none'})"
+                               + hint])
     out = []
-    for k, row in enumerate(rows, start=1):
-        agent = (row["agent"] or "").strip().lower()
+    checked: dict[str, list[tuple[str, float]]] = {"diameter_um": [], "resonance_frequency_MHz": []}
+    for k, cells in enumerate(rows[1:], start=1):
+        if len(cells) != len(header):
+            problems.append(f"row {k}: {len(cells)} cells, expected {len(header)}")
+            continue
+        row = dict(zip(header, (c.strip() for c in cells), strict=True))
+        agent = row["agent"].lower()
         if agent not in AGENTS:
             problems.append(f"row {k}, column 'agent': {row['agent']!r} not one of {', '.join(AGENTS)}")
         values = {}
         for col in ("diameter_um", "resonance_frequency_MHz"):
             try:
                 value = float(row[col])
-            except (TypeError, ValueError):
+            except ValueError:
                 problems.append(f"row {k}, column {col!r}: {row[col]!r} is not a number")
                 continue
             if not math.isfinite(value) or value <= 0:
                 problems.append(f"row {k}, column {col!r}: {value} must be finite and > 0")
                 continue
             values[col] = value
+            checked[col].append((f"row {k}, column {col!r}", value))
         if len(values) == 2 and agent in AGENTS:
             out.append(AcousticObservation(agent, values["diameter_um"], values["resonance_frequency_MHz"],
-                                           row["source"].strip(), row["source_figure"].strip()))
+                                           row["source"], row["source_figure"]))
+    for col, quantity in (("diameter_um", "diameter"), ("resonance_frequency_MHz", "resonance_frequency")):
+        labels = [label for label, _ in checked[col]]
+        problems += plausibility_problems(quantity, [v for _, v in checked[col]], labels)
     if problems:
         raise DataError(path, problems)
     return out

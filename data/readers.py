@@ -15,9 +15,10 @@ import numpy as np
 
 from bubblecal.data.curves import KINDS, LoadingCurve, SourceCurve, _check_kind_units, expected_columns
 from bubblecal.data.errors import DataError
+from bubblecal.data.plausibility import plausibility_problems
 from bubblecal.data.units import DEFAULT_UNITS, UnitSystem
 
-__all__ = ["RETAINED_COLUMN", "MIN_POINTS", "load_curve"]
+__all__ = ["RETAINED_COLUMN", "MIN_POINTS", "load_curve", "read_csv_rows", "separator_hint"]
 
 #: Optional column of a physical-unit curve file: 1 if the row enters the likelihood, 0 if not.
 RETAINED_COLUMN = "retained_in_inference"
@@ -33,21 +34,71 @@ def _parse_float(text: str) -> float | None:
         return None
 
 
+def read_csv_rows(path: Path) -> list[list[str]]:
+    """The rows of a CSV file, UTF-8 with or without a byte-order mark (a BOM is dropped, never part of a name).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    list of list of str
+        Every row's cells, comma-separated.
+
+    Raises
+    ------
+    DataError
+        The file is missing, a folder, unreadable or not UTF-8 text.
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as handle:
+            return list(csv.reader(handle))
+    except FileNotFoundError as exc:
+        raise DataError(path, ["file not found"]) from exc
+    except IsADirectoryError as exc:
+        raise DataError(path, ["is a folder, not a CSV file"]) from exc
+    except UnicodeDecodeError as exc:
+        raise DataError(path, [f"not UTF-8 text (byte {exc.start}); save the file as UTF-8 CSV"]) from exc
+    except (OSError, csv.Error) as exc:
+        raise DataError(path, [f"cannot read file: {exc}"]) from exc
+
+
+def separator_hint(header: list[str]) -> str:
+    """A hint when a header row was written with another separator than the comma (else an empty string).
+
+    Parameters
+    ----------
+    header : list of str
+        The header cells as read with the comma separator.
+
+    Returns
+    -------
+    str
+        E.g. ``" (the header holds ';': the file seems semicolon-separated; use commas)"``.
+    """
+    if len(header) == 1:
+        for sep, name in ((";", "semicolon"), ("\t", "tab"), ("|", "pipe")):
+            if sep in header[0]:
+                return (f" (the header holds {sep!r}: the file seems {name}-separated; columns must be separated "
+                        "by commas)")
+    return ""
+
+
 def _read_table(path: Path, required: tuple[str, ...], optional: tuple[str, ...], label: str):
     """Read a headed CSV; return (columns dict name -> list[(file line, text)], problems)."""
     problems: list[str] = []
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except FileNotFoundError as exc:
-        raise DataError(path, ["file not found"]) from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(path, [f"cannot read file: {exc}"]) from exc
+    rows = read_csv_rows(path)
     rows = [(i + 1, r) for i, r in enumerate(rows) if any(cell.strip() for cell in r)]
     if not rows:
         raise DataError(path, ["file is empty (expected a header row with columns " + ", ".join(required) + ")"])
     header_line, header = rows[0]
     header = [h.strip() for h in header]
+    hint = separator_hint(header)
+    if hint:
+        raise DataError(path, [f"header (line {header_line}): {header[0]!r} is one column{hint}; {label} expects "
+                               "columns " + ", ".join(required)])
     allowed = required + optional
     for name in header:
         if name not in allowed:
@@ -99,6 +150,20 @@ def _check_increasing(name: str, values: np.ndarray, lines: list[int], problems:
             )
 
 
+def _check_plausible(kind: str, units: str, unit_system: UnitSystem, columns, lines: list[int],
+                     problems: list[str]) -> None:
+    """Add a problem for every value outside its quantity's plausible range (physical units, as in the message)."""
+    to_physical = {"force": unit_system.dpd_to_nN, "displacement": unit_system.dpd_to_nm}
+    dpd_unit = {"force": "DPD force", "displacement": "DPD length"}
+    for (name, values), quantity in zip(columns, KINDS[kind], strict=True):
+        labels = [f"row {k + 1} (line {line}), column {name!r}" for k, line in enumerate(lines)]
+        if units == "dpd":
+            problems += plausibility_problems(quantity, to_physical[quantity](values), labels, shown=values,
+                                              shown_unit=dpd_unit[quantity])
+        else:
+            problems += plausibility_problems(quantity, values, labels)
+
+
 def load_curve(
     path: str | Path,
     kind: str,
@@ -147,7 +212,10 @@ def load_curve(
     DataError
         Listing every problem with file, row and column: unknown kind or units, missing or unreadable file,
         missing, unknown or duplicate columns, ragged rows, non-numeric cells, NaN/inf, negative values,
-        x not strictly increasing, a retained flag other than 0/1, fewer than :data:`MIN_POINTS` points.
+        x not strictly increasing, a force or displacement outside its plausible range or a column without
+        signal (:data:`~bubblecal.data.PLAUSIBLE_RANGES`), a retained flag other than 0/1, fewer than
+        :data:`MIN_POINTS` points, a header written with another separator than the comma (a UTF-8 byte-order
+        mark is accepted).
     """
     path = Path(path)
     _check_kind_units(kind, units, where=str(path))
@@ -164,6 +232,7 @@ def load_curve(
                 problems.append(f"row {k + 1} (line {line}), column {RETAINED_COLUMN!r}: {text!r} must be 0 or 1")
             retained[k] = text == "1"
     _check_increasing(x_col, x, lines, problems)
+    _check_plausible(kind, units, unit_system, ((x_col, x), (y_col, y)), lines, problems)
     if int(retained.sum()) < MIN_POINTS:
         what = "retained points" if RETAINED_COLUMN in columns else "data rows"
         problems.append(f"only {int(retained.sum())} {what}; a curve needs at least {MIN_POINTS}")
