@@ -54,6 +54,10 @@ Before any task, a campaign on 'cuda' checks that the device exists (on this mac
 worker: :func:`check_device`); a call whose samples all fail is reported as such
 (:attr:`CampaignSummary.all_failed`; the CLI exits 1).
 
+A scheduler address is checked before anything runs (:func:`check_scheduler_address`), and a remote one
+that does not answer within ``connect_timeout_s`` stops the call with the address named
+(:func:`connect_scheduler`).
+
 ``scheduler_address='inline'`` runs the same loop in-process without Dask (debugging, or a machine
 without dask installed), and there the quasi-static indentation tier (async schedule) streams: each curve's
 record is appended as soon as the curve is finished (provenance ``streamed``), so a large task (one long
@@ -104,6 +108,12 @@ from bubblecal.campaigns.files import (
 )
 from bubblecal.campaigns.records import task_records
 from bubblecal.campaigns.runner import CampaignSummary, run_campaign
+from bubblecal.campaigns.scheduler import (
+    CONNECT_TIMEOUT_S,
+    SCHEDULER_CHOICES,
+    check_scheduler_address,
+    connect_scheduler,
+)
 from bubblecal.campaigns.status import DesignProgress, StoreStatus, design_progress, store_status
 from bubblecal.campaigns.tasks import (
     CampaignTask,
@@ -131,5 +141,6 @@ __all__ = [
     "CampaignTask", "TaskResult", "make_tasks", "pending_indices", "simulate_task", "synthetic_simulate",
     "task_records",
     # running and status
-    "CampaignSummary", "run_campaign", "StoreStatus", "store_status", "DesignProgress", "design_progress",
+    "CampaignSummary", "run_campaign", "SCHEDULER_CHOICES", "CONNECT_TIMEOUT_S", "check_scheduler_address",
+    "connect_scheduler", "StoreStatus", "store_status", "DesignProgress", "design_progress",
 ]

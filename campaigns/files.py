@@ -45,6 +45,7 @@ from pathlib import Path
 from bubblecal.campaigns.config import DESIGNS, CampaignConfig
 from bubblecal.campaigns.errors import CampaignConfigError, CampaignFileError
 from bubblecal.campaigns.ranges import _ranges
+from bubblecal.campaigns.scheduler import check_scheduler_address
 from bubblecal.data import PROTOCOLS
 from bubblecal.sim.tiers import TIER_NAMES
 
@@ -266,8 +267,11 @@ def _dask_table(path: Path, raw: dict) -> tuple[str, int | None]:
         if key not in _DASK_KEYS:
             raise CampaignFileError(path, f"[dask].{key}", f"unknown key (allowed: {', '.join(_DASK_KEYS)})")
     address = dask.get("scheduler_address", "")
-    if not isinstance(address, str):
-        raise CampaignFileError(path, "[dask].scheduler_address", f"must be {_DASK_KEYS['scheduler_address']}")
+    try:
+        check_scheduler_address(address)
+    except CampaignConfigError:
+        raise CampaignFileError(path, "[dask].scheduler_address", f"must be {_DASK_KEYS['scheduler_address']}, "
+                                                                  f"got {address!r}") from None
     n_workers = dask.get("n_workers")
     if n_workers is not None and (isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1):
         raise CampaignFileError(path, "[dask].n_workers", f"must be {_DASK_KEYS['n_workers']}, got {n_workers!r}")

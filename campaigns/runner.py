@@ -25,6 +25,7 @@ from bubblecal.campaigns.devices import check_device, cuda_device_count
 from bubblecal.campaigns.errors import CampaignConfigError, CampaignError
 from bubblecal.campaigns.progress import _Progress
 from bubblecal.campaigns.records import task_records
+from bubblecal.campaigns.scheduler import CONNECT_TIMEOUT_S, check_scheduler_address, connect_scheduler
 from bubblecal.campaigns.tasks import (
     CampaignTask,
     TaskResult,
@@ -247,7 +248,8 @@ def _run_dask(client, tasks: list[CampaignTask], simulate: Callable, writer: _Re
 def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str | None = None,
                  n_workers: int | None = None, progress: bool = True, limit: int | None = None,
                  simulate: Callable[[CampaignTask], TaskResult] | None = None,
-                 on_error: str = "record", diameters: Sequence[float] | None = None) -> CampaignSummary:
+                 on_error: str = "record", diameters: Sequence[float] | None = None,
+                 connect_timeout_s: float = CONNECT_TIMEOUT_S) -> CampaignSummary:
     """Run the pending part of a campaign's design and append one record per sample to its store.
 
     Parameters
@@ -275,6 +277,8 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     diameters : Sequence[float], optional
         Run only the pending samples of these diameters [um] of a multi-diameter design (e.g. one process
         per diameter: the store takes whole-line appends from several processes).
+    connect_timeout_s : float
+        Seconds to wait for a remote scheduler [s].
 
     Returns
     -------
@@ -286,17 +290,18 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     ValueError
         ``on_error`` or ``limit`` is invalid.
     CampaignConfigError
-        A diameter in ``diameters`` is not in the design (field ``diameter_um``).
+        A diameter in ``diameters`` is not in the design (field ``diameter_um``), or ``scheduler_address`` is
+        not one of :data:`~bubblecal.campaigns.SCHEDULER_CHOICES` (field ``scheduler_address``).
     CampaignError
-        The store holds another design, or the campaign stopped on task errors.
+        The store holds another design, the scheduler cannot be reached within ``connect_timeout_s``, or the
+        campaign stopped on task errors.
     """
     if on_error not in ("record", "raise"):
         raise ValueError(f"on_error must be 'record' or 'raise', got {on_error!r}")
     if limit is not None and (not _is_int(limit) or limit < 0):
         raise ValueError(f"limit must be an integer >= 0 (samples), got {limit!r}")
     simulate = simulate or simulate_task
-    if scheduler_address in ("", "local"):
-        scheduler_address = None
+    scheduler_address = check_scheduler_address(scheduler_address)
     store = _open_store(config)
     design = design_points(config)
     pending = pending_indices(config, store)
@@ -334,7 +339,7 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
 
             if client is None:
                 if scheduler_address:
-                    own_client = client = Client(scheduler_address)
+                    own_client = client = connect_scheduler(scheduler_address, connect_timeout_s)
                 else:
                     import logging
 

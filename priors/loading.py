@@ -120,7 +120,8 @@ def load_priors(name_or_path: str | Path) -> PriorSpec:
     Raises
     ------
     PriorError
-        Listing every problem (file and key named): no such file or workflow, invalid TOML, unknown sections or
+        Listing every problem (file and key named): no such file or workflow, a folder, an unreadable or
+        non-UTF-8 file, invalid TOML, unknown sections or
         keys, bad bounds, missing or doubly listed parameters, noise amplitudes that do not fit the workflow.
     """
     path = prior_path(name_or_path)
@@ -129,8 +130,14 @@ def load_priors(name_or_path: str | Path) -> PriorSpec:
             raw = tomllib.load(handle)
     except FileNotFoundError as exc:
         raise PriorError(path, ["file not found"]) from exc
+    except IsADirectoryError as exc:
+        raise PriorError(path, ["is a folder, not a priors TOML file"]) from exc
+    except UnicodeDecodeError as exc:
+        raise PriorError(path, [f"not UTF-8 text (byte {exc.start}); TOML files are UTF-8"]) from exc
     except tomllib.TOMLDecodeError as exc:
         raise PriorError(path, [f"not valid TOML: {exc}"]) from exc
+    except OSError as exc:
+        raise PriorError(path, [f"cannot read file: {exc.strerror or exc}"]) from exc
     problems: list[str] = []
     agent, setup, shell, acoustic, description, params, fixed, noise = _validate(raw, problems)
     if problems:

@@ -65,15 +65,19 @@ def read_versioned_json(path: Path, fmt: str, version: int, error: type[Exceptio
     FileNotFoundError
         When ``path`` is not a file.
     error
-        For invalid JSON or a format/version mismatch.
+        For invalid JSON, non-UTF-8 text, JSON other than an object, or a format/version mismatch.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what} not found: {path}")
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise error(f"{path}: not valid JSON ({exc})") from exc
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not UTF-8 text (byte {exc.start}), so not a {what}") from exc
+    if not isinstance(data, dict):
+        raise error(f"{path}: holds a JSON {type(data).__name__}, a {what} is a JSON object")
     if data.get("format") != fmt:
         raise error(f"{path}: field 'format' is {data.get('format')!r}, expected {fmt!r}")
     if data.get("format_version") != version:

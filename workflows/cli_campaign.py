@@ -31,6 +31,7 @@ from pathlib import Path
 
 import typer
 
+from bubblecal.campaigns.scheduler import CONNECT_TIMEOUT_S
 from bubblecal.workflows.console import console, fail, make_table
 
 __all__ = ["campaign", "campaign_status"]
@@ -111,6 +112,8 @@ def campaign(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar with ETA."),
     diameter: list[float] = typer.Option(None, "--diameter", help="Run only this diameter \\[um] of a "
                                                                   "multi-diameter design (repeatable)."),
+    connect_timeout: float = typer.Option(CONNECT_TIMEOUT_S, "--connect-timeout", min=0.1, help="Seconds to wait "
+                                          "for a tcp:// scheduler before stopping with its address named."),
     tier_setting: list[str] = typer.Option(None, "--tier-setting", help="KEY=VALUE (TOML value) on top of the "
                                            "file's \\[tier], e.g. first_load_ramp=6 (repeatable). Changes the design: "
                                            "give a fresh --store."),
@@ -145,6 +148,8 @@ def campaign(
         Show the progress bar.
     diameter : list of float, optional
         Run only these diameters [um] of a multi-diameter design.
+    connect_timeout : float
+        Seconds to wait for a remote scheduler.
     tier_setting : list of str, optional
         ``KEY=VALUE`` [tier] overrides (a different design).
 
@@ -201,9 +206,10 @@ def campaign(
     try:
         summary = run_campaign(c, scheduler_address=scheduler or cf.scheduler_address,
                                n_workers=workers or cf.n_workers, limit=limit, progress=progress,
-                               diameters=diameter or None)
+                               diameters=diameter or None, connect_timeout_s=connect_timeout)
     except CampaignConfigError as exc:
-        raise fail(f"--diameter: {exc.detail}") from None
+        option = {"scheduler_address": "--scheduler"}.get(exc.field, "--diameter")
+        raise fail(f"{option}: {exc.detail}") from None
     except (CampaignError, StoreError) as exc:
         raise fail(str(exc)) from None
     _status_table(f"campaign {c.name}: this run ({summary.n_written} samples, {summary.n_tasks} tasks)",

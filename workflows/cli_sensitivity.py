@@ -25,7 +25,7 @@ def sensitivity(
     coordinate, averaged over the curve's explored range; writes a JSON report and a plot."""
     from bubblecal.data import REFERENCE_CURVES, DataError, load_reference, resolve_reference_name
     from bubblecal.priors import PriorError, load_priors
-    from bubblecal.surrogates import load
+    from bubblecal.surrogates import SurrogateFormatError, load
     from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity, write_sensitivity
 
     try:
@@ -37,7 +37,10 @@ def sensitivity(
         raise fail(str(exc)) from None
     if not surrogate.is_file():
         raise fail(f"surrogate file not found: {surrogate}")
-    model = load(surrogate)
+    try:
+        model = load(surrogate)
+    except SurrogateFormatError as exc:
+        raise fail(str(exc)) from None
     if model.setup != kind:
         raise fail(f"{surrogate}: a {model.setup} surrogate cannot explain the {kind} curve {name}")
     if spec.setup != kind:

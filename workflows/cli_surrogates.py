@@ -30,7 +30,7 @@ def _ints(text: str, name: str) -> tuple[int, ...]:
     return vals
 
 
-def _fail(msg: str, code: int = 2):
+def _fail(msg: str, code: int = 1):
     """Print 'error: msg' on stderr and exit with status ``code``."""
     typer.echo(f"error: {msg}", err=True)
     raise typer.Exit(code)
@@ -150,16 +150,20 @@ def train(
     for k, v in checks.items():
         typer.echo(f"{k}: {v:.2e}")
     if any(v > 1e-5 for v in checks.values()):
-        _fail("exported surrogate disagrees with the trained model beyond 1e-5 (see train_summary.json)", code=1)
+        _fail("exported surrogate disagrees with the trained model beyond 1e-5 (see train_summary.json)")
 
 
 @app.command("info")
-def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle directory.")) -> None:
+def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic surrogate .json or a bundle "
+                                               "directory.")) -> None:
     """Print the metadata of a surrogate file or the contents of a bundle."""
-    from bubblecal.surrogates import SurrogateFormatError, load, load_bundle
+    from bubblecal.surrogates import AcousticFormatError, AcousticSurrogate, SurrogateFormatError, load, load_bundle
 
     try:
-        if path.is_dir():
+        if path.suffix.lower() == ".json" and not path.is_dir():
+            ac = AcousticSurrogate.load(path)
+            typer.echo(f"acoustic {ac.name or path.stem}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
+        elif path.is_dir():
             b = load_bundle(path)
             if b.manifest.get("notes"):
                 typer.echo(f"notes: {b.manifest['notes']}")
@@ -178,7 +182,7 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle dir
             typer.echo(repr(sur))
             typer.echo(json.dumps({k: sur.metadata[k] for k in ("param_ranges", "x_range", "input_names",
                                                                  "input_units", "output_units", "source")}, indent=2))
-    except (SurrogateFormatError, FileNotFoundError) as exc:
+    except (SurrogateFormatError, AcousticFormatError, FileNotFoundError) as exc:
         _fail(str(exc))
 
 

@@ -80,10 +80,10 @@ def test_cli_errors_are_clear(tmp_path):
     runner = CliRunner()
     r = runner.invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "2.1", "--sweep",
                             "--out", str(tmp_path / "o")])
-    assert r.exit_code == 2 and "small.csv: 10 curve(s)" in r.output and "at least 20" in r.output
+    assert r.exit_code == 1 and "small.csv: 10 curve(s)" in r.output and "at least 20" in r.output
     r = runner.invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "3.0",
                             "--out", str(tmp_path / "o")])
-    assert r.exit_code == 2 and "radius_dpd" in r.output
+    assert r.exit_code == 1 and "radius_dpd" in r.output
 
 
 def test_cli_published_indentation_head_nominal_diameter(shared_reference, tmp_path):
