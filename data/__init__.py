@@ -26,7 +26,7 @@ from bubblecal.data.acoustic import (
 )
 from bubblecal.data.curves import KINDS, UNITS, LoadingCurve, SourceCurve, expected_columns
 from bubblecal.data.errors import DataError, StoreError
-from bubblecal.data.files import atomic_write, jsonable
+from bubblecal.data.files import atomic_write, current_umask, jsonable
 from bubblecal.data.names import (
     AGENTS,
     LOADING_PROTOCOLS,
@@ -77,5 +77,5 @@ __all__ = [
     "RECORD_VERSION", "REQUIRED_FIELDS", "make_record", "validate_record", "STORE_FORMAT", "STORE_FORMAT_VERSION",
     "CampaignStore", "export_compressed",
     # files
-    "atomic_write", "jsonable",
+    "atomic_write", "current_umask", "jsonable",
 ]

@@ -8,18 +8,20 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_write", "jsonable"]
+__all__ = ["atomic_write", "current_umask", "jsonable"]
 
 
 def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
     """Write ``path`` atomically through a temporary file in the same folder.
 
-    ``writer`` fills the temporary file, which is then fsync'ed and renamed over ``path``.
+    ``writer`` fills the temporary file, which is then fsync'ed and renamed over ``path``. The file gets the
+    permissions of an ordinary new file, 0o666 minus the process umask (not the 0o600 of a temporary file).
 
     Parameters
     ----------
@@ -46,12 +48,30 @@ def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
         writer(Path(tmp))
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~current_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
     return path
+
+
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process umask (read by setting it and setting it back, under a lock).
+
+    Returns
+    -------
+    int
+        E.g. ``0o022``: the permission bits a newly created file does not get.
+    """
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
 
 
 def jsonable(obj, *, nonfinite_as_none: bool = False):

@@ -6,6 +6,7 @@ Heavy imports (jax, numpyro, arviz, matplotlib, warp) happen inside the command 
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 
@@ -85,11 +86,7 @@ def calibrate(
     """Calibrate the shell parameters of Definity and/or SonoVue: staged hierarchical TMCMC (or joint NUTS)
     on the shipped curves, acoustic data, priors and surrogates; writes NetCDF per phase, summary.csv,
     figures and report.md under OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
-    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_agent
-    from bubblecal.workflows.figures import agent_figures
-    from bubblecal.workflows.report import summary_table, write_report
+    from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     priors_map = {}
@@ -118,6 +115,24 @@ def calibrate(
                   f"N = {config.num_particles} per phase, device {device}, bundle {plan.bundle_path}, out {out}",
                   highlight=False)
     t_all = time.perf_counter()
+    with contextlib.ExitStack() as stack:  # one run per output folder (a second one stops here, named)
+        try:
+            stack.enter_context(run_lock(Path(out), say=lambda m: console.print(f"[yellow]note:[/] {escape(m)}",
+                                                                                highlight=False)))
+        except CalibrationError as exc:
+            raise fail(str(exc)) from None
+        _run_agents(plan, sampler, figures)
+    console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
+
+
+def _run_agents(plan, sampler: str, figures: bool) -> None:
+    """Run every agent of ``plan`` with a progress bar, then print its summary (exit 1 when a phase fails)."""
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from bubblecal.workflows.calibrate import run_agent
+    from bubblecal.workflows.figures import agent_figures
+    from bubblecal.workflows.report import summary_table, write_report
+
     for ap in plan.agents:
         n_phases = 2 * len(ap.dataset_names) + 1 if sampler == "tmcmc" else 1
         with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
@@ -138,7 +153,6 @@ def calibrate(
                       + (", figures/, report.md" if figures else "") + f"); reused phases: "
                       f"{', '.join(result.reused) or 'none'}; {result.seconds['sampling_total']:.1f} s sampling",
                       highlight=False)
-    console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
 
 
 def evidence(

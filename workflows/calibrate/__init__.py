@@ -9,7 +9,8 @@ Pipeline (``docs/inference.md`` sections 4 and 7)::
 Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.plan` (validation and inputs), :mod:`~bubblecal.workflows.calibrate.store`
 (phase files, manifest, config hashes), :mod:`~bubblecal.workflows.calibrate.run` (the samplers),
-:mod:`~bubblecal.workflows.calibrate.device` (the JAX device).
+:mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one
+run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws).
 
 Output, under ``out/<agent>/<workflow>/``:
 
@@ -17,7 +18,8 @@ Output, under ``out/<agent>/<workflow>/``:
   ``netcdf=False``, e.g. on a machine without ArviZ), each written atomically (temp file + rename) as soon
   as the phase ends; ``joint_nuts.nc`` for NUTS;
 * ``manifest.json``: the configuration, its hash and per phase the config hash, log Z, status, wall time.
-  A phase whose file exists and whose hash matches is reused on rerun (``force=True`` reruns all). The
+  A phase whose file exists and whose hash matches is reused on rerun (``force=True`` reruns all); a damaged
+  phase file is named and that phase is recomputed with the phases that depend on it. The
   hash of a phase covers its data, priors, surrogate, sampler settings, seed and the hashes of the
   phases it depends on;
 * ``summary.csv`` (see :mod:`bubblecal.workflows.summary`), ``ess.csv``, ``figures/*.png``, ``report.md``.
@@ -48,13 +50,16 @@ from bubblecal.workflows.calibrate.config import (
     phase_tmcmc_options,
 )
 from bubblecal.workflows.calibrate.device import check_device, on_device
+from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle
 from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_calibration
 from bubblecal.workflows.calibrate.store import (
+    PhaseFileError,
     PhaseStore,
     array_hash,
     bundle_hashes,
     config_hash,
+    phase_dependencies,
     phase_hashes,
     read_phase,
     write_phase,
@@ -65,7 +70,8 @@ __all__ = [
     "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
     "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
     "min_population", "check_device", "on_device",
-    "AgentPlan", "Plan", "make_plan", "resolve_bundle",
-    "PhaseStore", "write_phase", "read_phase", "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
+    "AgentPlan", "Plan", "make_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
+    "PhaseStore", "PhaseFileError", "phase_dependencies",
+    "write_phase", "read_phase", "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
     "AgentResult", "run_agent", "run_calibration",
 ]

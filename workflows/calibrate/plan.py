@@ -27,6 +27,7 @@ from bubblecal.workflows.calibrate.config import (
     min_population,
 )
 from bubblecal.workflows.calibrate.device import check_device
+from bubblecal.workflows.calibrate.preflight import preflight
 
 __all__ = ["AgentPlan", "Plan", "resolve_bundle", "make_plan"]
 
@@ -192,10 +193,25 @@ def _check_choices(config: CalibrationConfig) -> None:
     if config.device not in DEVICES:
         raise CalibrationError(f"--device must be one of {', '.join(DEVICES)}, got {config.device!r}")
     check_device(config.device)  # the integer settings' ranges: CalibrationConfig, on construction
+    _check_curve_agents(config)
     if config.data_dir is not None and not Path(config.data_dir).is_dir():
         raise CalibrationError(f"--data-dir {config.data_dir}: not a directory")
     if config.data_dir is not None:
         _check_data_dir(Path(config.data_dir))
+
+
+def _check_curve_agents(config: CalibrationConfig) -> None:
+    """Every ``--curve`` is a known curve of one of the run's agents (else one message naming curve and agents)."""
+    from bubblecal.data import REFERENCE_CURVES
+
+    unknown = [c for c in config.curves if c not in REFERENCE_CURVES]
+    if unknown:
+        raise CalibrationError(f"--curve {', '.join(unknown)}: unknown; curves: {', '.join(REFERENCE_CURVES)}")
+    other = [f"{c} (a {REFERENCE_CURVES[c][0]} curve)" for c in config.curves
+             if REFERENCE_CURVES[c][0] not in config.agents]
+    if other:
+        raise CalibrationError(f"--curve {', '.join(other)}: not a curve of --agent {', '.join(config.agents)}; "
+                               "give that agent, or its own curves")
 
 
 def _check_data_dir(folder: Path) -> None:
@@ -244,8 +260,9 @@ def make_plan(config: CalibrationConfig) -> Plan:
     CalibrationError
         One clear message naming the file, field or range: a bad choice or range, a missing device, an
         unreadable bundle, priors or data file, priors for another agent or workflow, a curve without a
-        surrogate, missing acoustic data or surrogate, a population too small for a phase, or an output
-        folder that cannot be made or written.
+        surrogate, missing acoustic data or surrogate, a population too small for a phase, an output
+        folder that cannot be made or written, or a dataset whose log likelihood is not finite at a few prior
+        draws (:func:`~bubblecal.workflows.calibrate.preflight.preflight`).
     """
     from bubblecal.priors import PriorError, load_priors
     from bubblecal.surrogates import SurrogateFormatError, load_bundle
@@ -290,19 +307,16 @@ def make_plan(config: CalibrationConfig) -> Plan:
                                            f"and needs N >= {need} ({PARTICLES_PER_DIMENSION} per dimension, at least "
                                            f"{MIN_PARTICLES})")
         agents.append(ap)
-    return Plan(config=config, bundle=bundle, bundle_path=bundle_path,
+    plan = Plan(config=config, bundle=bundle, bundle_path=bundle_path,
                 synthetic_bundle=is_synthetic_bundle(bundle), agents=agents)
+    preflight(plan)
+    return plan
 
 
 def _select_curves(curves: list, names: tuple[str, ...], agent: str) -> list:
     """The curves named by ``--curve`` (all when ``names`` is empty)."""
     if not names:
         return curves
-    from bubblecal.data import REFERENCE_CURVES
-
-    unknown = [c for c in names if c not in REFERENCE_CURVES]
-    if unknown:
-        raise CalibrationError(f"--curve {', '.join(unknown)}: unknown; curves: {', '.join(REFERENCE_CURVES)}")
     curves = [c for c in curves if c.name in names]
     if not curves:
         raise CalibrationError(f"--curve: none of {', '.join(names)} belongs to {agent}")

@@ -175,7 +175,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     run_info = {"config": config.as_dict(), "config_hash": config_hash(config.as_dict()), "agent": ap.agent,
                 "priors": str(ap.priors_path), "bundle": str(plan.bundle_path),
                 "synthetic_bundle": plan.synthetic_bundle}
-    store = PhaseStore(ap.out_dir, netcdf=config.netcdf, force=config.force, run_info=run_info)
+    store = PhaseStore(ap.out_dir, netcdf=config.netcdf, force=config.force, run_info=run_info, say=say)
     store.expected = phase_hashes(ap, config, bundle_hashes(plan.bundle))
     store.write_manifest()
     seconds: dict[str, float] = {}
@@ -331,15 +331,20 @@ def run_calibration(plan: Plan, *, progress: Callable[[str], None] | None = None
     ------
     RuntimeError
         A phase failed (see :func:`run_agent`).
+    CalibrationError
+        Another run holds the output folder's lock (:func:`~bubblecal.workflows.calibrate.run_lock`).
     """
-    results = []
-    for ap in plan.agents:
-        result = run_agent(plan, ap, progress=progress, inject=inject)
-        if plan.config.figures:
-            from bubblecal.workflows.figures import agent_figures
-            from bubblecal.workflows.report import write_report
+    from bubblecal.workflows.calibrate.lock import run_lock
 
-            result.figures = agent_figures(result, plan)
-            result.report = write_report(result, plan)
-        results.append(result)
+    results = []
+    with run_lock(Path(plan.config.out), say=progress):
+        for ap in plan.agents:
+            result = run_agent(plan, ap, progress=progress, inject=inject)
+            if plan.config.figures:
+                from bubblecal.workflows.figures import agent_figures
+                from bubblecal.workflows.report import write_report
+
+                result.figures = agent_figures(result, plan)
+                result.report = write_report(result, plan)
+            results.append(result)
     return results

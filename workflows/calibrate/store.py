@@ -8,10 +8,11 @@ reused: changing what they hold reruns every affected phase.
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,8 @@ import numpy as np
 from bubblecal.data import atomic_write
 from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
 
-__all__ = ["config_hash", "array_hash", "phase_hashes", "bundle_hashes", "PhaseStore", "write_phase", "read_phase"]
+__all__ = ["config_hash", "array_hash", "phase_hashes", "bundle_hashes", "PhaseStore", "PhaseFileError",
+           "phase_dependencies", "write_phase", "read_phase"]
 
 
 def config_hash(obj) -> str:
@@ -103,15 +105,23 @@ class PhaseStore:
         Never reuse a phase.
     run_info : Mapping or None
         Stored as the manifest's ``run`` entry (configuration, its hash, agent, priors, bundle).
+    say : callable or None
+        Receives one line per damaged phase file (the file named, and that it is recomputed).
+
+    A stored phase file that cannot be read (truncated, garbage) is not reused: that phase runs again, and so
+    does every phase that depends on it (:func:`phase_dependencies`), while the others are still reused.
     """
 
-    def __init__(self, folder: Path, netcdf: bool = True, force: bool = False, run_info: Mapping | None = None):
+    def __init__(self, folder: Path, netcdf: bool = True, force: bool = False, run_info: Mapping | None = None,
+                 say: Callable[[str], None] | None = None):
         self.folder = Path(folder)
         self.netcdf = netcdf
         self.force = force
+        self.say = say or (lambda _m: None)
         self.expected: dict[str, str] = {}
         self.loglik: dict[str, np.ndarray] = {}
         self.reused: list[str] = []
+        self.recomputed: list[str] = []
         self.manifest_path = self.folder / "manifest.json"
         self.manifest = self._read_manifest()
         if run_info is not None:
@@ -121,9 +131,11 @@ class PhaseStore:
         """The folder's manifest, or an empty one when absent or unreadable."""
         if self.manifest_path.is_file():
             try:
-                return json.loads(self.manifest_path.read_text())
-            except json.JSONDecodeError:
-                pass
+                manifest = json.loads(self.manifest_path.read_text(encoding="utf-8"))
+            except (json.JSONDecodeError, UnicodeDecodeError, OSError):
+                manifest = None  # a damaged manifest reuses nothing: every phase runs and it is rewritten
+            if isinstance(manifest, dict) and isinstance(manifest.get("phases"), dict):
+                return manifest
         return {"format": "bubblecal-calibration-run", "format_version": 1, "phases": {}}
 
     def write_manifest(self) -> None:
@@ -154,14 +166,26 @@ class PhaseStore:
         Returns
         -------
         bubblecal.inference.hierarchical.PhaseResult or None
-            None when the phase must run (also with ``force``); else the result, its log likelihoods
+            None when the phase must run (also with ``force``, when its file is damaged or when a phase it
+            depends on runs; its name then goes to :attr:`recomputed`); else the result, its log likelihoods
             recorded in :attr:`loglik` and its name in :attr:`reused`.
         """
         entry = self.manifest["phases"].get(name)
         path = self._existing(name)
         if self.force or entry is None or path is None or entry.get("config_hash") != self.expected.get(name):
+            self.recomputed.append(name)
             return None
-        result, loglik = read_phase(path)
+        upstream = [r for r in self.recomputed if any(fnmatch.fnmatchcase(r, p) for p in phase_dependencies(name))]
+        if upstream:
+            self.say(f"{name}: recomputed, it depends on {', '.join(upstream)}")
+            self.recomputed.append(name)
+            return None
+        try:
+            result, loglik = read_phase(path)
+        except PhaseFileError as exc:
+            self.say(f"{exc}; recomputing {name} and the phases that depend on it")
+            self.recomputed.append(name)
+            return None
         self.loglik[name] = loglik
         self.reused.append(name)
         return result
@@ -187,6 +211,31 @@ class PhaseStore:
             "status": result.status, "seconds": result.seconds,
             "num_draws": int(next(iter(result.samples.values())).shape[0])}
         self.write_manifest()
+
+
+def phase_dependencies(name: str) -> tuple[str, ...]:
+    """The phases whose draws phase ``name`` is computed from, as :func:`fnmatch.fnmatchcase` name patterns.
+
+    Parameters
+    ----------
+    name : str
+        ``phase1_<dataset>``, ``phase2``, ``phase3_<dataset>`` or ``joint_nuts``.
+
+    Returns
+    -------
+    tuple of str
+        Phase 1 and the joint run: none; phase 2: every phase 1 (``phase1_*``); phase 3 of a dataset: its
+        phase 1 and phase 2.
+    """
+    if name == "phase2":
+        return ("phase1_*",)
+    if name.startswith("phase3_"):
+        return ("phase1_" + name.removeprefix("phase3_"), "phase2")
+    return ()
+
+
+class PhaseFileError(ValueError):
+    """A stored phase file cannot be read (truncated, damaged, not a phase file); the message names it."""
 
 
 def write_phase(path: Path, result, loglik, attrs: Mapping) -> Path:
@@ -250,10 +299,22 @@ def read_phase(path: Path):
     -------
     tuple
         (:class:`~bubblecal.inference.hierarchical.PhaseResult`, log likelihood per draw or None).
+
+    Raises
+    ------
+    PhaseFileError
+        The file is missing, truncated, damaged or holds no phase (the message names it and the cause).
     """
+    try:
+        return _read_phase(Path(path))
+    except Exception as exc:  # h5py, netCDF4, zipfile and JSON each raise their own kinds on damaged bytes
+        raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
+
+
+def _read_phase(path: Path):
+    """:func:`read_phase` without the error translation."""
     from bubblecal.inference.hierarchical import PhaseResult
 
-    path = Path(path)
     if path.suffix == ".nc":
         import arviz as az
 

@@ -1,0 +1,60 @@
+"""The likelihood preflight of a calibration: every dataset's log likelihood at a few prior draws, before sampling.
+
+A dataset whose likelihood is non-finite over the prior box stops TMCMC at its first stage ("all prior draws
+non-finite") after the surrogates were compiled; evaluating it at :data:`PREFLIGHT_DRAWS` draws of a fixed
+seed names the dataset (curve or acoustic table, and its file) before any phase runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.workflows.calibrate.config import CalibrationError
+
+__all__ = ["PREFLIGHT_DRAWS", "PREFLIGHT_SEED", "preflight"]
+
+#: Prior draws per dataset at which the log likelihood must be finite.
+PREFLIGHT_DRAWS = 4
+#: Seed of the preflight draws (fixed: a failing preflight fails the same way on rerun).
+PREFLIGHT_SEED = 20_270
+
+
+def preflight(plan, n_draws: int = PREFLIGHT_DRAWS, seed: int = PREFLIGHT_SEED) -> None:
+    """Check that every dataset's log likelihood is finite at ``n_draws`` prior draws.
+
+    Parameters
+    ----------
+    plan : bubblecal.workflows.calibrate.Plan
+        The validated run (its agents' curves, acoustic datasets, surrogates and priors).
+    n_draws : int
+        Prior draws per dataset.
+    seed : int
+        Seed of the draws.
+
+    Raises
+    ------
+    CalibrationError
+        Naming the agent, the dataset and its file, and the values of the log likelihood, when one draw of a
+        dataset gives a non-finite log likelihood (nothing has been sampled or written).
+    """
+    from bubblecal.models import prior_draw_log_likelihoods
+    from bubblecal.workflows.calibrate.device import on_device
+    from bubblecal.workflows.calibrate.run import _dataset_objects
+
+    with on_device(plan.config.device):
+        for ap in plan.agents:
+            table = plan.config.data_dir and Path(plan.config.data_dir) / "acoustic_observations_published.csv"
+            table = table if table and table.is_file() else "the shipped acoustic table"
+            files = [c.path or c.source for c in ap.curves] + [table] * len(ap.acoustic)
+            # padded curves (masked points add nothing) share one shape, so their operations compile once
+            for dataset, where in zip(_dataset_objects(ap, pad=True), files, strict=True):
+                ll = prior_draw_log_likelihoods(dataset.model, dataset.args, dataset.kwargs, n_draws, seed)
+                if not np.all(np.isfinite(ll)):
+                    shown = ", ".join(f"{v:.4g}" for v in ll)
+                    raise CalibrationError(
+                        f"{ap.agent} dataset {dataset.name} ({where}): the log likelihood is not finite at "
+                        f"{int(np.sum(~np.isfinite(ll)))} of {n_draws} prior draws ({shown}); its data cannot be "
+                        "explained by any shell under these priors (check its values and units: "
+                        "`bubblecal data check`)")
