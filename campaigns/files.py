@@ -230,8 +230,14 @@ def _read(path: Path) -> dict:
             raw = tomllib.load(fh)
     except FileNotFoundError:
         raise CampaignFileError(path, "path", "file not found") from None
+    except IsADirectoryError:
+        raise CampaignFileError(path, "path", "is a folder, not a campaign TOML file") from None
+    except UnicodeDecodeError as exc:
+        raise CampaignFileError(path, "syntax", f"not UTF-8 text (byte {exc.start}); TOML files are UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise CampaignFileError(path, "syntax", f"not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise CampaignFileError(path, "path", f"cannot read file: {exc.strerror or exc}") from None
     for key in raw:
         if key not in _SECTIONS:
             raise CampaignFileError(path, f"[{key}]", f"unknown section (allowed: {', '.join(_SECTIONS)})")

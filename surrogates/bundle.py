@@ -23,8 +23,10 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from bubblecal.data import code_version
-from bubblecal.surrogates.acoustic import AcousticSurrogate
+from bubblecal.surrogates.acoustic import AcousticFormatError, AcousticSurrogate
 from bubblecal.surrogates.fileio import atomic_write_bytes, read_versioned_json, utc_now
 from bubblecal.surrogates.surrogate import Surrogate
 from bubblecal.surrogates.surrogate_file import SurrogateFormatError, load
@@ -104,6 +106,42 @@ class Bundle:
 
 def load_bundle(path: str | Path) -> Bundle:
     """Load a bundle directory (``manifest.json`` + files), checking each file against its manifest entry.
+
+    Parameters
+    ----------
+    path : str or Path
+        The bundle directory.
+
+    Returns
+    -------
+    Bundle
+        Every mechanical and acoustic surrogate of the manifest.
+
+    Raises
+    ------
+    FileNotFoundError
+        When the manifest or a listed file is missing.
+    SurrogateFormatError
+        As :func:`_load_bundle`, and for a manifest or acoustic file whose fields have the wrong types (a
+        number where a name belongs, a list where a table belongs), naming the manifest.
+    AcousticFormatError
+        For a malformed acoustic file.
+    """
+    try:
+        bundle = _load_bundle(path)
+        for name, ac in bundle.acoustic.items():  # coefficients of a wrong type surface only when used
+            if not all(np.all(np.isfinite(np.asarray(ac.coefficients(d), dtype=float))) for d in ac.diameters):
+                raise SurrogateFormatError(f"{ac.path}: acoustic surrogate {name!r} has non-finite coefficients")
+        return bundle
+    except (SurrogateFormatError, AcousticFormatError, FileNotFoundError):
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError) as exc:  # a field of the wrong type
+        raise SurrogateFormatError(f"{Path(path) / 'manifest.json'}: malformed bundle (a field or a listed file "
+                                   f"has the wrong type: {type(exc).__name__}: {exc})") from None
+
+
+def _load_bundle(path: str | Path) -> Bundle:
+    """:func:`load_bundle` without the translation of wrongly typed fields.
 
     Parameters
     ----------

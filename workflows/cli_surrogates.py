@@ -161,7 +161,11 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic su
 
     try:
         if path.suffix.lower() == ".json" and not path.is_dir():
-            ac = AcousticSurrogate.load(path)
+            try:
+                ac = AcousticSurrogate.load(path)
+            except (TypeError, AttributeError, KeyError, IndexError) as exc:  # a field of the wrong type
+                raise AcousticFormatError(f"{path}: malformed acoustic surrogate ({type(exc).__name__}: {exc})") \
+                    from None
             typer.echo(f"acoustic {ac.name or path.stem}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
         elif path.is_dir():
             b = load_bundle(path)
