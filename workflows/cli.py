@@ -13,9 +13,15 @@ import typer
 
 from bubblecal import __version__
 
+#: The exit-status convention of every command (docs/data-formats.md, "Exit status").
+EXIT_STATUS_HELP = ("Exit status of every command: 0 success; 1 the run failed or an input is unusable (the message "
+                    "names the file, option or value and what is allowed); 2 usage error (unknown option, missing "
+                    "argument, a value of the wrong type).")
+
 app = typer.Typer(
     name="bubblecal",
-    help="Calibrate DPD microbubble shell models against AFM force spectroscopy and acoustic data.",
+    help="Calibrate DPD microbubble shell models against AFM force spectroscopy and acoustic data.\n\n"
+         + EXIT_STATUS_HELP,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,

@@ -168,3 +168,39 @@ def test_damaged_phase_files_are_named_and_recomputed(tmp_path, synthetic_bundle
     for p, samples in before.items():  # the recomputed phases are the same draws (same seeds)
         again = read_phase(p)[0].samples
         assert all(np.array_equal(samples[k], again[k]) for k in samples)
+
+
+# -------------------------------------------------------------------------------------------------
+# SIGKILL during a phase, then resume: the same draws as an uninterrupted run, the stale lock taken over
+# -------------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_sigkill_during_a_phase_then_resume_gives_identical_results(tmp_path, synthetic_bundle):
+    import signal
+    import time
+
+    def command(out):
+        return [sys.executable, "-m", "bubblecal.workflows.cli", "calibrate", "--agent", "definity", "--workflow",
+                "reduced", "--curve", ONE[0], "--curve", "definity_compression_2.9um", "--bundle",
+                str(synthetic_bundle), "--population", "120", "--phase2-samples", "120", "--mcmc-steps", "2",
+                "--no-figures", "--out", str(out)]
+
+    reference = tmp_path / "reference"
+    subprocess.run(command(reference), check=True, capture_output=True, timeout=900)
+    killed = tmp_path / "killed"
+    run_dir = killed / "definity" / "reduced"
+    proc = subprocess.Popen(command(killed), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t_end = time.time() + 900
+    while time.time() < t_end and proc.poll() is None and not list(run_dir.glob("phase1_*.nc")):
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run finished before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)  # phase 1 of the second curve (or phase 2) is running
+    proc.wait()
+    assert (killed / LOCK_NAME).exists() and not list(run_dir.glob("phase3_*"))
+    done = subprocess.run(command(killed), capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr
+    out = " ".join(done.stdout.split())
+    assert "took over the lock of PID" in out and "reused phases: phase1_definity_compression_2.1um" in out
+    for ref in sorted((reference / "definity" / "reduced").glob("phase*.nc")):
+        a, b = read_phase(ref)[0].samples, read_phase(run_dir / ref.name)[0].samples
+        assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a), ref.name
+    assert not (killed / LOCK_NAME).exists() and not list(run_dir.glob(".*tmp"))
