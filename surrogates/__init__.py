@@ -36,6 +36,14 @@ from bubblecal.surrogates.bundle import (
     load_bundle,
     write_bundle,
 )
+from bubblecal.surrogates.features import (
+    INPUT_KINDS,
+    RESPONSE_SCALES,
+    network_inputs,
+    radius_of_diameter,
+    response_scale,
+    x_per_size,
+)
 from bubblecal.surrogates.mlp import (
     flops_per_point,
     matmul_floor_forward,
@@ -48,8 +56,10 @@ from bubblecal.surrogates.resonance import DiameterFit, fit_quadratic
 from bubblecal.surrogates.ringdown import RingdownFit, damped_sine, fit_ringdown
 from bubblecal.surrogates.surrogate import OutOfDomainError, Surrogate, SurrogateDomainWarning
 from bubblecal.surrogates.surrogate_file import (
+    DIAMETER_METADATA,
     FORMAT,
     FORMAT_VERSION,
+    FORMAT_VERSION_DIAMETER,
     REQUIRED_METADATA,
     SurrogateFormatError,
     load,
@@ -74,7 +84,10 @@ from bubblecal.surrogates.synthetic_bundle import (
 __all__ = [
     # mechanical surrogates and their files
     "Surrogate", "load", "save_surrogate", "SurrogateFormatError", "OutOfDomainError", "SurrogateDomainWarning",
-    "FORMAT", "FORMAT_VERSION", "REQUIRED_METADATA", "X_INFO", "Y_INFO",
+    "FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "REQUIRED_METADATA", "DIAMETER_METADATA", "X_INFO",
+    "Y_INFO",
+    # network inputs: per diameter or over the diameter
+    "INPUT_KINDS", "RESPONSE_SCALES", "network_inputs", "response_scale", "x_per_size", "radius_of_diameter",
     # bundles
     "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
     "BUNDLE_FORMAT_VERSION",
