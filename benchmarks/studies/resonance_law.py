@@ -79,14 +79,16 @@ def main() -> None:
         forms = compare_forms(d, ka, f)
         for name, v in forms.items():
             b = v["bands"][0]
-            print(f"{name:22s} {v['n_coefficients']:3d} {_pct(v['in_sample']['median'])} [{_pct(v['in_sample']['max'])}]"
+            ins = v["in_sample"]
+            print(f"{name:22s} {v['n_coefficients']:3d} {_pct(ins['median'])} [{_pct(ins['max'])}]"
                   f"      {_pct(v['ldo_median'])} [{_pct(v['ldo_max'])}]     {_pct(b['median'])} [{_pct(b['max'])}]")
         res["forms"] = forms
         law = fit_law(d, ka, f, DEFAULT_LAW_FORM)
         sur = AcousticLawSurrogate(law, name=agent)
         res["coefficients"] = list(law.coefficients)
+        per_d = law.holdout["per_diameter"]
         print(f"{DEFAULT_LAW_FORM}, each diameter left out: " + ", ".join(
-            f"{p['diameter_um']:g}: {100 * p['median']:.2f} [{100 * p['max']:.2f}]" for p in law.holdout["per_diameter"]))
+            f"{p['diameter_um']:g}: {100 * p['median']:.2f} [{100 * p['max']:.2f}]" for p in per_d))
         stiff = ka > 1000.0
         e = np.concatenate([holdout_errors(d, ka, f, d == v)[stiff[d == v]] for v in np.unique(d)])
         res["ldo_ka_above_1000"] = {"median": float(np.median(e)), "max": float(e.max())}

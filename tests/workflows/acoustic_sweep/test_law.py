@@ -56,6 +56,7 @@ def test_cli_law_from_rows_and_info(tmp_path):
 @pytest.mark.parametrize("agent", ["definity", "sonovue"])
 def test_shipped_rows_give_a_law_under_one_percent_median(agent):
     sweeps = sweeps_from_rows_csv(TRAINING / f"{agent}_ringdown_1.5-8um_rows.csv")
-    assert [s.diameter_um for s in sweeps] == list(np.arange(1.5, 8.01, 0.5)) and sum(len(s.rows) for s in sweeps) == 392
+    assert [s.diameter_um for s in sweeps] == list(np.arange(1.5, 8.01, 0.5))
+    assert sum(len(s.rows) for s in sweeps) == 392
     law = fit_law(*law_rows(sweeps))
     assert law.holdout["median"] < 0.01 and law.holdout["bands"][0]["median"] < 0.01
