@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from bubblecal.data import AGENTS, LOADING_PROTOCOLS
@@ -154,8 +155,8 @@ def train(
 
 
 @app.command("info")
-def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle directory.")) -> None:
-    """Print the metadata of a surrogate file or the contents of a bundle."""
+def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic .json or a bundle directory.")) -> None:
+    """Print the metadata of a surrogate file (mechanical or acoustic) or the contents of a bundle."""
     from bubblecal.surrogates import SurrogateFormatError, load, load_bundle
 
     try:
@@ -172,14 +173,44 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz or a bundle dir
                            f"({md.get('n_prefix_curves_train', 0)} failure-truncated prefixes), "
                            f"held-out median relative L2 {sur.holdout_score:.3g}")
             for name, ac in b.acoustic.items():
-                typer.echo(f"acoustic {name}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
+                typer.echo(f"acoustic {name}: " + (_acoustic_law_text(ac) if hasattr(ac, "law") else
+                                                   f"diameters {', '.join(f'{d:g}' for d in ac.diameters)} um"))
+        elif path.suffix == ".json":
+            typer.echo(_acoustic_text(path))
         else:
             sur = load(path)
             typer.echo(repr(sur))
             typer.echo(json.dumps({k: sur.metadata[k] for k in ("param_ranges", "x_range", "input_names",
                                                                  "input_units", "output_units", "source")}, indent=2))
-    except (SurrogateFormatError, FileNotFoundError) as exc:
+    except (SurrogateFormatError, FileNotFoundError, ValueError) as exc:
         _fail(str(exc))
+
+
+def _acoustic_law_text(sur) -> str:
+    """One paragraph on an acoustic law: form, D and k_a ranges, hold-out errors."""
+    law, h = sur.law, sur.law.holdout
+    lo, hi = law.diameter_range
+    ka_lo, ka_hi = law.ka_range
+    bands = "; ".join(f"band {b['band_um'][0]:g}-{b['band_um'][1]:g} um held out: median {100 * b['median']:.2f} % "
+                      f"max {100 * b['max']:.2f} %" for b in h.get("bands", []))
+    return (f"law {sur.name!r}, form {law.form}: {law.law_form.expression()}\n"
+            f"  diameter {lo:g}-{hi:g} um ({len(law.diameters_um)} simulated), ka {ka_lo:.6g}-{ka_hi:.6g} DPD, "
+            f"{law.n_points} rows\n"
+            f"  leave one diameter out: median {100 * h.get('median', float('nan')):.2f} % max "
+            f"{100 * h.get('max', float('nan')):.2f} % (relative error of f_res)" + (f"; {bands}" if bands else ""))
+
+
+def _acoustic_text(path: Path) -> str:
+    """What `info` prints for an acoustic surrogate JSON (per-diameter quadratics or a law)."""
+    from bubblecal.surrogates import AcousticSurrogate
+
+    sur = AcousticSurrogate.load(path)
+    if hasattr(sur, "law"):
+        return _acoustic_law_text(sur)
+    fits = [sur.fits[d] for d in sur.diameters]
+    return (f"acoustic {sur.name!r}: one quadratic per diameter, {', '.join(f'{d:g}' for d in sur.diameters)} um; "
+            f"LOO median {100 * float(np.median([f.loo_median for f in fits])):.2f} % max "
+            f"{100 * float(np.nanmax([f.loo_max for f in fits])):.2f} %")
 
 
 @app.command("synthetic")
@@ -221,15 +252,29 @@ def acoustic(
     agent: str = typer.Option(None, "--agent", help="definity or sonovue (default: from the campaign name)."),
     rows: Path = typer.Option(None, "--rows", help="Also write every fitted ringdown row (CSV)."),
     t_start: float = typer.Option(None, "--t-start", help="Fit R(t) only after this DPD time."),
+    law: bool = typer.Option(False, "--law", help="Fit one law f_res(k_a, D) continuous in the diameter (file "
+                             "format version 2) instead of one quadratic per diameter."),
+    form: str = typer.Option(None, "--form", help="Form of the --law (default gas-coupled; docs/decisions.md)."),
 ) -> None:
-    """Fit the acoustic surrogate (f_res^2(k_a) quadratic per diameter, LOO errors) from ringdown stores."""
+    """Fit the acoustic surrogate from ringdown stores or row CSVs: one f_res^2(k_a) quadratic per diameter
+    (LOO errors), or with --law one law continuous in the diameter (leave-diameters-out errors)."""
     from bubblecal.data import StoreError
-    from bubblecal.workflows.acoustic_sweep import acoustic_surrogate_from_stores
+    from bubblecal.workflows.acoustic_sweep import acoustic_law_from_stores, acoustic_surrogate_from_stores
     from bubblecal.workflows.console import fail
 
     for s in stores:
         if not s.exists():
             raise fail(f"{s}: no such ringdown store")
+    if form is not None and not law:
+        raise fail("--form needs --law")
+    if law:
+        try:
+            sur, _ = acoustic_law_from_stores(stores, out, agent=agent, form=form, rows_csv=rows, t_start=t_start)
+        except (ValueError, StoreError) as exc:
+            raise fail(str(exc)) from None
+        typer.echo(_acoustic_law_text(sur))
+        typer.echo(f"wrote {out}" + (f" and {rows}" if rows else ""))
+        return
     try:
         sur, sweeps = acoustic_surrogate_from_stores(stores, out, agent=agent, rows_csv=rows, t_start=t_start)
     except (ValueError, StoreError) as exc:
