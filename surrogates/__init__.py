@@ -35,6 +35,7 @@ from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.bundle import (
     BUNDLE_FORMAT,
     BUNDLE_FORMAT_VERSION,
+    DIAMETER_ATOL_UM,
     Bundle,
     NoDefaultBundleError,
     default_bundle_path,
@@ -98,7 +99,7 @@ __all__ = [
     "INPUT_KINDS", "RESPONSE_SCALES", "network_inputs", "response_scale", "x_per_size", "radius_of_diameter",
     # bundles
     "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
-    "BUNDLE_FORMAT_VERSION",
+    "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM",
     # acoustics
     "AcousticSurrogate", "DiameterFit", "fit_quadratic", "AcousticFormatError", "AcousticRangeError",
     "AcousticRangeWarning", "ACOUSTIC_FORMAT", "ACOUSTIC_FORMAT_VERSION", "fit_ringdown", "RingdownFit",

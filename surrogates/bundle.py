@@ -31,13 +31,16 @@ from bubblecal.surrogates.fileio import atomic_write_bytes, read_versioned_json,
 from bubblecal.surrogates.surrogate import Surrogate
 from bubblecal.surrogates.surrogate_file import SurrogateFormatError, load
 
-__all__ = ["BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "Bundle", "load_bundle", "write_bundle", "default_bundle_path",
-           "NoDefaultBundleError"]
+__all__ = ["BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "Bundle", "load_bundle", "write_bundle",
+           "default_bundle_path", "NoDefaultBundleError"]
 
 #: ``format`` of a bundle manifest.
 BUNDLE_FORMAT = "bubblecal-surrogate-bundle"
 #: ``format_version`` written and read.
 BUNDLE_FORMAT_VERSION = 1
+#: Largest gap [um] between a requested diameter and a per-diameter surrogate's data or nominal diameter (the
+#: "3.2 um" SonoVue data have radius 6.38 DPD, 3.19 um).
+DIAMETER_ATOL_UM = 0.025
 
 
 @dataclass
@@ -64,7 +67,8 @@ class Bundle:
     acoustic: dict[str, object] = field(default_factory=dict)
     over_diameter: dict[str, Surrogate] = field(default_factory=dict)
 
-    def get(self, setup: str, diameter_um: float, atol: float = 0.025, prefer: str = "per-diameter") -> Surrogate:
+    def get(self, setup: str, diameter_um: float, atol: float = DIAMETER_ATOL_UM,
+            prefer: str = "per-diameter") -> Surrogate:
         """The surrogate for ``setup`` at ``diameter_um``: a per-diameter one, or the network over the diameter.
 
         A per-diameter surrogate matches within ``atol`` of its data or nominal diameter (nominal diameters name
