@@ -10,9 +10,11 @@ different lengths share it too.
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
-from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
+from bubblecal.surrogates.features import network_inputs, response_scale
+from bubblecal.surrogates.mlp import mlp_forward
 
 __all__ = ["TracedSurrogate", "pad_curve"]
 
@@ -35,14 +37,22 @@ class TracedSurrogate:
     setup : {'compression', 'indentation'}
         The surrogate's loading protocol (checked by :func:`resolve_setup`).
     param_names : tuple of str
-        The surrogate's parameter inputs (``x`` is the last input).
+        The surrogate's parameter inputs.
+    inputs : {'raw', 'diameter'}
+        The network's input kind (:mod:`bubblecal.surrogates.features`).
+    diameter_um : float or array_like, optional
+        The bound bubble diameter [um] of a network over the diameter: a traced leaf too, so bubbles of
+        different sizes share one compiled likelihood.
     """
 
-    def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, setup: str, param_names: tuple):
+    def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, setup: str, param_names: tuple,
+                 inputs: str = "raw", diameter_um=None):
         self.weights, self.biases = tuple(weights), tuple(biases)
         self.in_mean, self.in_std, self.out_mean, self.out_std = in_mean, in_std, out_mean, out_std
         self.setup = setup
         self.param_names = tuple(param_names)
+        self.inputs = inputs
+        self.diameter_um = diameter_um
 
     @classmethod
     def wrap(cls, surrogate):
@@ -61,23 +71,30 @@ class TracedSurrogate:
         fields = ("weights", "biases", "in_mean", "in_std", "out_mean", "out_std", "setup", "param_names")
         if isinstance(surrogate, cls) or not all(hasattr(surrogate, f) for f in fields):
             return surrogate
-        return cls(*(getattr(surrogate, f) for f in fields))
+        inputs = getattr(surrogate, "inputs", "raw")
+        diameter = jnp.asarray(surrogate.diameter_um) if inputs == "diameter" else None
+        return cls(*(getattr(surrogate, f) for f in fields), inputs=inputs, diameter_um=diameter)
 
     def __call__(self, params, x):
         """Surrogate output y[...] at ``params[..., 6]`` and ``x[...]`` (DPD units)."""
-        u = surrogate_inputs(params, x, self.param_names)  # as Surrogate.__call__
+        u = network_inputs(self.inputs, params, x, self.diameter_um, xp=jnp)  # as Surrogate.__call__
         y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std, u)
-        return y[..., 0]
+        y = y[..., 0]
+        if self.inputs == "diameter":
+            y = y * response_scale(self.inputs, self.setup, jnp.asarray(params), self.diameter_um, xp=jnp)
+        return y
 
     def tree_flatten(self):
-        """Pytree children (the arrays) and auxiliary data (setup, parameter names)."""
-        return (self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std), (
-            self.setup, self.param_names)
+        """Pytree children (the arrays, and the bound diameter) and auxiliary data (setup, names, input kind)."""
+        return (self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std,
+                self.diameter_um), (self.setup, self.param_names, self.inputs)
 
     @classmethod
     def tree_unflatten(cls, aux, children):
         """Rebuild from :meth:`tree_flatten`'s output."""
-        return cls(*children, *aux)
+        *arrays, diameter = children
+        setup, names, inputs = aux
+        return cls(*arrays, setup, names, inputs=inputs, diameter_um=diameter)
 
 
 def pad_curve(x, y, length: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -12,7 +12,11 @@ Modules: :mod:`~bubblecal.surrogates.mlp` (JAX forward pass), :mod:`~bubblecal.s
 loaded :class:`Surrogate`), :mod:`~bubblecal.surrogates.surrogate_file` (the ``.npz`` format),
 :mod:`~bubblecal.surrogates.bundle` (bundles, the shipped default), :mod:`~bubblecal.surrogates.ringdown`
 (ringdown fits), :mod:`~bubblecal.surrogates.resonance` (the f_res^2(k_a) quadratic at one diameter),
-:mod:`~bubblecal.surrogates.acoustic` (the acoustic surrogate over diameters), :mod:`~bubblecal.surrogates.axes`
+:mod:`~bubblecal.surrogates.acoustic` (the acoustic surrogate over diameters),
+:mod:`~bubblecal.surrogates.resonance_law` and :mod:`~bubblecal.surrogates.law_fit` (a law continuous in the
+diameter, its fit and leave-diameters-out errors), :mod:`~bubblecal.surrogates.acoustic_law` (its surrogate, file
+format version 2), :mod:`~bubblecal.surrogates.classical_resonance` (the classical shelled-bubble f0),
+:mod:`~bubblecal.surrogates.axes`
 (loading coordinate and response per protocol), :mod:`~bubblecal.surrogates.synthetic_bundle` (the SYNTHETIC
 development bundle). Training (dataset I/O, filtering, torch training, sweeps, export, ONNX) lives in
 :mod:`bubblecal.surrogates.training`.
@@ -26,16 +30,28 @@ from bubblecal.surrogates.acoustic import (
     AcousticRangeWarning,
     AcousticSurrogate,
 )
+from bubblecal.surrogates.acoustic_law import ACOUSTIC_LAW_FORMAT_VERSION, AcousticLawSurrogate
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.bundle import (
     BUNDLE_FORMAT,
     BUNDLE_FORMAT_VERSION,
+    DIAMETER_ATOL_UM,
     Bundle,
     NoDefaultBundleError,
     default_bundle_path,
     load_bundle,
     write_bundle,
 )
+from bubblecal.surrogates.classical_resonance import classical_f0, diameter_exponent
+from bubblecal.surrogates.features import (
+    INPUT_KINDS,
+    RESPONSE_SCALES,
+    network_inputs,
+    radius_of_diameter,
+    response_scale,
+    x_per_size,
+)
+from bubblecal.surrogates.law_fit import compare_forms, fit_law, leave_diameters_out
 from bubblecal.surrogates.mlp import (
     flops_per_point,
     matmul_floor_forward,
@@ -45,11 +61,14 @@ from bubblecal.surrogates.mlp import (
     xavier_uniform_weights,
 )
 from bubblecal.surrogates.resonance import DiameterFit, fit_quadratic
+from bubblecal.surrogates.resonance_law import DEFAULT_LAW_FORM, LAW_FORMS, LawForm, LawFormatError, ResonanceLaw
 from bubblecal.surrogates.ringdown import RingdownFit, damped_sine, fit_ringdown
 from bubblecal.surrogates.surrogate import OutOfDomainError, Surrogate, SurrogateDomainWarning
 from bubblecal.surrogates.surrogate_file import (
+    DIAMETER_METADATA,
     FORMAT,
     FORMAT_VERSION,
+    FORMAT_VERSION_DIAMETER,
     REQUIRED_METADATA,
     SurrogateFormatError,
     load,
@@ -74,14 +93,20 @@ from bubblecal.surrogates.synthetic_bundle import (
 __all__ = [
     # mechanical surrogates and their files
     "Surrogate", "load", "save_surrogate", "SurrogateFormatError", "OutOfDomainError", "SurrogateDomainWarning",
-    "FORMAT", "FORMAT_VERSION", "REQUIRED_METADATA", "X_INFO", "Y_INFO",
+    "FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "REQUIRED_METADATA", "DIAMETER_METADATA", "X_INFO",
+    "Y_INFO",
+    # network inputs: per diameter or over the diameter
+    "INPUT_KINDS", "RESPONSE_SCALES", "network_inputs", "response_scale", "x_per_size", "radius_of_diameter",
     # bundles
     "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
-    "BUNDLE_FORMAT_VERSION",
+    "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM",
     # acoustics
     "AcousticSurrogate", "DiameterFit", "fit_quadratic", "AcousticFormatError", "AcousticRangeError",
     "AcousticRangeWarning", "ACOUSTIC_FORMAT", "ACOUSTIC_FORMAT_VERSION", "fit_ringdown", "RingdownFit",
     "damped_sine",
+    # the acoustic law continuous in the diameter, and the classical baseline
+    "AcousticLawSurrogate", "ACOUSTIC_LAW_FORMAT_VERSION", "ResonanceLaw", "LawForm", "LAW_FORMS", "DEFAULT_LAW_FORM",
+    "LawFormatError", "fit_law", "leave_diameters_out", "compare_forms", "classical_f0", "diameter_exponent",
     # the JAX forward pass
     "surrogate_inputs", "mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
     "xavier_uniform_weights",

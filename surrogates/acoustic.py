@@ -8,7 +8,9 @@ Per simulated diameter d, a least-squares quadratic with free intercept
 to ringdown resonance frequencies (:mod:`bubblecal.surrogates.ringdown`), with leave-one-out relative errors
 of f_res (:mod:`bubblecal.surrogates.resonance`). Valid only inside the fitted k_a range: use
 :meth:`AcousticSurrogate.in_range` / :meth:`AcousticSurrogate.check_range` (never silent). JSON format
-``bubblecal-acoustic-surrogate`` version 1 (docs/data-formats.md; :meth:`AcousticSurrogate.to_dict`).
+``bubblecal-acoustic-surrogate`` version 1 (docs/data-formats.md; :meth:`AcousticSurrogate.to_dict`); version 2
+files hold a law continuous in the diameter and load as
+:class:`~bubblecal.surrogates.acoustic_law.AcousticLawSurrogate`.
 """
 
 from __future__ import annotations
@@ -302,7 +304,8 @@ class AcousticSurrogate:
         Returns
         -------
         AcousticSurrogate
-            The loaded surrogate.
+            The loaded surrogate: per-diameter quadratics (version 1) or an
+            :class:`~bubblecal.surrogates.acoustic_law.AcousticLawSurrogate` (version 2, a law continuous in D).
 
         Raises
         ------
@@ -312,8 +315,12 @@ class AcousticSurrogate:
             For invalid JSON, a wrong format or version, other frequency units or a missing field.
         """
         path = Path(path)
-        d = read_versioned_json(path, ACOUSTIC_FORMAT, ACOUSTIC_FORMAT_VERSION, AcousticFormatError,
+        d = read_versioned_json(path, ACOUSTIC_FORMAT, (ACOUSTIC_FORMAT_VERSION, 2), AcousticFormatError,
                                 "acoustic surrogate file")
+        if d["format_version"] == 2:  # a diameter-continuous law (the subclass lives beside its law)
+            from bubblecal.surrogates.acoustic_law import AcousticLawSurrogate
+
+            return AcousticLawSurrogate.from_file_dict(d, path)
         if d.get("frequency_units") != "MHz":
             raise AcousticFormatError(f"{path}: field 'frequency_units' must be 'MHz'")
         fits = []

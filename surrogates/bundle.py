@@ -6,7 +6,9 @@ Format ``bubblecal-surrogate-bundle``, version 1 (docs/data-formats.md): a direc
 
     {"format": "bubblecal-surrogate-bundle", "format_version": 1, "created_utc": "...",
      "surrogates": [{"file": "compression_2.1um.npz", "setup": "compression",
-                     "diameter_um": 2.1, "data_hash": "...", "holdout_score": 0.004}, ...],
+                     "diameter_um": 2.1, "data_hash": "...", "holdout_score": 0.004},
+                    {"file": "compression_1.5-8um.npz", "setup": "compression",
+                     "diameter_range_um": [1.5, 8.0], "data_hash": "...", ...}, ...],
      "acoustic": [{"file": "acoustic_definity.json", "name": "definity"}, ...],
      "notes": "free text"}
 
@@ -31,18 +33,21 @@ from bubblecal.surrogates.fileio import atomic_write_bytes, read_versioned_json,
 from bubblecal.surrogates.surrogate import Surrogate
 from bubblecal.surrogates.surrogate_file import SurrogateFormatError, load
 
-__all__ = ["BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "Bundle", "load_bundle", "write_bundle", "default_bundle_path",
-           "NoDefaultBundleError"]
+__all__ = ["BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "Bundle", "load_bundle", "write_bundle",
+           "default_bundle_path", "NoDefaultBundleError"]
 
 #: ``format`` of a bundle manifest.
 BUNDLE_FORMAT = "bubblecal-surrogate-bundle"
 #: ``format_version`` written and read.
 BUNDLE_FORMAT_VERSION = 1
+#: Largest gap [um] between a requested diameter and a per-diameter surrogate's data or nominal diameter (the
+#: "3.2 um" SonoVue data have radius 6.38 DPD, 3.19 um).
+DIAMETER_ATOL_UM = 0.025
 
 
 @dataclass
 class Bundle:
-    """A loaded bundle: mechanical surrogates keyed by (setup, diameter_um) and acoustic surrogates by name.
+    """A loaded bundle: mechanical surrogates by (setup, diameter_um) or over the diameter; acoustic ones by name.
 
     Parameters
     ----------
@@ -51,20 +56,27 @@ class Bundle:
     manifest : dict
         Its ``manifest.json``.
     surrogates : dict of (str, float) to Surrogate
-        Mechanical surrogates keyed by (loading protocol, data diameter [um]).
+        Per-diameter mechanical surrogates keyed by (loading protocol, data diameter [um]).
     acoustic : dict of str to AcousticSurrogate
         Acoustic surrogates keyed by name (e.g. ``'definity'``).
+    over_diameter : dict of str to Surrogate
+        Mechanical networks over the diameter keyed by loading protocol (at most one each).
     """
 
     path: Path
     manifest: dict
     surrogates: dict[tuple[str, float], Surrogate] = field(default_factory=dict)
     acoustic: dict[str, object] = field(default_factory=dict)
+    over_diameter: dict[str, Surrogate] = field(default_factory=dict)
 
-    def get(self, setup: str, diameter_um: float, atol: float = 0.025) -> Surrogate:
-        """The surrogate for ``setup`` nearest ``diameter_um``, within ``atol`` of its data or nominal diameter.
+    def get(self, setup: str, diameter_um: float, atol: float = DIAMETER_ATOL_UM,
+            prefer: str = "per-diameter") -> Surrogate:
+        """The surrogate for ``setup`` at ``diameter_um``: a per-diameter one, or the network over the diameter.
 
-        Nominal diameters name the data sets (the "3.2 um" SonoVue set has data diameter 3.19 um).
+        A per-diameter surrogate matches within ``atol`` of its data or nominal diameter (nominal diameters name
+        the data sets: the "3.2 um" SonoVue set has data diameter 3.19 um); a network over the diameter matches
+        every diameter of its range and is returned bound to ``diameter_um``
+        (:meth:`~bubblecal.surrogates.Surrogate.at_diameter`).
 
         Parameters
         ----------
@@ -73,18 +85,24 @@ class Bundle:
         diameter_um : float
             Bubble diameter [um].
         atol : float
-            Largest accepted gap [um].
+            Largest accepted gap to a per-diameter surrogate [um].
+        prefer : {'per-diameter', 'over-diameter'}
+            Which kind answers when both match.
 
         Returns
         -------
         Surrogate
-            The nearest surrogate.
+            The matching surrogate.
 
         Raises
         ------
         KeyError
-            When none is within ``atol`` (the message lists what the bundle has).
+            When none matches (the message lists what the bundle has).
+        ValueError
+            For an unknown ``prefer``.
         """
+        if prefer not in ("per-diameter", "over-diameter"):
+            raise ValueError(f"prefer must be 'per-diameter' or 'over-diameter', got {prefer!r}")
         best, best_gap = None, math.inf
         for (s, d), sur in self.surrogates.items():
             if s != setup:
@@ -93,11 +111,18 @@ class Bundle:
             gap = min(abs(d - float(diameter_um)), abs(nominal - float(diameter_um)))
             if gap < best_gap:
                 best, best_gap = sur, gap
-        if best is not None and best_gap <= atol:
-            return best
-        have = ", ".join(f"{s} {d:g} um" for s, d in sorted(self.surrogates))
+        per = best if best is not None and best_gap <= atol else None
+        wide = self.over_diameter.get(setup)
+        if wide is not None and wide.diameter_range_um[0] <= float(diameter_um) <= wide.diameter_range_um[1]:
+            if per is None or prefer == "over-diameter":
+                return wide.at_diameter(float(diameter_um))
+        if per is not None:
+            return per
+        have = [f"{s} {d:g} um" for s, d in sorted(self.surrogates)]
+        have += [f"{s} {w.diameter_range_um[0]:g}-{w.diameter_range_um[1]:g} um (over the diameter)"
+                 for s, w in sorted(self.over_diameter.items())]
         raise KeyError(f"bundle {self.path} has no {setup} surrogate at {diameter_um:g} um "
-                       f"(has: {have or 'none'})")
+                       f"(has: {', '.join(have) or 'none'})")
 
     def keys(self):
         """Sorted (setup, diameter_um) keys of the mechanical surrogates."""
@@ -169,15 +194,26 @@ def _load_bundle(path: str | Path) -> Bundle:
                                    "bundle manifest")
     bundle = Bundle(path=path, manifest=manifest)
     for i, entry in enumerate(manifest.get("surrogates", [])):
-        for key in ("file", "setup", "diameter_um", "data_hash"):
+        wide = "diameter_range_um" in entry
+        for key in ("file", "setup", "diameter_range_um" if wide else "diameter_um", "data_hash"):
             if key not in entry:
                 raise SurrogateFormatError(f"{mpath}: surrogates[{i}] lacks field '{key}'")
         sur = load(path / entry["file"])
         if sur.data_hash != entry["data_hash"]:
             raise SurrogateFormatError(f"{mpath}: surrogates[{i}] field 'data_hash' {entry['data_hash'][:12]}... "
                                        f"does not match {entry['file']} ({sur.data_hash[:12]}...)")
-        if sur.setup != entry["setup"] or not math.isclose(sur.diameter_um, float(entry["diameter_um"]),
-                                                           abs_tol=1e-9):
+        if wide:
+            if sur.setup != entry["setup"] or not sur.over_diameter or not all(
+                    math.isclose(a, float(b), abs_tol=1e-9)
+                    for a, b in zip(sur.diameter_range_um, entry["diameter_range_um"], strict=True)):
+                raise SurrogateFormatError(f"{mpath}: surrogates[{i}] setup/diameter_range_um disagree with "
+                                           f"{entry['file']}")
+            if sur.setup in bundle.over_diameter:
+                raise SurrogateFormatError(f"{mpath}: two {sur.setup} surrogates over the diameter")
+            bundle.over_diameter[sur.setup] = sur
+            continue
+        if sur.over_diameter or sur.setup != entry["setup"] or not math.isclose(
+                sur.diameter_um, float(entry["diameter_um"]), abs_tol=1e-9):
             raise SurrogateFormatError(f"{mpath}: surrogates[{i}] setup/diameter_um disagree with {entry['file']}")
         key = (sur.setup, sur.diameter_um)
         if key in bundle.surrogates:
@@ -227,9 +263,10 @@ def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
         dest = path / f.name
         if f.resolve() != dest.resolve():
             shutil.copyfile(f, dest)
-        entries.append({"file": f.name, "setup": sur.setup, "diameter_um": sur.diameter_um,
-                        "data_hash": sur.data_hash, "holdout_score": sur.holdout_score,
-                        "architecture": sur.architecture})
+        size = ({"diameter_range_um": list(sur.diameter_range_um), "ldo_score": sur.metadata.get("ldo_score")}
+                if sur.over_diameter else {"diameter_um": sur.diameter_um})
+        entries.append({"file": f.name, "setup": sur.setup, **size, "data_hash": sur.data_hash,
+                        "holdout_score": sur.holdout_score, "architecture": sur.architecture})
     acoustic_entries = []
     for name, f in (acoustic_files or {}).items():
         f = Path(f)

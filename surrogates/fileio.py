@@ -39,8 +39,9 @@ def atomic_write_bytes(path: Path, writer) -> None:
     atomic_write(path, write)
 
 
-def read_versioned_json(path: Path, fmt: str, version: int, error: type[Exception], what: str) -> dict:
-    """Read a JSON file whose ``format``/``format_version`` fields must equal ``fmt``/``version``.
+def read_versioned_json(path: Path, fmt: str, version: int | tuple[int, ...], error: type[Exception],
+                        what: str) -> dict:
+    """Read a JSON file whose ``format`` must equal ``fmt`` and ``format_version`` be (one of) ``version``.
 
     Parameters
     ----------
@@ -48,8 +49,8 @@ def read_versioned_json(path: Path, fmt: str, version: int, error: type[Exceptio
         The file.
     fmt : str
         Expected ``format``.
-    version : int
-        Expected ``format_version``.
+    version : int or tuple of int
+        Expected ``format_version`` (a tuple: the versions this reader accepts).
     error : type of Exception
         Raised (with a message naming the file and the field) for invalid JSON or a wrong format/version.
     what : str
@@ -80,7 +81,8 @@ def read_versioned_json(path: Path, fmt: str, version: int, error: type[Exceptio
         raise error(f"{path}: holds a JSON {type(data).__name__}, a {what} is a JSON object")
     if data.get("format") != fmt:
         raise error(f"{path}: field 'format' is {data.get('format')!r}, expected {fmt!r}")
-    if data.get("format_version") != version:
+    versions = version if isinstance(version, tuple) else (version,)
+    if data.get("format_version") not in versions:
         raise error(f"{path}: field 'format_version' is {data.get('format_version')!r}, this code reads "
-                    f"version {version}")
+                    f"version {' or '.join(map(str, versions))}")
     return data

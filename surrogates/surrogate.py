@@ -15,7 +15,8 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from bubblecal.surrogates.mlp import mlp_forward, surrogate_inputs
+from bubblecal.surrogates.features import network_inputs, radius_of_diameter, response_scale, x_per_size
+from bubblecal.surrogates.mlp import mlp_forward
 
 __all__ = ["Surrogate", "OutOfDomainError", "SurrogateDomainWarning"]
 
@@ -39,22 +40,30 @@ class Surrogate:
     :meth:`check_domain` (warns or raises, host side) or :meth:`evaluate` (checks, then evaluates). The plain
     call does not check, so that it can run under ``jit``.
 
+    A network over the diameter (metadata ``inputs = 'diameter'``, :mod:`bubblecal.surrogates.features`) takes
+    the bubble diameter as well: pass ``diameter_um`` to the call, or bind one with :meth:`at_diameter`, which
+    returns a surrogate that behaves like a per-diameter one (what :meth:`Bundle.get
+    <bubblecal.surrogates.Bundle.get>` hands to the models). Its training box adds the diameter range and, for
+    compression, the displacement as a fraction of the diameter.
+
     Parameters
     ----------
     weights, biases : sequence of array_like
         Layer weights (fan_in, fan_out) and biases (fan_out,), input side first (:mod:`bubblecal.surrogates.mlp`).
-    in_mean, in_std : array_like, shape (7,)
-        Standardisation of the raw inputs (ka, kb, b1, b2, a3, a4, x).
+    in_mean, in_std : array_like, shape (7,) or (8,)
+        Standardisation of the raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]).
     out_mean, out_std : array_like, shape (1,)
         Standardisation of the raw output.
     metadata : Mapping
         The file's metadata (keys: :mod:`bubblecal.surrogates.surrogate_file`).
     path : str or Path, optional
         The file it was loaded from (named in messages).
+    diameter_um : float, optional
+        The bound diameter [um] of a network over the diameter (:meth:`at_diameter`).
     """
 
     def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, metadata: Mapping,
-                 path: str | Path | None = None):
+                 path: str | Path | None = None, diameter_um: float | None = None):
         self.weights = tuple(jnp.asarray(w) for w in weights)
         self.biases = tuple(jnp.asarray(b) for b in biases)
         self.in_mean = jnp.asarray(in_mean, dtype=jnp.float32)
@@ -65,9 +74,17 @@ class Surrogate:
         self.path = None if path is None else Path(path)
         md = self.metadata
         self.setup: str = md["setup"]
-        self.diameter_um: float = float(md["diameter_um"])
+        self.inputs: str = md.get("inputs", "raw")
+        if self.inputs == "diameter":
+            self.diameter_range_um = (float(md["diameter_range_um"][0]), float(md["diameter_range_um"][1]))
+            self.loading_range_per_size = (float(md["loading_range_per_size"][0]),
+                                           float(md["loading_range_per_size"][1]))
+            self.diameter_um = float("nan") if diameter_um is None else float(diameter_um)
+            self.radius_dpd = float(radius_of_diameter(self.diameter_um))
+        else:
+            self.diameter_um = float(md["diameter_um"])
+            self.radius_dpd = float(md["radius_dpd"])
         self.nominal_diameter_um: float = float(md.get("nominal_diameter_um", self.diameter_um))
-        self.radius_dpd: float = float(md["radius_dpd"])
         self.param_names: tuple[str, ...] = tuple(md["param_names"])
         self.input_names: tuple[str, ...] = tuple(md["input_names"])
         self.param_ranges: dict[str, tuple[float, float]] = {
@@ -79,8 +96,61 @@ class Surrogate:
         self._lo = np.array([self.param_ranges[k][0] for k in self.param_names])
         self._hi = np.array([self.param_ranges[k][1] for k in self.param_names])
 
-    def __call__(self, params, x):
-        """Surrogate response at (params, x).
+    @property
+    def over_diameter(self) -> bool:
+        """True for one network over the sizes (inputs include the diameter)."""
+        return self.inputs == "diameter"
+
+    def _diameter(self, diameter_um):
+        """The diameter of a call: the argument, else the bound one (a network over the diameter only)."""
+        if not self.over_diameter:
+            if diameter_um is not None:
+                raise ValueError(f"the {self.setup} {self.diameter_um:g} um surrogate is trained at one diameter; "
+                                 "it takes no diameter_um")
+            return None
+        if diameter_um is None:
+            if not np.isfinite(self.diameter_um):
+                raise ValueError(f"the {self.setup} surrogate over {self.diameter_range_um[0]:g}-"
+                                 f"{self.diameter_range_um[1]:g} um needs diameter_um (or bind one: at_diameter)")
+            return self.diameter_um
+        return diameter_um
+
+    def at_diameter(self, diameter_um: float, rtol: float = 1e-6) -> Surrogate:
+        """This network over the diameter bound to one diameter: a per-diameter surrogate for the models.
+
+        Parameters
+        ----------
+        diameter_um : float
+            Bubble diameter [um], inside :attr:`diameter_range_um`.
+        rtol : float
+            Widening of the range, relative to its width.
+
+        Returns
+        -------
+        Surrogate
+            The same weights; calls, box checks and messages at ``diameter_um``.
+
+        Raises
+        ------
+        ValueError
+            For a per-diameter surrogate.
+        OutOfDomainError
+            When the diameter lies outside the trained range.
+        """
+        if not self.over_diameter:
+            raise ValueError(f"the {self.setup} {self.diameter_um:g} um surrogate is trained at one diameter")
+        lo, hi = self.diameter_range_um
+        w = rtol * (hi - lo)
+        d = float(diameter_um)
+        if not (lo - w <= d <= hi + w):
+            where = f" ({self.path})" if self.path else ""
+            raise OutOfDomainError(f"{self.setup} surrogate{where}: diameter {d:g} um outside its trained range "
+                                   f"[{lo:g}, {hi:g}] um")
+        return Surrogate(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std,
+                         self.metadata, path=self.path, diameter_um=d)
+
+    def __call__(self, params, x, diameter_um=None):
+        """Surrogate response at (params, x) [and the diameter].
 
         Parameters
         ----------
@@ -89,22 +159,39 @@ class Surrogate:
         x : array_like
             Loading coordinate [DPD length (compression) or DPD force (indentation)], broadcast against
             ``params[..., 0]``.
+        diameter_um : float or array_like, optional
+            Bubble diameter [um], broadcast like ``x`` (a network over the diameter; default: the bound one).
 
         Returns
         -------
         jax.Array
             Response of the broadcast shape [DPD force (compression) or DPD length (indentation)].
-        """
-        u = surrogate_inputs(params, x, self.param_names)
-        y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean,
-                        self.out_std, u)
-        return y[..., 0]
 
-    def in_training_box(self, params, x, rtol: float = 1e-6):
+        Raises
+        ------
+        ValueError
+            For a diameter given to a per-diameter surrogate, or none to an unbound network over the diameter.
+        """
+        d = self._diameter(diameter_um)
+        u = network_inputs(self.inputs, params, x, d, xp=jnp)
+        y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean,
+                        self.out_std, u)[..., 0]
+        if self.over_diameter:
+            y = y * response_scale(self.inputs, self.setup, jnp.asarray(params), d, xp=jnp)
+        return y
+
+    def _loading_box(self, x, diameter_um):
+        """(coordinate, range) of the loading check: x and ``x_range``, or the per-size coordinate and range."""
+        if not self.over_diameter:
+            return x, self.x_range
+        return x_per_size(self.setup, x, diameter_um, xp=jnp), self.loading_range_per_size
+
+    def in_training_box(self, params, x, rtol: float = 1e-6, diameter_um=None):
         """Boolean mask of the points inside the training box (jit-friendly).
 
-        A point is inside when every parameter lies in ``param_ranges`` and x in ``x_range``, each widened by
-        ``rtol`` times the range width (round-off allowance).
+        A point is inside when every parameter lies in ``param_ranges`` and x in ``x_range`` (a network over the
+        diameter: the diameter in ``diameter_range_um`` and the loading per size in ``loading_range_per_size``),
+        each widened by ``rtol`` times the range width (round-off allowance).
 
         Parameters
         ----------
@@ -114,24 +201,33 @@ class Surrogate:
             Loading coordinate [DPD length or DPD force].
         rtol : float
             Widening of each range, relative to its width.
+        diameter_um : float or array_like, optional
+            Bubble diameter [um] (a network over the diameter; default: the bound one).
 
         Returns
         -------
         jax.Array of bool
             Shape of the broadcast output.
         """
+        d = self._diameter(diameter_um)
         params = jnp.asarray(params)
         x = jnp.asarray(x)
         width = self._hi - self._lo
         lo = jnp.asarray(self._lo - rtol * width)
         hi = jnp.asarray(self._hi + rtol * width)
         p_ok = jnp.all((params >= lo) & (params <= hi), axis=-1)
-        xw = self.x_range[1] - self.x_range[0]
-        x_ok = (x >= self.x_range[0] - rtol * xw) & (x <= self.x_range[1] + rtol * xw)
+        xc, (xlo, xhi) = self._loading_box(x, d)
+        xw = xhi - xlo
+        x_ok = (xc >= xlo - rtol * xw) & (xc <= xhi + rtol * xw)
+        if self.over_diameter:
+            dlo, dhi = self.diameter_range_um
+            dw = rtol * (dhi - dlo)
+            dd = jnp.asarray(d)
+            x_ok = x_ok & (dd >= dlo - dw) & (dd <= dhi + dw)
         shape = jnp.broadcast_shapes(p_ok.shape, x_ok.shape)
         return jnp.broadcast_to(p_ok, shape) & jnp.broadcast_to(x_ok, shape)
 
-    def check_domain(self, params, x, action: str = "warn", rtol: float = 1e-6) -> np.ndarray:
+    def check_domain(self, params, x, action: str = "warn", rtol: float = 1e-6, diameter_um=None) -> np.ndarray:
         """Check the training box on the host; warn (``action='warn'``) or raise (``'raise'``).
 
         The message names every offending input with the number of points outside and the extremes requested
@@ -147,6 +243,8 @@ class Surrogate:
             Emit a :class:`SurrogateDomainWarning` or raise.
         rtol : float
             Widening of each range, relative to its width.
+        diameter_um : float or array_like, optional
+            Bubble diameter [um] (a network over the diameter; default: the bound one).
 
         Returns
         -------
@@ -162,7 +260,8 @@ class Surrogate:
         """
         if action not in ("warn", "raise"):
             raise ValueError(f"action must be 'warn' or 'raise', got {action!r}")
-        mask = np.asarray(self.in_training_box(params, x, rtol=rtol))
+        d = self._diameter(diameter_um)
+        mask = np.asarray(self.in_training_box(params, x, rtol=rtol, diameter_um=d))
         if mask.all():
             return mask
         p = np.asarray(params, dtype=float).reshape(-1, len(self.param_names))
@@ -175,20 +274,37 @@ class Surrogate:
             if bad.any():
                 parts.append(f"{name}: {int(bad.sum())} of {len(bad)} parameter sets outside "
                              f"[{lo:.6g}, {hi:.6g}] (requested {p[:, j].min():.6g}..{p[:, j].max():.6g})")
-        lo, hi = self.x_range
+        xc, (lo, hi) = self._loading_box(xv, d)
+        xc = np.asarray(xc, dtype=float).ravel()
         w = (hi - lo) * rtol
-        bad = (xv < lo - w) | (xv > hi + w)
+        bad = (xc < lo - w) | (xc > hi + w)
         if bad.any():
-            xname = self.input_names[-1]
+            xname = self.input_names[6] + (" / diameter" if self.over_diameter and self.setup == "compression"
+                                           else "")
             parts.append(f"{xname}: {int(bad.sum())} of {len(bad)} points outside [{lo:.6g}, {hi:.6g}] "
-                         f"(requested {xv.min():.6g}..{xv.max():.6g})")
+                         f"(requested {xc.min():.6g}..{xc.max():.6g})")
+        if self.over_diameter:
+            dv = np.asarray(d, dtype=float).ravel()
+            dlo, dhi = self.diameter_range_um
+            dw = rtol * (dhi - dlo)
+            bad = (dv < dlo - dw) | (dv > dhi + dw)
+            if bad.any():
+                parts.append(f"diameter_um: {dv[bad].min():g}..{dv[bad].max():g} outside [{dlo:g}, {dhi:g}] um")
         where = f" ({self.path})" if self.path else ""
-        msg = (f"{self.setup} {self.diameter_um:g} um surrogate{where}: {int((~mask).sum())} of "
+        msg = (f"{self.setup} {self._size_label()} surrogate{where}: {int((~mask).sum())} of "
                f"{mask.size} evaluations outside the training box; " + "; ".join(parts))
         if action == "raise":
             raise OutOfDomainError(msg)
         warnings.warn(msg, SurrogateDomainWarning, stacklevel=2)
         return mask
+
+    def _size_label(self) -> str:
+        """'3.2 um', or '1.5-8 um' (at 3.7 um) for a network over the diameter."""
+        if not self.over_diameter:
+            return f"{self.diameter_um:g} um"
+        lo, hi = self.diameter_range_um
+        at = f" at {self.diameter_um:g} um" if np.isfinite(self.diameter_um) else ""
+        return f"{lo:g}-{hi:g} um{at}"
 
     def evaluate(self, params, x, action: str = "warn"):
         """Check the domain (:meth:`check_domain`), then evaluate.
@@ -216,5 +332,5 @@ class Surrogate:
         return self(params, x), mask
 
     def __repr__(self) -> str:
-        return (f"Surrogate({self.setup}, {self.diameter_um:g} um, hidden={self.architecture.get('hidden')}, "
+        return (f"Surrogate({self.setup}, {self._size_label()}, hidden={self.architecture.get('hidden')}, "
                 f"holdout={self.holdout_score:.4g}, data_hash={self.data_hash[:12]})")

@@ -30,6 +30,13 @@ data came from). Optional provenance written by :func:`bubblecal.surrogates.trai
 (failure-truncated curves kept by ``filter_curves(keep_failed_prefix=True)`` and their points),
 ``training_data``, ``filter``.
 
+Version 2 is a network over the diameter (:mod:`bubblecal.surrogates.features`): the same arrays with 8 inputs
+(the 7 above and ``diameter_um`` [um]); its metadata holds ``inputs`` = ``"diameter"``, ``response_scale``
+(``"ka * radius_dpd"`` for compression, ``"radius_dpd"`` for indentation: the network predicts the response over
+it), ``diameter_range_um`` and ``loading_range_per_size`` ([lo, hi] of the displacement over the diameter for
+compression, of the force for indentation) instead of ``diameter_um`` and ``radius_dpd``, and optionally
+``ldo_score`` / ``ldo_bands_um`` (the leave-diameters-out median and its bands).
+
 Inputs and outputs are DPD units: compression x = imposed displacement [DPD length], y = force [DPD force];
 indentation x = applied force [DPD force], y = displacement [DPD length].
 """
@@ -44,15 +51,19 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS, code_version
+from bubblecal.surrogates.features import INPUT_KINDS, RESPONSE_SCALES
 from bubblecal.surrogates.fileio import atomic_write_bytes, utc_now
 from bubblecal.surrogates.surrogate import Surrogate
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "REQUIRED_METADATA", "SurrogateFormatError", "save_surrogate", "load"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "REQUIRED_METADATA", "DIAMETER_METADATA",
+           "SurrogateFormatError", "save_surrogate", "load"]
 
 #: ``format`` of a surrogate file.
 FORMAT = "bubblecal-mlp-surrogate"
-#: ``format_version`` written and read.
+#: ``format_version`` of a per-diameter network (read and written).
 FORMAT_VERSION = 1
+#: ``format_version`` of a network over the diameter (read and written).
+FORMAT_VERSION_DIAMETER = 2
 
 #: Metadata keys every surrogate file holds.
 REQUIRED_METADATA = (
@@ -60,6 +71,20 @@ REQUIRED_METADATA = (
     "output_units", "param_ranges", "x_range", "holdout_score", "holdout_metric", "data_hash",
     "architecture", "training", "code_version", "created_utc", "source",
 )
+#: Metadata keys of a network over the diameter (version 2): these replace ``diameter_um`` and ``radius_dpd``.
+DIAMETER_METADATA = ("inputs", "response_scale", "diameter_range_um", "loading_range_per_size")
+
+
+def _required(md: Mapping) -> tuple[str, ...]:
+    """The metadata keys a file of this input kind must hold."""
+    if md.get("inputs", "raw") == "diameter":
+        return tuple(k for k in REQUIRED_METADATA if k not in ("diameter_um", "radius_dpd")) + DIAMETER_METADATA
+    return REQUIRED_METADATA
+
+
+def _version(md: Mapping) -> int:
+    """The format version of a file with this metadata."""
+    return FORMAT_VERSION_DIAMETER if md.get("inputs", "raw") == "diameter" else FORMAT_VERSION
 
 
 class SurrogateFormatError(ValueError):
@@ -97,13 +122,13 @@ def save_surrogate(path: str | Path, weights: Iterable, biases: Iterable, in_mea
     md = dict(metadata)
     md.setdefault("code_version", code_version())
     md.setdefault("created_utc", utc_now())
-    missing = [k for k in REQUIRED_METADATA if k not in md]
+    missing = [k for k in _required(md) if k not in md]
     if missing:
         raise SurrogateFormatError(f"{path}: metadata lacks field(s) {', '.join(missing)}")
     weights = [np.asarray(w, dtype=np.float32) for w in weights]
     biases = [np.asarray(b, dtype=np.float32) for b in biases]
     arrays: dict[str, np.ndarray] = {
-        "format": np.array(FORMAT), "format_version": np.array(FORMAT_VERSION),
+        "format": np.array(FORMAT), "format_version": np.array(_version(md)),
         "n_layers": np.array(len(weights)),
         "in_mean": np.asarray(in_mean, dtype=np.float64), "in_std": np.asarray(in_std, dtype=np.float64),
         "out_mean": np.atleast_1d(np.asarray(out_mean, dtype=np.float64)),
@@ -165,6 +190,28 @@ def _check_arrays(path: Path, arrays: Mapping[str, np.ndarray], md: Mapping) -> 
     for name in SHELL_PARAMETERS:
         if name not in md["param_ranges"]:
             raise SurrogateFormatError(f"{path}: metadata field 'param_ranges' lacks '{name}'")
+    inputs = md.get("inputs", "raw")
+    if inputs not in INPUT_KINDS:
+        raise SurrogateFormatError(f"{path}: metadata field 'inputs' must be one of {INPUT_KINDS}, got {inputs!r}")
+    if inputs == "diameter":
+        if n_in != len(SHELL_PARAMETERS) + 2 or md["input_names"][-1] != "diameter_um":
+            raise SurrogateFormatError(f"{path}: metadata field 'input_names' of a network over the diameter must "
+                                       f"end with the loading coordinate and 'diameter_um', got {md['input_names']}")
+        if md["response_scale"] != RESPONSE_SCALES[md["setup"]]:
+            raise SurrogateFormatError(f"{path}: metadata field 'response_scale' must be "
+                                       f"{RESPONSE_SCALES[md['setup']]!r} for {md['setup']}, got "
+                                       f"{md['response_scale']!r}")
+        for key in ("diameter_range_um", "loading_range_per_size"):
+            lo_hi = np.asarray(md[key], dtype=float)
+            if lo_hi.shape != (2,) or not np.all(np.isfinite(lo_hi)) or lo_hi[0] > lo_hi[1]:
+                raise SurrogateFormatError(f"{path}: metadata field '{key}' must be [lo, hi] finite with lo <= hi, "
+                                           f"got {md[key]}")
+        if md["diameter_range_um"][0] <= 0:
+            raise SurrogateFormatError(f"{path}: metadata field 'diameter_range_um' must be > 0 um, got "
+                                       f"{md['diameter_range_um']}")
+    elif n_in != len(SHELL_PARAMETERS) + 1:
+        raise SurrogateFormatError(f"{path}: metadata field 'input_names' must hold the 6 shell parameters and the "
+                                   f"loading coordinate, got {md['input_names']}")
 
 
 def _read_fields(path: Path, npz) -> tuple[dict, int]:
@@ -178,9 +225,9 @@ def _read_fields(path: Path, npz) -> tuple[dict, int]:
         if fmt != FORMAT:
             raise SurrogateFormatError(f"{path}: field 'format' is {fmt!r}, expected {FORMAT!r}")
         version = int(npz["format_version"])
-        if version != FORMAT_VERSION:
+        if version not in (FORMAT_VERSION, FORMAT_VERSION_DIAMETER):
             raise SurrogateFormatError(f"{path}: field 'format_version' is {version}, this code reads "
-                                       f"version {FORMAT_VERSION}")
+                                       f"versions {FORMAT_VERSION} and {FORMAT_VERSION_DIAMETER}")
         for key in ("n_layers", "in_mean", "in_std", "out_mean", "out_std", "metadata"):
             if key not in keys:
                 raise SurrogateFormatError(f"{path}: missing field '{key}'")
@@ -234,9 +281,12 @@ def load(path: str | Path) -> Surrogate:
         md = json.loads(str(arrays["metadata"]))
     except json.JSONDecodeError as exc:
         raise SurrogateFormatError(f"{path}: field 'metadata' is not valid JSON ({exc})") from exc
-    missing = [k for k in REQUIRED_METADATA if k not in md]
+    missing = [k for k in _required(md) if k not in md]
     if missing:
         raise SurrogateFormatError(f"{path}: field 'metadata' lacks key(s) {', '.join(missing)}")
+    if int(arrays["format_version"]) != _version(md):
+        raise SurrogateFormatError(f"{path}: field 'format_version' {int(arrays['format_version'])} does not match "
+                                   f"metadata 'inputs' {md.get('inputs', 'raw')!r} (version {_version(md)})")
     _check_arrays(path, arrays, md)
     weights = [arrays[f"W_{i}"] for i in range(n_layers)]
     biases = [arrays[f"b_{i}"] for i in range(n_layers)]

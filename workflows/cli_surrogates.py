@@ -8,12 +8,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from bubblecal.data import AGENTS, LOADING_PROTOCOLS
-
-#: Nominal vs data diameter tolerance: the "3.2 um" SonoVue data have radius 6.38 (3.19 um).
-DIAMETER_ATOL_UM = 0.025
+from bubblecal.surrogates.bundle import DIAMETER_ATOL_UM
 
 app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, export, inspection.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -30,6 +29,20 @@ def _ints(text: str, name: str) -> tuple[int, ...]:
     return vals
 
 
+def _bands(text: str) -> tuple[tuple[float, float], ...]:
+    """'lo-hi,lo-hi' diameter bands [um] (typer.BadParameter naming --ldo-bands otherwise)."""
+    out = []
+    for part in (p for p in text.replace(" ", "").split(",") if p):
+        try:
+            lo, hi = (float(v) for v in part.split("-"))
+        except ValueError:
+            raise typer.BadParameter(f"--ldo-bands must be 'lo-hi,lo-hi' in um, got {part!r}") from None
+        if not (0 < lo <= hi):
+            raise typer.BadParameter(f"--ldo-bands: band {part!r} must have 0 < lo <= hi [um]")
+        out.append((lo, hi))
+    return tuple(out)
+
+
 def _fail(msg: str, code: int = 1):
     """Print 'error: msg' on stderr and exit with status ``code``."""
     typer.echo(f"error: {msg}", err=True)
@@ -40,8 +53,14 @@ def _fail(msg: str, code: int = 1):
 def train(
     dataset: Path = typer.Argument(..., help="Published-layout table (.csv/.dat) or campaign store (dir/.jsonl)."),
     setup: str = typer.Option(..., "--setup", help="compression | indentation"),
-    diameter: float = typer.Option(..., "--diameter", help="Nominal bubble diameter [um] (names the files); must "
-                                   "match the data's 2 x 0.25 um x median radius_dpd within 0.025 um."),
+    diameter: float = typer.Option(None, "--diameter", help="Nominal bubble diameter [um] (names the files); must "
+                                   "match the data's 2 x 0.25 um x median radius_dpd within 0.025 um. Not with "
+                                   "--over-diameter."),
+    over_diameter: bool = typer.Option(False, "--over-diameter/--per-diameter",
+                                       help="One network over the sizes of the data (inputs + diameter, response over "
+                                            "its size scale) instead of one per diameter."),
+    ldo_bands: str = typer.Option("", "--ldo-bands", help="With --over-diameter: diameter bands held out whole, "
+                                  "e.g. '3.0-3.4,5.0-5.4' \\[um] (leave-diameters-out score)."),
     out: Path = typer.Option(..., "--out", help="Output directory (surrogate .npz, reports, plot)."),
     sweep: bool = typer.Option(False, "--sweep/--no-sweep", help="Sweep widths x depths (else one architecture)."),
     widths: str = typer.Option("32,64,128,256", help="Sweep widths (comma separated)."),
@@ -99,6 +118,11 @@ def train(
 
     if setup not in LOADING_PROTOCOLS:
         raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
+    if over_diameter == (diameter is not None):
+        raise typer.BadParameter("give --diameter D (one network per diameter) or --over-diameter, not both")
+    if ldo_bands and not over_diameter:
+        raise typer.BadParameter("--ldo-bands needs --over-diameter")
+    bands = _bands(ldo_bands)
     try:
         raw = read_dataset(dataset, setup=setup, n_points="auto" if n_points == "auto" else int(n_points))
         if raw.setup != setup:
@@ -106,7 +130,7 @@ def train(
         ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop, keep_failed_prefix=failed_prefix,
                                    min_prefix_points=min_prefix_points)
         typer.echo(str(report))
-        if ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
+        if not over_diameter and ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
             _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, "
                   f"--diameter is {diameter:g}")
         try:
@@ -114,32 +138,34 @@ def train(
                                     max_reductions=max_reductions, threads=1, device=device)
         except ValueError as exc:
             raise typer.BadParameter(str(exc).replace("TrainConfig.device", "--device")) from None
+        inputs = {"inputs": "diameter", "ldo_bands": bands} if over_diameter else {}
         if sweep:
             cfg = SweepConfig(widths=_ints(widths, "--widths"), depths=_ints(depths, "--depths"),
                               holdout_frac=holdout_frac, seed=seed, jobs=jobs, train=train_cfg,
-                              min_curves=MIN_SWEEP_CURVES)
+                              min_curves=MIN_SWEEP_CURVES, **inputs)
         else:
             cfg = SweepConfig(widths=(width,), depths=(depth,), holdout_frac=holdout_frac, seed=seed, jobs=1,
-                              train=train_cfg, min_curves=2)
+                              train=train_cfg, min_curves=2, **inputs)
         result = run_sweep(ts, cfg, progress=not quiet, checkpoints=checkpoints or out / "checkpoints")
     except (DatasetError, FileNotFoundError) as exc:
         _fail(str(exc))
     out.mkdir(parents=True, exist_ok=True)
     (out / "filter_report.json").write_text(json.dumps(report.as_dict(), indent=2))
     paths = result.write_report(out)
-    npz = export_sweep(result, out / f"{ts.setup}_{diameter:g}um.npz", nominal_diameter_um=diameter,
-                       filter_report=report)
+    d = ts.diameters_um
+    stem = f"{ts.setup}_{d.min():g}-{d.max():g}um" if over_diameter else f"{ts.setup}_{diameter:g}um"
+    npz = export_sweep(result, out / f"{stem}.npz", nominal_diameter_um=diameter, filter_report=report)
     sur = load(npz)
-    # parity: the exported JAX function against torch on the held-out points
+    # parity: the exported JAX function against torch on the held-out points (in the network's own target)
     import torch
 
-    u, _, _ = result.holdout_set.points()
+    u, _, _, scale = result.holdout_set.network_points(result.inputs)
     with torch.no_grad():
         y_torch = result.best_model.torch_module(torch.float64)(torch.as_tensor(u, dtype=torch.float64)).numpy()[:, 0]
-    y_jax = np.asarray(sur(u[:, :6], u[:, 6]))
+    y_jax = np.asarray(sur(u[:, :6], u[:, 6], *([u[:, 7]] if over_diameter else []))) / scale
     checks = {"jax_vs_torch_max_rel_diff": scaled_max_rel_diff(y_jax, y_torch)}
     if onnx:
-        onnx_path = export_onnx(result.best_model, out / f"{ts.setup}_{diameter:g}um.onnx")
+        onnx_path = export_onnx(result.best_model, out / f"{stem}.onnx")
         checks["onnx_vs_jax_max_rel_diff"] = onnx_parity(onnx_path, sur, u)["max_rel_diff"]
     summary = {"surrogate": str(npz), "selected": result.best, "holdout_score": result.score,
                "data_hash": result.data_hash, "filter": report.as_dict(), "parity": checks,
@@ -156,38 +182,67 @@ def train(
 @app.command("info")
 def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic surrogate .json or a bundle "
                                                "directory.")) -> None:
-    """Print the metadata of a surrogate file or the contents of a bundle."""
-    from bubblecal.surrogates import AcousticFormatError, AcousticSurrogate, SurrogateFormatError, load, load_bundle
+    """Print the metadata of a surrogate file (mechanical or acoustic) or the contents of a bundle."""
+    from bubblecal.surrogates import AcousticFormatError, SurrogateFormatError, load, load_bundle
 
     try:
         if path.suffix.lower() == ".json" and not path.is_dir():
             try:
-                ac = AcousticSurrogate.load(path)
+                text = _acoustic_text(path)
             except (TypeError, AttributeError, KeyError, IndexError) as exc:  # a field of the wrong type
                 raise AcousticFormatError(f"{path}: malformed acoustic surrogate ({type(exc).__name__}: {exc})") \
                     from None
-            typer.echo(f"acoustic {ac.name or path.stem}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
+            typer.echo(text)
         elif path.is_dir():
             b = load_bundle(path)
             if b.manifest.get("notes"):
                 typer.echo(f"notes: {b.manifest['notes']}")
-            for key in b.keys():
-                sur = b.surrogates[key]
+            for sur in [b.surrogates[key] for key in b.keys()] + [b.over_diameter[k] for k in sorted(b.over_diameter)]:
                 md = sur.metadata
                 typer.echo(repr(sur))
                 # provenance: the training set and how much of it the network saw
+                ldo = f", leave-diameters-out {md['ldo_score']:.3g}" if md.get("ldo_score") is not None else ""
                 typer.echo(f"  trained on {md.get('source', '?')}: {md.get('n_curves_train', '?')} curves "
                            f"({md.get('n_prefix_curves_train', 0)} failure-truncated prefixes), "
-                           f"held-out median relative L2 {sur.holdout_score:.3g}")
+                           f"held-out median relative L2 {sur.holdout_score:.3g}{ldo}")
             for name, ac in b.acoustic.items():
-                typer.echo(f"acoustic {name}: diameters {', '.join(f'{d:g}' for d in ac.diameters)} um")
+                typer.echo(f"acoustic {name}: " + (_acoustic_law_text(ac) if hasattr(ac, "law") else
+                                                   f"diameters {', '.join(f'{d:g}' for d in ac.diameters)} um"))
         else:
             sur = load(path)
             typer.echo(repr(sur))
-            typer.echo(json.dumps({k: sur.metadata[k] for k in ("param_ranges", "x_range", "input_names",
-                                                                 "input_units", "output_units", "source")}, indent=2))
-    except (SurrogateFormatError, AcousticFormatError, FileNotFoundError) as exc:
+            keys = ("param_ranges", "x_range", "diameter_range_um", "loading_range_per_size", "response_scale",
+                    "ldo_score", "ldo_bands_um", "input_names", "input_units", "output_units", "source")
+            typer.echo(json.dumps({k: sur.metadata[k] for k in keys if k in sur.metadata}, indent=2))
+    except (SurrogateFormatError, AcousticFormatError, FileNotFoundError, ValueError) as exc:
         _fail(str(exc))
+
+
+def _acoustic_law_text(sur) -> str:
+    """One paragraph on an acoustic law: form, D and k_a ranges, hold-out errors."""
+    law, h = sur.law, sur.law.holdout
+    lo, hi = law.diameter_range
+    ka_lo, ka_hi = law.ka_range
+    bands = "; ".join(f"band {b['band_um'][0]:g}-{b['band_um'][1]:g} um held out: median {100 * b['median']:.2f} % "
+                      f"max {100 * b['max']:.2f} %" for b in h.get("bands", []))
+    return (f"law {sur.name!r}, form {law.form}: {law.law_form.expression()}\n"
+            f"  diameter {lo:g}-{hi:g} um ({len(law.diameters_um)} simulated), ka {ka_lo:.6g}-{ka_hi:.6g} DPD, "
+            f"{law.n_points} rows\n"
+            f"  leave one diameter out: median {100 * h.get('median', float('nan')):.2f} % max "
+            f"{100 * h.get('max', float('nan')):.2f} % (relative error of f_res)" + (f"; {bands}" if bands else ""))
+
+
+def _acoustic_text(path: Path) -> str:
+    """What `info` prints for an acoustic surrogate JSON (per-diameter quadratics or a law)."""
+    from bubblecal.surrogates import AcousticSurrogate
+
+    sur = AcousticSurrogate.load(path)
+    if hasattr(sur, "law"):
+        return _acoustic_law_text(sur)
+    fits = [sur.fits[d] for d in sur.diameters]
+    return (f"acoustic {sur.name!r}: one quadratic per diameter, {', '.join(f'{d:g}' for d in sur.diameters)} um; "
+            f"LOO median {100 * float(np.median([f.loo_median for f in fits])):.2f} % max "
+            f"{100 * float(np.nanmax([f.loo_max for f in fits])):.2f} %")
 
 
 @app.command("synthetic")
@@ -229,15 +284,29 @@ def acoustic(
     agent: str = typer.Option(None, "--agent", help="definity or sonovue (default: from the campaign name)."),
     rows: Path = typer.Option(None, "--rows", help="Also write every fitted ringdown row (CSV)."),
     t_start: float = typer.Option(None, "--t-start", help="Fit R(t) only after this DPD time."),
+    law: bool = typer.Option(False, "--law", help="Fit one law f_res(k_a, D) continuous in the diameter (file "
+                             "format version 2) instead of one quadratic per diameter."),
+    form: str = typer.Option(None, "--form", help="Form of the --law (default gas-coupled; docs/decisions.md)."),
 ) -> None:
-    """Fit the acoustic surrogate (f_res^2(k_a) quadratic per diameter, LOO errors) from ringdown stores."""
+    """Fit the acoustic surrogate from ringdown stores or row CSVs: one f_res^2(k_a) quadratic per diameter
+    (LOO errors), or with --law one law continuous in the diameter (leave-diameters-out errors)."""
     from bubblecal.data import StoreError
-    from bubblecal.workflows.acoustic_sweep import acoustic_surrogate_from_stores
+    from bubblecal.workflows.acoustic_sweep import acoustic_law_from_stores, acoustic_surrogate_from_stores
     from bubblecal.workflows.console import fail
 
     for s in stores:
         if not s.exists():
             raise fail(f"{s}: no such ringdown store")
+    if form is not None and not law:
+        raise fail("--form needs --law")
+    if law:
+        try:
+            sur, _ = acoustic_law_from_stores(stores, out, agent=agent, form=form, rows_csv=rows, t_start=t_start)
+        except (ValueError, StoreError) as exc:
+            raise fail(str(exc)) from None
+        typer.echo(_acoustic_law_text(sur))
+        typer.echo(f"wrote {out}" + (f" and {rows}" if rows else ""))
+        return
     try:
         sur, sweeps = acoustic_surrogate_from_stores(stores, out, agent=agent, rows_csv=rows, t_start=t_start)
     except (ValueError, StoreError) as exc:

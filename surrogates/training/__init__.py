@@ -7,7 +7,8 @@ the grouped holdout (:mod:`~bubblecal.surrogates.training.holdout`) and the ONNX
 (:mod:`~bubblecal.surrogates.training.onnx_check`, onnxruntime imported on use).
 
 The torch parts - :mod:`~bubblecal.surrogates.training.train`, :mod:`~bubblecal.surrogates.training.sweep`,
-:mod:`~bubblecal.surrogates.training.checkpoints`, :mod:`~bubblecal.surrogates.training.export` - are imported
+:mod:`~bubblecal.surrogates.training.sweep_result`, :mod:`~bubblecal.surrogates.training.checkpoints`,
+:mod:`~bubblecal.surrogates.training.export` - are imported
 on first access to one of their names, so that reading and filtering data never imports torch::
 
     from bubblecal.surrogates.training import filter_curves, read_dataset   # no torch
@@ -36,6 +37,7 @@ from bubblecal.surrogates.training.filtering import PREFIX_STATUSES, FilterRepor
 from bubblecal.surrogates.training.holdout import (
     MIN_SCORED_POINTS,
     curve_errors,
+    diameter_bands,
     error_summary,
     grouped_holdout,
 )
@@ -54,7 +56,8 @@ from bubblecal.surrogates.training.synthetic import (
 #: Torch-side names, imported on first access: module -> the names it exports.
 _TORCH_SIDE: dict[str, tuple[str, ...]] = {
     "train": ("TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"),
-    "sweep": ("SweepConfig", "SweepResult", "run_sweep", "MIN_SWEEP_CURVES"),
+    "sweep": ("SweepConfig", "run_sweep", "MIN_SWEEP_CURVES"),
+    "sweep_result": ("SweepResult",),
     "checkpoints": ("checkpoint_key", "checkpoint_path", "save_checkpoint", "load_checkpoint"),
     "export": ("surrogate_metadata", "export_npz", "export_sweep", "export_onnx", "HOLDOUT_METRIC"),
 }
@@ -69,8 +72,8 @@ __all__ = [
     "make_synthetic", "truth", "compression_force", "indentation_displacement", "noise_floor", "relative_l2",
     "DEFAULT_RANGES", "DEFAULT_X",
     # grouped holdout, ONNX parity
-    "grouped_holdout", "curve_errors", "error_summary", "MIN_SCORED_POINTS", "onnx_predict", "onnx_parity",
-    "scaled_max_rel_diff",
+    "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "MIN_SCORED_POINTS", "onnx_predict",
+    "onnx_parity", "scaled_max_rel_diff",
     # torch side (lazy)
     *_LAZY,
 ]

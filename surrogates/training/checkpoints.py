@@ -45,8 +45,11 @@ def checkpoint_key(data_hash: str, hidden: Sequence[int], config: SweepConfig) -
         The key (plain JSON).
     """
     recipe = {k: v for k, v in config.train.as_dict().items() if k not in _EXECUTION_FIELDS}
-    return {"data_hash": data_hash, "hidden": [int(h) for h in hidden], "seed": int(config.seed),
-            "holdout_frac": float(config.holdout_frac), "recipe": recipe}
+    key = {"data_hash": data_hash, "hidden": [int(h) for h in hidden], "seed": int(config.seed),
+           "holdout_frac": float(config.holdout_frac), "recipe": recipe}
+    if config.inputs != "raw":  # per-diameter keys stay as they were, so their saved sweeps are reused
+        key.update(inputs=config.inputs, ldo_bands=[list(b) for b in config.ldo_bands])
+    return key
 
 
 def checkpoint_path(folder: str | Path, hidden: Sequence[int]) -> Path:

@@ -21,6 +21,7 @@ import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS, LOADING_PROTOCOLS, SHELL_PARAMETERS
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
+from bubblecal.surrogates.features import UM_PER_RADIUS_DPD, network_inputs, response_scale
 
 __all__ = ["DatasetError", "TrainingSet", "leading_finite", "diameter_um_from_radius"]
 
@@ -206,6 +207,44 @@ class TrainingSet:
         u = np.concatenate([np.repeat(self.params, m, axis=0), self.x.reshape(-1, 1)], axis=1)
         return u[mask], self.y.reshape(-1)[mask], np.repeat(np.arange(n), m)[mask]
 
+    @property
+    def diameters_um(self) -> np.ndarray:
+        """Bubble diameter of each curve [um] (from its radius, default unit system)."""
+        return self.radius_dpd * UM_PER_RADIUS_DPD
+
+    def network_points(self, inputs: str = "raw"):
+        """Pointwise network inputs and targets of the finite points (:mod:`bubblecal.surrogates.features`).
+
+        Parameters
+        ----------
+        inputs : {'raw', 'diameter'}
+            Input kind: ``raw`` gives :meth:`points` (target = response); ``diameter`` appends each curve's
+            diameter [um] to the inputs and divides the response by its size scale.
+
+        Returns
+        -------
+        u : numpy.ndarray, shape (p, 7 or 8)
+            Network inputs [DPD units; diameter in um].
+        target : numpy.ndarray, shape (p,)
+            Network targets (response over ``scale``).
+        curve : numpy.ndarray of int, shape (p,)
+            Index of the curve of each point.
+        scale : numpy.ndarray, shape (p,)
+            Response scale of each point (1 for ``raw``).
+
+        Raises
+        ------
+        ValueError
+            For an unknown input kind.
+        """
+        n, m = self.x.shape
+        mask = self.point_mask().reshape(-1)
+        d = np.repeat(self.diameters_um, m)
+        p = np.repeat(self.params, m, axis=0)
+        u = network_inputs(inputs, p, self.x.reshape(-1), d if inputs == "diameter" else None)
+        scale = np.broadcast_to(response_scale(inputs, self.setup, p, d), (n * m,))
+        return u[mask], self.y.reshape(-1)[mask] / scale[mask], np.repeat(np.arange(n), m)[mask], scale[mask]
+
     def truncation_summary(self) -> dict:
         """Counts of curves with a NaN tail (failure-truncated prefixes) and of points, overall and per status.
 
@@ -236,18 +275,21 @@ class TrainingSet:
         x = self.x[self.point_mask()]
         return (float(x.min()), float(x.max())) if x.size else (float("nan"), float("nan"))
 
-    def check_trainable(self, min_curves: int = 1) -> None:
+    def check_trainable(self, min_curves: int = 1, several_sizes: bool = False) -> None:
         """Check that the data can be standardised and trained on.
 
         ``params`` must be finite; the response ``y`` of each curve must be finite on a leading prefix of at
         least one point and NaN after it (a failure-truncated prefix): an interior NaN or an infinity is an
         error; ``x`` must be finite wherever ``y`` is; no parameter, loading coordinate or response may have
-        zero variance; all curves must share one radius (one surrogate per diameter).
+        zero variance; all curves must share one radius (one surrogate per diameter) unless ``several_sizes``
+        (a network over the diameter, which needs at least two).
 
         Parameters
         ----------
         min_curves : int
             Fewest curves accepted.
+        several_sizes : bool
+            The data train one network over the sizes (inputs ``diameter``).
 
         Raises
         ------
@@ -285,6 +327,9 @@ class TrainingSet:
         if np.ptp(self.y[valid]) == 0:
             raise DatasetError(f"{src}: response '{self.y_name}' has zero variance")
         radii = np.unique(np.round(self.radius_dpd, 9))
-        if radii.size > 1:
+        if several_sizes and radii.size < 2:
+            raise DatasetError(f"{src}: field 'radius_dpd' holds one radius ({radii[0]:g}); a network over the "
+                               "diameter needs curves at several sizes (train it per diameter instead)")
+        if not several_sizes and radii.size > 1:
             raise DatasetError(f"{src}: field 'radius_dpd' holds several radii {radii[:5].tolist()}; train one "
-                               "surrogate per diameter")
+                               "surrogate per diameter, or one over the sizes (inputs 'diameter')")

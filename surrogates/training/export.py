@@ -13,6 +13,7 @@ import numpy as np
 
 from bubblecal.data import PARAMETER_UNITS, SHELL_PARAMETERS
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
+from bubblecal.surrogates.features import RESPONSE_SCALES, x_per_size
 from bubblecal.surrogates.surrogate_file import save_surrogate
 from bubblecal.surrogates.training.dataset import TrainingSet
 from bubblecal.surrogates.training.train import TrainedMLP
@@ -25,7 +26,7 @@ HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
 
 def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score: float, data_hash: str,
                        extra_training: dict | None = None, nominal_diameter_um: float | None = None,
-                       filter_report=None) -> dict:
+                       filter_report=None, inputs: str = "raw") -> dict:
     """Metadata of a surrogate file (keys: :mod:`bubblecal.surrogates.surrogate_file`).
 
     ``diameter_um`` is the data's (2 x 0.25 um x median radius_dpd, e.g. 3.19 for the "3.2 um" SonoVue set);
@@ -50,6 +51,9 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
         Nominal bubble diameter [um].
     filter_report : FilterReport or dict, optional
         Recorded as ``filter`` (``as_dict``) when given.
+    inputs : {'raw', 'diameter'}
+        The network's input kind; ``diameter`` writes the keys of a network over the diameter (diameter range,
+        loading range per size, response scale) instead of ``diameter_um`` / ``radius_dpd``.
 
     Returns
     -------
@@ -86,18 +90,30 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
     }
     if filter_report is not None:
         md["filter"] = filter_report.as_dict() if hasattr(filter_report, "as_dict") else dict(filter_report)
+    if inputs == "diameter":
+        d = train_set.diameters_um
+        valid = train_set.point_mask()
+        per_size = x_per_size(setup, train_set.x, d[:, None])[valid]
+        for key in ("diameter_um", "nominal_diameter_um", "radius_dpd"):
+            md.pop(key)
+        md.update(inputs="diameter", response_scale=RESPONSE_SCALES[setup],
+                  input_names=[*md["input_names"], "diameter_um"], input_units=[*md["input_units"], "um"],
+                  diameter_range_um=[float(d.min()), float(d.max())],
+                  loading_range_per_size=[float(per_size.min()), float(per_size.max())])
     return md
 
 
 def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, holdout_score: float,
                data_hash: str, extra_training: dict | None = None, nominal_diameter_um: float | None = None,
-               filter_report=None) -> Path:
+               filter_report=None, inputs: str = "raw", extra_metadata: dict | None = None) -> Path:
     """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges).
 
     Parameters
     ----------
-    model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um, filter_report
+    model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um, filter_report, inputs
         As :func:`surrogate_metadata`.
+    extra_metadata : dict, optional
+        Further top-level metadata keys (e.g. ``ldo_score``).
     path : str or Path
         Output ``.npz`` (written atomically).
 
@@ -112,7 +128,8 @@ def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, hold
         When the arrays or metadata are inconsistent (e.g. a zero standard deviation).
     """
     md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um,
-                            filter_report)
+                            filter_report, inputs)
+    md.update(extra_metadata or {})
     return save_surrogate(path, model.weights, model.biases, model.in_mean, model.in_std, model.out_mean,
                           model.out_std, md)
 
@@ -142,9 +159,15 @@ def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = N
              "n_points_holdout": result.holdout_set.n_valid_points,
              "holdout": {k: b[k] for k in ("holdout_median", "holdout_p90", "holdout_n_scored", "holdout_n_skipped",
                                            "holdout_n_prefix", "holdout_median_prefix") if k in b},
-             "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median")} for r in result.rows]}
+             "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median", "ldo_median") if k in r}
+                       for r in result.rows]}
+    top = {}
+    if result.ldo_set is not None:
+        extra["ldo"] = {k: b[k] for k in ("ldo_median", "ldo_p90", "ldo_max", "ldo_n_scored") if k in b}
+        extra["n_curves_ldo"] = result.ldo_set.n_curves
+        top = {"ldo_score": float(b["ldo_median"]), "ldo_bands_um": [list(x) for x in result.config.ldo_bands]}
     return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra,
-                      nominal_diameter_um, filter_report)
+                      nominal_diameter_um, filter_report, inputs=result.inputs, extra_metadata=top)
 
 
 def export_onnx(model: TrainedMLP, path: str | Path) -> Path:

@@ -1,6 +1,7 @@
 """The grouped parameter-set holdout of an architecture sweep and its scores (numpy only).
 
-Whole curves are held out (:func:`grouped_holdout`); a model is scored per held-out curve by the relative L2
+Whole curves are held out (:func:`grouped_holdout`), and for a network over the diameter whole diameter
+bands too (:func:`diameter_bands`); a model is scored per held-out curve by the relative L2
 error over the curve's finite points (:func:`curve_errors`), and the sweep compares the median over curves
 (:func:`error_summary`). A held-out curve with fewer than :data:`MIN_SCORED_POINTS` finite points (a short
 failure-truncated prefix) is skipped and counted.
@@ -12,12 +13,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bubblecal.surrogates.features import network_inputs, response_scale
 from bubblecal.surrogates.training.dataset import DatasetError, TrainingSet
 
 if TYPE_CHECKING:
     from bubblecal.surrogates.training.train import TrainedMLP
 
-__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "curve_errors", "error_summary"]
+__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "diameter_bands", "curve_errors", "error_summary"]
 
 #: A held-out curve needs this many finite points to be scored.
 MIN_SCORED_POINTS = 2
@@ -55,10 +57,41 @@ def grouped_holdout(n_curves: int, frac: float, seed: int) -> tuple[np.ndarray, 
     return np.sort(perm[n_hold:]), np.sort(perm[:n_hold])
 
 
-def curve_errors(model: TrainedMLP, ts: TrainingSet) -> tuple[np.ndarray, np.ndarray]:
+def diameter_bands(diameters_um, bands) -> np.ndarray:
+    """Mask of the curves whose diameter lies in one of the held-out bands (leave-diameters-out).
+
+    Parameters
+    ----------
+    diameters_um : array_like, shape (n,)
+        Diameter of each curve [um].
+    bands : sequence of (float, float)
+        Closed diameter intervals [um], each lo <= hi.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (n,)
+        True for the curves inside a band.
+
+    Raises
+    ------
+    ValueError
+        For a band with lo > hi or a non-finite end.
+    """
+    d = np.asarray(diameters_um, dtype=float)
+    mask = np.zeros(d.shape, dtype=bool)
+    for band in bands:
+        lo, hi = (float(v) for v in band)
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise ValueError(f"diameter band must be finite with lo <= hi [um], got {band!r}")
+        mask |= (d >= lo - 1e-9) & (d <= hi + 1e-9)
+    return mask
+
+
+def curve_errors(model: TrainedMLP, ts: TrainingSet, inputs: str = "raw") -> tuple[np.ndarray, np.ndarray]:
     """Per-curve relative L2 errors and predictions of ``model`` on the curves of ``ts``.
 
-    Each curve is scored on its finite points (``ts.point_mask()``): ||y_hat - y||_2 / ||y||_2.
+    Each curve is scored on its finite points (``ts.point_mask()``): ||y_hat - y||_2 / ||y||_2, in the response
+    itself (a diameter network's output is multiplied back by its size scale).
 
     Parameters
     ----------
@@ -66,6 +99,8 @@ def curve_errors(model: TrainedMLP, ts: TrainingSet) -> tuple[np.ndarray, np.nda
         The trained network.
     ts : TrainingSet
         The curves to score (DPD units).
+    inputs : {'raw', 'diameter'}
+        The network's input kind (:mod:`bubblecal.surrogates.features`).
 
     Returns
     -------
@@ -77,8 +112,11 @@ def curve_errors(model: TrainedMLP, ts: TrainingSet) -> tuple[np.ndarray, np.nda
     """
     n, m = ts.x.shape
     xfin = np.isfinite(ts.x)
-    u = np.concatenate([np.repeat(ts.params, m, axis=0), np.where(xfin, ts.x, 0.0).reshape(-1, 1)], axis=1)
-    y_hat = np.where(xfin, model.predict(u).reshape(n, m), np.nan)
+    p = np.repeat(ts.params, m, axis=0)
+    d = np.repeat(ts.diameters_um, m) if inputs == "diameter" else None
+    u = network_inputs(inputs, p, np.where(xfin, ts.x, 0.0).reshape(-1), d)
+    scale = np.broadcast_to(response_scale(inputs, ts.setup, p, d), (n * m,))
+    y_hat = np.where(xfin, (model.predict(u) * scale).reshape(n, m), np.nan)
     valid = ts.point_mask()
     diff = np.where(valid, y_hat - ts.y, 0.0)
     ref = np.where(valid, ts.y, 0.0)

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.surrogates.features import response_scale
+
 __all__ = ["onnx_predict", "scaled_max_rel_diff", "onnx_parity"]
 
 
@@ -39,13 +41,14 @@ def onnx_predict(onnx_path: str | Path, u) -> np.ndarray:
     ----------
     onnx_path : str or Path
         Model from :func:`bubblecal.surrogates.training.export_onnx`.
-    u : array_like, shape (n, 7)
-        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+    u : array_like, shape (n, 7) or (n, 8)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]) [DPD units; um].
 
     Returns
     -------
     numpy.ndarray, shape (n,)
-        Raw outputs (float32) [DPD force or DPD length].
+        Raw network outputs (float32) [DPD force or DPD length; over its size scale for a network over the
+        diameter].
     """
     import onnxruntime as ort
 
@@ -63,15 +66,22 @@ def onnx_parity(onnx_path: str | Path, surrogate, u) -> dict:
         Exported model.
     surrogate : Surrogate
         The same model loaded from its ``.npz``.
-    u : array_like, shape (n, 7)
-        Raw inputs (ka, kb, b1, b2, a3, a4, x) [DPD units].
+    u : array_like, shape (n, 7) or (n, 8)
+        Raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]) [DPD units; um].
 
     Returns
     -------
     dict
-        ``{"n": number of points, "max_rel_diff": scaled_max_rel_diff(onnx, surrogate)}``.
+        ``{"n": number of points, "max_rel_diff": scaled_max_rel_diff(onnx, surrogate)}``; for a network over
+        the diameter both sides are the network's target (the response over its size scale: the ONNX graph is
+        the bare network).
     """
     u = np.asarray(u, dtype=float)
     y_onnx = onnx_predict(onnx_path, u)
-    y_jax = np.asarray(surrogate(u[:, :6], u[:, 6]))
+    if getattr(surrogate, "over_diameter", False):
+        d = u[:, 7]
+        scale = response_scale("diameter", surrogate.setup, u[:, :6], d)
+        y_jax = np.asarray(surrogate(u[:, :6], u[:, 6], d)) / scale
+    else:
+        y_jax = np.asarray(surrogate(u[:, :6], u[:, 6]))
     return {"n": int(u.shape[0]), "max_rel_diff": scaled_max_rel_diff(y_onnx, y_jax)}

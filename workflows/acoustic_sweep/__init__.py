@@ -15,12 +15,19 @@ Pipeline (``docs/physics.md`` section 5)::
 3. :func:`write_sweep_outputs`: CSV (one row per k_a), JSON (rows, fit, settings) and a PNG.
 
 Ringdown campaign stores are refitted by :func:`sweeps_from_store` (stores.py), and
-:func:`acoustic_surrogate_from_stores` turns them into the agent's acoustic surrogate.
+:func:`acoustic_surrogate_from_stores` turns them into the agent's acoustic surrogate (one quadratic per
+diameter); :func:`acoustic_law_from_stores` (law.py) into one law continuous in the diameter.
 
 Units: k_a DPD 2-D modulus, k_b DPD energy, ``f_*_dpd`` cycles per DPD time, ``f_*_MHz`` physical MHz.
 """
 
-from bubblecal.workflows.acoustic_sweep.fit import acoustic_surrogate_from_stores, fit_sweep
+from bubblecal.workflows.acoustic_sweep.fit import (
+    acoustic_surrogate_from_stores,
+    fit_sweep,
+    read_sweeps,
+    write_rows_csv,
+)
+from bubblecal.workflows.acoustic_sweep.law import acoustic_law_from_stores, law_rows
 from bubblecal.workflows.acoustic_sweep.output import write_sweep_outputs
 from bubblecal.workflows.acoustic_sweep.stores import sweeps_from_rows_csv, sweeps_from_store
 from bubblecal.workflows.acoustic_sweep.sweep import (
@@ -36,4 +43,5 @@ from bubblecal.workflows.acoustic_sweep.sweep import (
 
 __all__ = ["AGENT_KB", "ACOUSTIC_PRIOR", "ROW_FIELDS", "check_agent", "SweepResult", "default_ka_values",
            "ringdown_sweep", "sweep_row", "fit_sweep", "write_sweep_outputs", "sweeps_from_store",
-           "sweeps_from_rows_csv", "acoustic_surrogate_from_stores"]
+           "sweeps_from_rows_csv", "acoustic_surrogate_from_stores", "read_sweeps", "write_rows_csv",
+           "acoustic_law_from_stores", "law_rows"]

@@ -12,7 +12,7 @@ from bubblecal.data import jsonable
 from bubblecal.workflows.acoustic_sweep.stores import sweeps_from_rows_csv, sweeps_from_store
 from bubblecal.workflows.acoustic_sweep.sweep import ROW_FIELDS, SweepResult
 
-__all__ = ["fit_sweep", "acoustic_surrogate_from_stores"]
+__all__ = ["fit_sweep", "acoustic_surrogate_from_stores", "read_sweeps", "write_rows_csv"]
 
 
 def fit_sweep(results: SweepResult | Sequence[SweepResult]) -> dict:
@@ -80,15 +80,7 @@ def acoustic_surrogate_from_stores(stores: Sequence, out: str | Path, agent: str
     """
     from bubblecal.surrogates import AcousticSurrogate
 
-    sweeps: list[SweepResult] = []
-    for st in stores:
-        if str(st).endswith(".csv"):
-            sweeps.extend(sweeps_from_rows_csv(st, agent=agent))
-        else:
-            sweeps.extend(sweeps_from_store(st, agent=agent, t_start=t_start))
-    agents = {s.agent for s in sweeps}
-    if len(agents) != 1:
-        raise ValueError(f"stores hold several agents {sorted(agents)}: one acoustic surrogate per agent")
+    sweeps = read_sweeps(stores, agent=agent, t_start=t_start)
     fits = fit_sweep(sweeps)
     per_d = {}
     for s in sweeps:
@@ -107,12 +99,65 @@ def acoustic_surrogate_from_stores(stores: Sequence, out: str | Path, agent: str
     sur = AcousticSurrogate(fits, name=sweeps[0].agent, meta=jsonable(meta, nonfinite_as_none=True))
     sur.save(out)
     if rows_csv is not None:
-        with open(rows_csv, "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=["diameter_um", *ROW_FIELDS])
-            w.writeheader()
-            for s in sweeps:
-                for r in s.rows:
-                    w.writerow({"diameter_um": f"{s.diameter_um:g}",
-                                **{k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in r.items()}})
+        write_rows_csv(sweeps, rows_csv)
     return sur, sweeps
+
+
+def read_sweeps(stores: Sequence, agent: str | None = None, t_start: float | None = None) -> list[SweepResult]:
+    """The sweeps of ringdown stores (refitted) or row CSVs (read back), all of one agent.
+
+    Parameters
+    ----------
+    stores : sequence
+        Ringdown campaign stores (directory, ``.jsonl``, ``.jsonl.gz``) or row CSVs (``.csv``).
+    agent : str or None
+        'definity' or 'sonovue' (None: from the campaign or file name).
+    t_start : float or None
+        Samples before this DPD time are not fitted (stores only).
+
+    Returns
+    -------
+    list of SweepResult
+        In the order read.
+
+    Raises
+    ------
+    ValueError
+        For sources of several agents, or bad input (naming the file).
+    """
+    sweeps: list[SweepResult] = []
+    for st in stores:
+        if str(st).endswith(".csv"):
+            sweeps.extend(sweeps_from_rows_csv(st, agent=agent))
+        else:
+            sweeps.extend(sweeps_from_store(st, agent=agent, t_start=t_start))
+    agents = {s.agent for s in sweeps}
+    if len(agents) != 1:
+        raise ValueError(f"stores hold several agents {sorted(agents)}: one acoustic surrogate per agent")
+    return sweeps
+
+
+def write_rows_csv(sweeps: Sequence[SweepResult], path: str | Path) -> Path:
+    """Write every fitted row (``diameter_um`` + :data:`ROW_FIELDS`) of the sweeps to a CSV.
+
+    Parameters
+    ----------
+    sweeps : sequence of SweepResult
+        The sweeps.
+    path : str or Path
+        The CSV to write.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=["diameter_um", *ROW_FIELDS])
+        w.writeheader()
+        for s in sweeps:
+            for r in s.rows:
+                w.writerow({"diameter_um": f"{s.diameter_um:g}",
+                            **{k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in r.items()}})
+    return Path(path)
 
