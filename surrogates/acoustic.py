@@ -16,6 +16,7 @@ files hold a law continuous in the diameter and load as
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -323,13 +324,42 @@ class AcousticSurrogate:
             return AcousticLawSurrogate.from_file_dict(d, path)
         if d.get("frequency_units") != "MHz":
             raise AcousticFormatError(f"{path}: field 'frequency_units' must be 'MHz'")
-        fits = []
-        keys = ("diameter_um", "a0", "a1", "a2", "ka_min", "ka_max", "n_points", "loo_rel_errors")
-        for i, e in enumerate(d.get("diameters", [])):
-            for k in keys:
-                if k not in e:
-                    raise AcousticFormatError(f"{path}: diameters[{i}] lacks field '{k}'")
-            fits.append(DiameterFit(**{k: e[k] for k in keys}, meta=e.get("meta", {})))
-        if not fits:
-            raise AcousticFormatError(f"{path}: field 'diameters' is empty")
-        return cls(fits, name=d.get("name", ""), meta=d.get("meta", {}), path=path)
+        entries = d.get("diameters", [])
+        if not isinstance(entries, list) or not entries:
+            raise AcousticFormatError(f"{path}: field 'diameters' must be a non-empty list of fits")
+        name, meta = d.get("name", ""), d.get("meta", {})
+        if not isinstance(name, str) or not isinstance(meta, dict):
+            raise AcousticFormatError(f"{path}: fields 'name' / 'meta' must be a string / an object")
+        fits = [_fit_entry(path, i, e) for i, e in enumerate(entries)]
+        return cls(fits, name=name, meta=meta, path=path)
+
+
+def _number(value) -> bool:
+    """A finite real number (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _fit_entry(path: Path, i: int, e) -> DiameterFit:
+    """One ``diameters[i]`` entry of a version-1 file as a :class:`DiameterFit`, every field's type checked."""
+    where = f"{path}: diameters[{i}]"
+    if not isinstance(e, dict):
+        raise AcousticFormatError(f"{where} must be an object, got {type(e).__name__}")
+    keys = ("diameter_um", "a0", "a1", "a2", "ka_min", "ka_max", "n_points", "loo_rel_errors")
+    for k in keys:
+        if k not in e:
+            raise AcousticFormatError(f"{where} lacks field '{k}'")
+    for k in ("diameter_um", "a0", "a1", "a2", "ka_min", "ka_max"):
+        if not _number(e[k]):
+            raise AcousticFormatError(f"{where} field '{k}' must be a finite number, got {e[k]!r}")
+    if e["diameter_um"] <= 0 or e["ka_min"] > e["ka_max"]:
+        raise AcousticFormatError(f"{where}: needs diameter_um > 0 and ka_min <= ka_max, got {e['diameter_um']!r}, "
+                                  f"[{e['ka_min']!r}, {e['ka_max']!r}]")
+    if not isinstance(e["n_points"], int) or isinstance(e["n_points"], bool) or e["n_points"] < 1:
+        raise AcousticFormatError(f"{where} field 'n_points' must be an integer >= 1, got {e['n_points']!r}")
+    loo = e["loo_rel_errors"]
+    if not isinstance(loo, list) or not all(_number(v) for v in loo):
+        raise AcousticFormatError(f"{where} field 'loo_rel_errors' must be a list of finite numbers")
+    meta = e.get("meta", {})
+    if not isinstance(meta, dict):
+        raise AcousticFormatError(f"{where} field 'meta' must be an object")
+    return DiameterFit(**{k: e[k] for k in keys}, meta=meta)

@@ -288,9 +288,6 @@ def test_acoustic_surrogate_json_structure_through_a_bundle(text):
         assert np.all(np.isfinite(bundle.acoustic["definity"].coefficients(d)))
 
 
-@pytest.mark.xfail(strict=True, reason="AcousticSurrogate.load (surrogates/acoustic.py, outside this change) "
-                                       "lets a wrongly typed field through as TypeError or NaN coefficients; "
-                                       "load_bundle and `surrogates info` translate it")
 @PROFILE
 @given(damaged_json((BUNDLE / "acoustic_definity.json").read_text()))
 def test_acoustic_surrogate_json_structure(text):
