@@ -119,6 +119,7 @@ def quadrature_theta(i: int, leave_out: bool) -> tuple[float, float]:
     return mu, float(np.sqrt((p * (th - mu) ** 2).sum()))
 
 
+@pytest.mark.slow  # a statistical check against quadrature at 4,000 particles per phase: ~80 s
 def test_exact_phase3_is_the_joint_marginal():
     """Phase 3 with leave-one-out ψ weights reproduces the joint model's θ_i marginal (quadrature); the
     published phase 3 reproduces its own (double-counting) target, 0.11-0.12 sd away for the outer bubbles."""

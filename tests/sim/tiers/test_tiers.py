@@ -73,6 +73,7 @@ def _published_rows(ref, rows):
     return ts.subset(np.asarray(rows))
 
 
+@pytest.mark.slow  # two published rows at subdivision 4 in both conventions: ~2 min on 2 cores
 def test_mirheo_convention_reproduces_the_published_indentation_curves(shared_reference):
     """Quasi-static d(F) / published d(F) on two 3.2 um training rows of very different ka / kb (16 and 0.8):
     with the ``mirheo`` convention both are 0.97-0.98 (measured; asserted in [0.95, 1.0]) and within 2 % of each
