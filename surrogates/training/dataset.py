@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bubblecal.data import DEFAULT_UNITS, LOADING_PROTOCOLS, SHELL_PARAMETERS
+from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.features import UM_PER_RADIUS_DPD, network_inputs, response_scale
 
@@ -69,7 +69,7 @@ def diameter_um_from_radius(radius_dpd: float) -> float:
     float
         Bubble diameter [um].
     """
-    return float(radius_dpd) * 2.0 * DEFAULT_UNITS.length_m * 1e6
+    return float(radius_dpd) * UM_PER_RADIUS_DPD
 
 
 @dataclass
