@@ -79,6 +79,7 @@ time in DPD time and radius in DPD length (:mod:`bubblecal.data.units`).  Campai
 formats: ``docs/data-formats.md``.
 """
 
+from bubblecal.campaigns.cluster import GPU_WORKER_DEVICE, gpu_cluster, open_client
 from bubblecal.campaigns.config import (
     DESIGN_FIELDS,
     DESIGNS,
@@ -86,7 +87,6 @@ from bubblecal.campaigns.config import (
     OPTIONAL_DESIGN_FIELDS,
     CampaignConfig,
 )
-from bubblecal.campaigns.cluster import GPU_WORKER_DEVICE, gpu_cluster, open_client
 from bubblecal.campaigns.design import design_points, grid_design, lhs_design, sample_ids, sample_seed
 from bubblecal.campaigns.devices import check_device, check_gpus, cuda_device_count, visible_gpus
 from bubblecal.campaigns.diameters import (

@@ -67,7 +67,8 @@ def test_more_gpus_than_the_machine_has_is_a_clear_error():
                                             r"CUDA_VISIBLE_DEVICES='0'\); nothing was run and the store is "
                                             r"unchanged \(ask for at most 1\)"):
         check_gpus(3, {"CUDA_VISIBLE_DEVICES": "0"})
-    with pytest.raises(CampaignError, match=r"^1 GPU asked for, but this machine has no GPU .*\(run on a GPU machine\)"):
+    with pytest.raises(CampaignError, match=r"^1 GPU asked for, but this machine has no GPU .*\(run on a GPU "
+                                            r"machine\)"):
         check_gpus(1, {"CUDA_VISIBLE_DEVICES": ""})
     with pytest.raises(CampaignError, match="integer >= 1"):
         check_gpus(0, {"CUDA_VISIBLE_DEVICES": "0"})
