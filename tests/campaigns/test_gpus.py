@@ -146,3 +146,10 @@ def test_fewer_tasks_than_workers_are_split_into_tasks_of_the_same_mix():
     assert np.all(np.diff(d0) >= 0) and np.all(d0[:20] <= d1) and np.all(d1 <= d0[1:])  # dealt in turn
     small = dataclasses.replace(c, replicas_per_task=10)
     assert [t.n_replicas for t in make_tasks(small, idx, min_tasks=2)] == [10, 10, 10, 10, 1]  # enough already
+
+
+def test_asking_this_machine_for_one_gpu_more_than_it_has():
+    env = {k: v for k, v in os.environ.items() if k != "CUDA_VISIBLE_DEVICES"}  # nvidia-smi, else Warp
+    n = len(visible_gpus(env))
+    with pytest.raises(CampaignError, match=f"{n + 1} GPUs? asked for, but this machine has "):
+        check_gpus(n + 1, env)
