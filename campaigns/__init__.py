@@ -63,17 +63,15 @@ without dask installed), and there the quasi-static indentation tier (async sche
 record is appended as soon as the curve is finished (provenance ``streamed``), so a large task (one long
 refill pool per campaign, whose slowest curves are paid once) loses only its unfinished curves when killed.
 One process per GPU: processes sharing a GPU without MPS time-slice it, and a pool's latency-bound slowest
-curves then crawl (measurements in benchmarks/RESULTS.md).  Several GPUs on one host: a
-``dask_cuda.LocalCUDACluster`` (one worker per GPU, CUDA_VISIBLE_DEVICES set per worker) and its address; a
-plain LocalCluster puts every 'cuda' worker on GPU 0.
+curves then crawl (measurements in benchmarks/RESULTS.md).  Several GPUs on one host: ``run_campaign(cfg,
+gpus=N)`` (``bubblecal sim campaign CFG --gpus N``) starts one worker process per GPU, each pinned by
+``CUDA_VISIBLE_DEVICES`` (:func:`gpu_cluster`), after counting the GPUs without touching CUDA here
+(:func:`check_gpus`); a plain LocalCluster puts every 'cuda' worker on GPU 0.  A run with fewer tasks than
+workers splits its tasks so every worker has one of the same cost (:func:`make_tasks`).
 
-Clusters (SLURM via dask-jobqueue, not a dependency of bubblecal)::
-
-    from dask_jobqueue import SLURMCluster
-    cluster = SLURMCluster(queue="gpu", cores=4, memory="16GB", processes=1,
-                           job_extra_directives=["--gres=gpu:1"], walltime="04:00:00")
-    cluster.scale(jobs=8)                # 8 GPU jobs = 8 workers
-    print(cluster.scheduler_address)     # tcp://...:PORT  ->  bubblecal sim campaign CFG --scheduler tcp://...
+Clusters: SLURM through dask-jobqueue (not a dependency of bubblecal), one GPU job per worker, in
+:mod:`bubblecal.campaigns.slurm` (``python -m bubblecal.campaigns.slurm --jobs 8``; then ``--scheduler
+tcp://...``); a ``dask cuda worker`` cluster of one's own works the same way.  docs/distributed.md.
 
 Units: parameter ranges in DPD units (ka DPD 2-D modulus, kb DPD energy, b1..a4 dimensionless);
 diameters in um; loading grids in DPD length (compression) or DPD force (indentation); ringdown
@@ -81,6 +79,7 @@ time in DPD time and radius in DPD length (:mod:`bubblecal.data.units`).  Campai
 formats: ``docs/data-formats.md``.
 """
 
+from bubblecal.campaigns.cluster import GPU_WORKER_DEVICE, gpu_cluster, open_client
 from bubblecal.campaigns.config import (
     DESIGN_FIELDS,
     DESIGNS,
@@ -89,7 +88,7 @@ from bubblecal.campaigns.config import (
     CampaignConfig,
 )
 from bubblecal.campaigns.design import design_points, grid_design, lhs_design, sample_ids, sample_seed
-from bubblecal.campaigns.devices import check_device, cuda_device_count
+from bubblecal.campaigns.devices import check_device, check_gpus, cuda_device_count, visible_gpus
 from bubblecal.campaigns.diameters import (
     DIAMETER_DESIGN_RANGE_UM,
     MAX_COMPRESSION_FRACTION,
@@ -129,8 +128,9 @@ __all__ = [
     "DESIGNS", "DESIGN_FIELDS", "OPTIONAL_DESIGN_FIELDS", "EXECUTION_ONLY_TIER_SETTINGS", "CampaignConfig",
     # diameters and loading grids
     "DIAMETER_DESIGN_RANGE_UM", "MAX_COMPRESSION_FRACTION", "diameter_levels", "fraction_grid", "published_grid",
-    # devices
-    "check_device", "cuda_device_count",
+    # devices and clusters (one worker per GPU; SLURM: bubblecal.campaigns.slurm)
+    "check_device", "cuda_device_count", "visible_gpus", "check_gpus", "GPU_WORKER_DEVICE", "gpu_cluster",
+    "open_client",
     "CampaignError", "CampaignConfigError", "CampaignFileError",
     # campaign files
     "CampaignFile", "available_campaigns", "campaign_path", "load_campaign_file", "load_campaign_config",

@@ -19,13 +19,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bubblecal.campaigns.cluster import GPU_WORKER_DEVICE, open_client
 from bubblecal.campaigns.config import CampaignConfig, _is_int
 from bubblecal.campaigns.design import design_points
-from bubblecal.campaigns.devices import check_device, cuda_device_count
+from bubblecal.campaigns.devices import check_device, check_gpus, cuda_device_count
 from bubblecal.campaigns.errors import CampaignConfigError, CampaignError
 from bubblecal.campaigns.progress import _Progress
 from bubblecal.campaigns.records import task_records
-from bubblecal.campaigns.scheduler import CONNECT_TIMEOUT_S, check_scheduler_address, connect_scheduler
+from bubblecal.campaigns.scheduler import CONNECT_TIMEOUT_S, check_scheduler_address
 from bubblecal.campaigns.tasks import (
     CampaignTask,
     TaskResult,
@@ -249,7 +250,7 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
                  n_workers: int | None = None, progress: bool = True, limit: int | None = None,
                  simulate: Callable[[CampaignTask], TaskResult] | None = None,
                  on_error: str = "record", diameters: Sequence[float] | None = None,
-                 connect_timeout_s: float = CONNECT_TIMEOUT_S) -> CampaignSummary:
+                 connect_timeout_s: float = CONNECT_TIMEOUT_S, gpus: int | None = None) -> CampaignSummary:
     """Run the pending part of a campaign's design and append one record per sample to its store.
 
     Parameters
@@ -279,6 +280,11 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
         per diameter: the store takes whole-line appends from several processes).
     connect_timeout_s : float
         Seconds to wait for a remote scheduler [s].
+    gpus : int, optional
+        Run on this many GPUs of this machine: one single-threaded worker process per GPU, each pinned to its
+        GPU by ``CUDA_VISIBLE_DEVICES`` and running the tasks on 'cuda:0' (:func:`~bubblecal.campaigns.
+        gpu_cluster`); the GPUs are counted before anything runs.  Not with ``client``, a scheduler address or
+        ``n_workers``.  On Dask, a run with fewer tasks than workers splits them (:func:`make_tasks`).
 
     Returns
     -------
@@ -290,11 +296,12 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     ValueError
         ``on_error`` or ``limit`` is invalid.
     CampaignConfigError
-        A diameter in ``diameters`` is not in the design (field ``diameter_um``), or ``scheduler_address`` is
-        not one of :data:`~bubblecal.campaigns.SCHEDULER_CHOICES` (field ``scheduler_address``).
+        A diameter in ``diameters`` is not in the design (field ``diameter_um``), ``scheduler_address`` is
+        not one of :data:`~bubblecal.campaigns.SCHEDULER_CHOICES` (field ``scheduler_address``), or ``gpus``
+        comes with a client, a scheduler address or ``n_workers`` (field ``gpus``).
     CampaignError
-        The store holds another design, the scheduler cannot be reached within ``connect_timeout_s``, or the
-        campaign stopped on task errors.
+        The store holds another design, ``gpus`` exceeds this machine's GPUs (before the store is opened), the
+        scheduler cannot be reached within ``connect_timeout_s``, or the campaign stopped on task errors.
     """
     if on_error not in ("record", "raise"):
         raise ValueError(f"on_error must be 'record' or 'raise', got {on_error!r}")
@@ -302,6 +309,14 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
         raise ValueError(f"limit must be an integer >= 0 (samples), got {limit!r}")
     simulate = simulate or simulate_task
     scheduler_address = check_scheduler_address(scheduler_address)
+    gpu_ids = None
+    if gpus is not None:
+        if client is not None or scheduler_address is not None or n_workers is not None:
+            given = "a client" if client is not None else (f"scheduler {scheduler_address!r}" if scheduler_address
+                                                           else f"{n_workers} workers")
+            raise CampaignConfigError("gpus", f"{gpus} GPUs start one worker per GPU on this machine, so they "
+                                              f"cannot come with {given}")
+        gpu_ids = check_gpus(gpus)  # before the store is touched: too many GPUs runs nothing
     store = _open_store(config)
     design = design_points(config)
     pending = pending_indices(config, store)
@@ -315,7 +330,8 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
         pending = [i for i in pending if keep[i]]
     n_pending = len(pending)
     todo = pending[:limit] if limit is not None else pending
-    tasks = make_tasks(config, todo, design)
+    run_config = config if gpu_ids is None else dataclasses.replace(config, device=GPU_WORKER_DEVICE)
+    tasks = make_tasks(run_config, todo, design)
     writer = _RecordWriter(config, store, on_error)
 
     bar = _Progress(False, 0, config.name)
@@ -324,7 +340,7 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     own_client = own_cluster = None
     workers = 1
     scheduler = "inline"
-    check = tasks and simulate is simulate_task and config.device.startswith("cuda")
+    check = tasks and simulate is simulate_task and config.device.startswith("cuda") and gpu_ids is None
     local = client is None and scheduler_address in (None, "inline")  # in process, or a LocalCluster here
     if check and local:
         check_device(config.device)  # before any task: a missing GPU fails every sample otherwise
@@ -335,23 +351,18 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
             bar = _Progress(progress, len(todo), config.name)
             _run_inline(tasks, simulate, writer, bar)
         else:
-            from distributed import Client, LocalCluster
-
             if client is None:
-                if scheduler_address:
-                    own_client = client = connect_scheduler(scheduler_address, connect_timeout_s)
-                else:
-                    import logging
-
-                    nw = n_workers or (1 if config.device.startswith("cuda") else (os.cpu_count() or 1))
-                    own_cluster = LocalCluster(n_workers=nw, processes=True, threads_per_worker=1,
-                                               dashboard_address=":0", silence_logs=logging.ERROR)
-                    own_client = client = Client(own_cluster)
+                nw = n_workers or (1 if config.device.startswith("cuda") else (os.cpu_count() or 1))
+                own_client, own_cluster = open_client(scheduler_address, gpu_ids=gpu_ids, n_workers=nw,
+                                                      connect_timeout_s=connect_timeout_s)
+                client = own_client
             if check and not local:  # remote workers: their devices, not the client's
                 for address, n in client.run(cuda_device_count).items():
                     check_device(config.device, n, where=f"Dask worker {address}")
             workers = max(len(client.scheduler_info().get("workers", {})), 1)
             scheduler = str(client.scheduler_info().get("address", "?"))
+            if len(tasks) < workers:  # e.g. one pool over every level: one task per worker instead
+                tasks = make_tasks(run_config, todo, design, min_tasks=workers)
             startup = time.perf_counter() - t_start
             bar = _Progress(progress, len(todo), config.name)
             t_start = time.perf_counter()  # the wall time counts from the first submit

@@ -9,6 +9,7 @@ arguments must be picklable.
 from __future__ import annotations
 
 import inspect
+import math
 import os
 import socket
 import time
@@ -183,9 +184,13 @@ def _unstable_retry_due(record: Mapping, budget: int | None) -> bool:
     return budget is None or ran is None or int(ran) < int(budget)
 
 
-def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[str, np.ndarray] | None = None
-               ) -> list[CampaignTask]:
+def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[str, np.ndarray] | None = None,
+               min_tasks: int = 1) -> list[CampaignTask]:
     """Chunk design indices into tasks of at most ``replicas_per_task`` replicas of one diameter.
+
+    When the chunks are fewer than ``min_tasks`` (e.g. one task over every level and two GPUs), each group is
+    dealt round-robin into near-equal tasks instead, so every task gets the same mix of diameters (the same cost)
+    and no worker idles.
 
     Parameters
     ----------
@@ -195,6 +200,8 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
         Design indices to run (e.g. :func:`pending_indices`).
     design : Mapping[str, numpy.ndarray], optional
         :func:`~bubblecal.campaigns.design_points` of ``config`` (computed when not given).
+    min_tasks : int
+        Tasks to make at least (as many as there are workers), where the indices allow.
 
     Returns
     -------
@@ -211,9 +218,15 @@ def make_tasks(config: CampaignConfig, indices: Sequence[int], design: Mapping[s
         groups[None].sort(key=lambda i: (float(design["diameter_um"][i]), i))
     tasks = []
     settings = dict(config.tier_settings)
+    rpt = config.replicas_per_task
+    n_regular = sum(math.ceil(len(idx) / rpt) for idx in groups.values())
     for key, idx in groups.items():
-        for start in range(0, len(idx), config.replicas_per_task):
-            chunk = idx[start:start + config.replicas_per_task]
+        if n_regular >= min_tasks:
+            chunks = [idx[start:start + rpt] for start in range(0, len(idx), rpt)]
+        else:  # deal each group over its share of the tasks
+            k = min(len(idx), max(math.ceil(len(idx) / rpt), math.ceil(min_tasks * len(idx) / len(indices))))
+            chunks = [idx[j::k] for j in range(k)]
+        for chunk in chunks:
             sizes = tuple(float(design["diameter_um"][i]) for i in chunk)
             dia = sizes[0] if key is None else key
             tasks.append(CampaignTask(

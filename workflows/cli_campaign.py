@@ -4,21 +4,18 @@ A thin command line over :mod:`bubblecal.campaigns` (Dask is imported by the run
 commands are registered on the ``sim`` group by :mod:`bubblecal.workflows.cli_sim`.  A command's docstring up to
 the form feed (``\\f``) is its ``--help`` text; the numpydoc sections after it are for readers of the code.
 
-Campaigns on a SLURM cluster (dask-jobqueue is not a bubblecal dependency; ``pip install dask-jobqueue``)::
+Several GPUs of one machine: ``--gpus N`` starts one Dask worker process per GPU, each pinned to its GPU by
+``CUDA_VISIBLE_DEVICES`` (:func:`bubblecal.campaigns.gpu_cluster`)::
 
-    # in a long-lived Python process on the login node
-    from dask_jobqueue import SLURMCluster
-    cluster = SLURMCluster(queue="gpu", cores=4, memory="16GB", processes=1, walltime="04:00:00",
-                           job_extra_directives=["--gres=gpu:1"])
-    cluster.scale(jobs=8)                    # 8 GPU jobs, one Dask worker each
-    print(cluster.scheduler_address)         # tcp://10.1.2.3:8786
+    bubblecal sim campaign definity_compression_1.5-8um --store /scratch/d.store --gpus 2
 
-    # in a shell (same environment): the client writes the store, the workers simulate
-    bubblecal sim campaign definity_compression_2.1um --store /scratch/def21.store --scheduler tcp://10.1.2.3:8786
+A SLURM cluster (dask-jobqueue, ``pip install dask-jobqueue``; one GPU job per worker), or any Dask scheduler
+such as one with ``dask cuda worker`` processes: pass its address::
 
-Several GPUs on one host: start ``dask_cuda.LocalCUDACluster()`` (one worker per GPU, each seeing only its
-own GPU through CUDA_VISIBLE_DEVICES, so device "cuda" is that GPU) and pass its ``--scheduler`` address;
-a plain LocalCluster with several workers and device "cuda" would put every worker on GPU 0.
+    python -m bubblecal.campaigns.slurm --jobs 8 --queue gpu      # on the login node; prints tcp://HOST:PORT
+    bubblecal sim campaign definity_compression_1.5-8um --store /scratch/d.store --scheduler tcp://HOST:PORT
+
+docs/distributed.md has the whole of it.
 
 Interrupt and re-run the same command at any time: finished samples are skipped, nothing is duplicated.
 """
@@ -103,6 +100,9 @@ def campaign(
                                                             "Default: \\[dask] of the file, else 'local'."),
     workers: int = typer.Option(None, "--workers", min=1, help="LocalCluster worker processes (default: \\[dask] "
                                                                "n_workers, else 1 on cuda / core count on cpu)."),
+    gpus: int = typer.Option(None, "--gpus", min=1, help="Run on N GPUs of this machine: one Dask worker per GPU, "
+                                                         "pinned by CUDA_VISIBLE_DEVICES, each on its cuda:0 (not "
+                                                         "with --scheduler, --workers or --device)."),
     limit: int = typer.Option(None, "--limit", min=0, help="Run at most N pending samples, then stop (resume "
                                                            "later with the same command)."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the design and what is pending; simulate "
@@ -119,10 +119,10 @@ def campaign(
                                            "give a fresh --store."),
 ) -> None:
     """Run a training-data campaign: a seeded design over a prior box, simulated on Dask, appended to a
-    resumable store (one record per sample). Re-running continues where it stopped; a killed worker is
-    rescheduled. On a SLURM cluster start a dask_jobqueue.SLURMCluster, cluster.scale(jobs=N), and pass
-    --scheduler tcp://... (see `python -c "import bubblecal.workflows.cli_campaign as m; print(m.__doc__)"`).
-    Exit 1 on a bad configuration.
+    resumable store (one record per sample). Re-running continues where it stopped; a killed worker's task is
+    re-run elsewhere. Several GPUs here: --gpus N. On a SLURM cluster start `python -m
+    bubblecal.campaigns.slurm --jobs N` and pass --scheduler tcp://... (docs/distributed.md). Exit 1 on a bad
+    configuration.
     \f
 
     Prints the run's and the store's status counts, the wall / compute seconds, and last one JSON line
@@ -136,6 +136,8 @@ def campaign(
         Dask scheduler address, 'inline' or 'local' (default: the file's [dask], else 'local').
     workers : int, optional
         LocalCluster worker processes.
+    gpus : int, optional
+        GPUs of this machine, one pinned worker each.
     limit : int, optional
         Run at most this many pending samples.
     dry_run : bool
@@ -155,9 +157,11 @@ def campaign(
 
     Raises
     ------
+    typer.BadParameter
+        ``--gpus`` with ``--scheduler``, ``--workers`` or ``--device`` (exit code 2).
     typer.Exit
-        Code 1 on an invalid file, option or store, a device this machine lacks, a campaign that stops on task
-        errors, or a run whose samples all failed.
+        Code 1 on an invalid file, option or store, a device this machine lacks (more ``--gpus`` than it has), a
+        campaign that stops on task errors, or a run whose samples all failed.
     """
     from bubblecal.campaigns import (
         CampaignConfigError,
@@ -170,6 +174,11 @@ def campaign(
     )
     from bubblecal.data import StoreError
 
+    if gpus is not None:
+        given = [o for o, v in (("--scheduler", scheduler), ("--workers", workers), ("--device", device)) if v]
+        if given:
+            raise typer.BadParameter(f"--gpus starts one worker per GPU of this machine on its cuda:0, so it does "
+                                     f"not go with {' / '.join(given)}", param_hint="--gpus")
     try:
         overrides = parse_tier_settings(tier_setting or [])
     except ValueError as exc:
@@ -204,11 +213,12 @@ def campaign(
         console.print("[dim]dry run: nothing simulated[/]")
         return
     try:
-        summary = run_campaign(c, scheduler_address=scheduler or cf.scheduler_address,
-                               n_workers=workers or cf.n_workers, limit=limit, progress=progress,
-                               diameters=diameter or None, connect_timeout_s=connect_timeout)
+        local = gpus is None  # --gpus: this machine's GPUs, whatever the file's [dask] says
+        summary = run_campaign(c, scheduler_address=scheduler or cf.scheduler_address if local else None,
+                               n_workers=workers or cf.n_workers if local else None, limit=limit, progress=progress,
+                               diameters=diameter or None, connect_timeout_s=connect_timeout, gpus=gpus)
     except CampaignConfigError as exc:
-        option = {"scheduler_address": "--scheduler"}.get(exc.field, "--diameter")
+        option = {"scheduler_address": "--scheduler", "gpus": "--gpus"}.get(exc.field, "--diameter")
         raise fail(f"{option}: {exc.detail}") from None
     except (CampaignError, StoreError) as exc:
         raise fail(str(exc)) from None
