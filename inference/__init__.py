@@ -6,7 +6,9 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
 
 - :class:`TMCMC` — transitional MCMC with log evidence (``docs/inference.md`` section 5), its moves
   (:class:`RandomWalk`, :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`) and
-  :func:`clear_program_cache`; the pure core is in :mod:`bubblecal.inference.tmcmc`;
+  :func:`clear_program_cache`; :class:`TMCMCKernel`, the same algorithm as a ``numpyro.infer.MCMC``
+  kernel (``MCMC(TMCMCKernel(model), ...)`` in place of ``MCMC(NUTS(model), ...)``); the pure core is in
+  :mod:`bubblecal.inference.tmcmc`;
 - :func:`run_nuts` — the NUTS cross-check; :func:`compare_posteriors` — agreement of two samplers;
 - :func:`run_staged` and the staged (Korali-style) hierarchy (section 4);
 - posterior-predictive metrics (section 7): :func:`predictive_band`, :func:`coverage`,
@@ -42,6 +44,7 @@ from bubblecal.inference.tmcmc import (
     TMCMC,
     KernelMove,
     RandomWalk,
+    TMCMCKernel,
     clear_program_cache,
     hmc_move,
     nuts_move,
@@ -49,7 +52,7 @@ from bubblecal.inference.tmcmc import (
 
 __all__ = [
     # TMCMC
-    "TMCMC", "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "clear_program_cache",
+    "TMCMC", "TMCMCKernel", "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "clear_program_cache",
     # NUTS and sampler comparison
     "run_nuts", "NUTSResult", "compare_posteriors", "Comparison",
     # staged hierarchy

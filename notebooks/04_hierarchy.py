@@ -28,9 +28,9 @@
 # A **synthetic agent** with a known answer: three compression curves (two in the small run) at the displacements of the
 # Definity 2.1 / 2.9 / 3.0 µm measurements, drawn from the joint model itself at a chosen ψ, with the
 # priors of the Definity reduced + acoustic workflow (acoustic data left out here; see notebook 06).
-# Surrogates: the shipped bundle when present, otherwise the **synthetic** development bundle
-# (closed-form laws, not DPD). `BUBBLECAL_NOTEBOOK_SMALL=1` runs tiny populations (the staged/joint
-# agreement is then only rough).
+# Surrogates: the shipped DPD bundle (`bubblecal.surrogates.default_bundle_path()`, the networks trained on the
+# shipped DPD training sets that `bubblecal calibrate` uses). `BUBBLECAL_NOTEBOOK_SMALL=1` runs tiny populations
+# (the staged/joint agreement is then only rough).
 
 # %%
 import os
@@ -55,7 +55,7 @@ from bubblecal.models import (
     sample_population_predictive,
 )
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import development_bundle_path, is_synthetic_bundle, load_bundle
+from bubblecal.surrogates import default_bundle_path, load_bundle
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 PARTICLES = 300 if SMALL else 10_000
@@ -65,9 +65,9 @@ DIAMETERS = (2.1, 3.0) if SMALL else (2.1, 2.9, 3.0)  # small run: two bubbles (
 
 
 
-bundle = load_bundle(development_bundle_path(quick=SMALL))
-if is_synthetic_bundle(bundle):
-    print("NOTE: SYNTHETIC surrogate bundle (closed-form laws, not DPD): numbers illustrate the method only")
+bundle = load_bundle(default_bundle_path(must_exist=True))
+for d in DIAMETERS:
+    print(bundle.get("compression", d))
 
 # %% [markdown]
 # ## A synthetic agent from the joint model

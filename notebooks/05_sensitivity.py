@@ -22,9 +22,9 @@
 # Saltelli design and SALib estimators with bootstrap confidence intervals, through
 # `bubblecal.workflows.sensitivity.surrogate_sensitivity` (the same code as `bubblecal sensitivity`).
 #
-# The surrogates come from the shipped bundle when it exists; otherwise from the **synthetic**
-# development bundle (closed-form laws, not DPD — the indices then describe those laws, not the DPD
-# shell). `BUBBLECAL_NOTEBOOK_SMALL=1` uses N = 256 instead of the published N = 2,048.
+# The surrogates are those of the shipped DPD bundle (`bubblecal.surrogates.default_bundle_path()`), trained on
+# the shipped DPD training sets: the indices describe the DPD shell model over the prior box.
+# `BUBBLECAL_NOTEBOOK_SMALL=1` uses N = 256 instead of the published N = 2,048.
 
 # %%
 import os
@@ -35,7 +35,7 @@ import numpy as np
 from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import load_reference
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import development_bundle_path, is_synthetic_bundle, load_bundle
+from bubblecal.surrogates import default_bundle_path, load_bundle
 from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
@@ -44,9 +44,7 @@ N, POINTS = (256, 16) if SMALL else (2048, 40)
 
 
 
-bundle = load_bundle(development_bundle_path(quick=SMALL))
-if is_synthetic_bundle(bundle):
-    print("NOTE: SYNTHETIC surrogate bundle (closed-form laws, not DPD): indices illustrate the method only")
+bundle = load_bundle(default_bundle_path(must_exist=True))
 
 # %% [markdown]
 # ## Definity, compression, full shell

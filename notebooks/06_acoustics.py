@@ -19,10 +19,9 @@
 # k_a and the relative noise σ_ac from one acoustic dataset through `bubblecal.models.acoustic_model`
 # (`shared/docs/inference.md` §3).
 #
-# The frequencies behind the surrogate come from the shipped bundle when it exists; otherwise from the
-# **synthetic** development bundle, whose "simulated" frequencies are the ringdown law
-# ω0² = (16π k_a + 12π R p_g) / M_shell (not DPD ringdowns): the posterior below then illustrates the
-# machinery, not the Definity shell.
+# The surrogate is the shipped one (`bubblecal.surrogates.default_bundle_path()`): quadratics fitted to the
+# resonance frequencies of DPD ringdown simulations (implicit tier) at each Definity diameter, so the
+# posterior below is the Definity shell's.
 
 # %%
 import os
@@ -37,14 +36,7 @@ from bubblecal.data import acoustic_datasets, acoustic_observations
 from bubblecal.inference import TMCMC, predictive_band
 from bubblecal.models import acoustic_model, acoustic_prediction
 from bubblecal.priors import load_priors
-from bubblecal.surrogates import (
-    ACOUSTIC_KA_RANGE,
-    development_bundle_path,
-    fit_quadratic,
-    is_synthetic_bundle,
-    load_bundle,
-    ringdown_frequency_MHz,
-)
+from bubblecal.surrogates import default_bundle_path, load_bundle
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 PARTICLES = 1000 if SMALL else 20_000
@@ -52,10 +44,9 @@ PARTICLES = 1000 if SMALL else 20_000
 
 
 
-bundle = load_bundle(development_bundle_path(quick=SMALL))
-SYNTHETIC = is_synthetic_bundle(bundle)
-if SYNTHETIC:
-    print("NOTE: SYNTHETIC surrogate bundle (ringdown law, not DPD): the posterior illustrates the method only")
+bundle = load_bundle(default_bundle_path(must_exist=True))
+fres = bundle.acoustic["definity"]
+print(f"{fres.name}: {len(fres.diameters)} diameters, source: {fres.meta.get('source')}")
 
 # %% [markdown]
 # ## The acoustic data
@@ -71,34 +62,28 @@ print([d.name for d in acoustic_datasets("definity") + acoustic_datasets("sonovu
 
 # %% [markdown]
 # ## f_res²(k_a) per diameter and leave-one-out errors
-# At each diameter the squared resonance frequency is fitted by a quadratic in k_a with a free intercept
-# (`bubblecal.surrogates.fit_quadratic`); the leave-one-out relative error of f_res says how
-# well the quadratic interpolates between simulated k_a values. Here the fits are redone from frequencies
-# at 9 k_a values per diameter, for three Definity diameters.
+# At each diameter the squared resonance frequency of the DPD ringdowns is fitted by a quadratic in k_a with
+# a free intercept (`bubblecal.surrogates.fit_quadratic`); the leave-one-out relative error of f_res says how
+# well the quadratic interpolates between the simulated k_a values. The shipped fits of three Definity
+# diameters, with the leave-one-out errors stored with them.
 
 # %%
-ka_sim = np.geomspace(*ACOUSTIC_KA_RANGE["definity"], 9)
 fig, axes = plt.subplots(1, 2, figsize=(11, 4))
 rows = []
 for d in (4.68, 7.2, 11.2):
-    f_sim = ringdown_frequency_MHz(ka_sim, d) if SYNTHETIC else bundle.acoustic["definity"].f_res(ka_sim, d)
-    fit = fit_quadratic(ka_sim, np.asarray(f_sim), d)
-    rows.append({"diameter [µm]": d, "a0 [MHz²]": fit.a0, "a1 [MHz²/DPD]": fit.a1, "a2 [MHz²/DPD²]": fit.a2,
-                 "LOO median [%]": 100 * fit.loo_median, "LOO max [%]": 100 * fit.loo_max})
-    ka_fine = np.linspace(ka_sim.min(), ka_sim.max(), 200)
-    (line,) = axes[0].plot(units.ka_to_young(ka_sim) / 1e6, np.asarray(f_sim) ** 2, "o", label=f"{d:g} µm")
+    fit = fres.fits[d]
+    rows.append({"diameter [µm]": d, "ringdowns": fit.n_points, "a0 [MHz²]": fit.a0, "a1 [MHz²/DPD]": fit.a1,
+                 "a2 [MHz²/DPD²]": fit.a2, "LOO median [%]": 100 * fit.loo_median,
+                 "LOO max [%]": 100 * fit.loo_max})
+    ka_fine = np.linspace(fit.ka_min, fit.ka_max, 200)
     axes[0].plot(units.ka_to_young(ka_fine) / 1e6, fit.a0 + fit.a1 * ka_fine + fit.a2 * ka_fine**2, "-",
-                 color=line.get_color())
-    axes[1].semilogy(units.ka_to_young(ka_sim) / 1e6, 100 * np.array(fit.loo_rel_errors), "o-",
-                     color=line.get_color(), label=f"{d:g} µm")
+                 label=f"{d:g} µm")
+    axes[1].semilogy(100 * np.sort(np.asarray(fit.loo_rel_errors)), "o-", label=f"{d:g} µm")
 axes[0].set(xlabel="Young's modulus E [MPa] (from k_a)", ylabel="f_res² [MHz²]")
-axes[1].set(xlabel="Young's modulus E [MPa] (from k_a)", ylabel="leave-one-out error of f_res [%]")
+axes[1].set(xlabel="ringdown (sorted by error)", ylabel="leave-one-out error of f_res [%]")
 axes[0].legend(frameon=False)
 fig.tight_layout()
 print(pd.DataFrame(rows).to_string(index=False, float_format="%.4g"))
-if SYNTHETIC:
-    print("(the synthetic ringdown law is linear in k_a: the quadratic is exact, a2 ~ 0 and the LOO errors are "
-          "round-off; DPD ringdown frequencies give LOO errors of a fraction of a percent)")
 
 # %% [markdown]
 # ## Posterior of k_a from the Definity acoustic dataset
@@ -108,7 +93,6 @@ if SYNTHETIC:
 # %%
 spec = load_priors("definity_reduced_acoustic")
 ds = acoustic_datasets("definity")[0]
-fres = bundle.acoustic["definity"]
 tm = TMCMC(acoustic_model, num_particles=PARTICLES, target_cov=0.8)
 tm.run(jax.random.PRNGKey(0), ds.diameter_um, ds.frequency_MHz, fres, spec)
 post = tm.get_samples()

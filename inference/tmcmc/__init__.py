@@ -4,6 +4,7 @@ User code imports the front end from the layer, ``from bubblecal.inference impor
 subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 
 - :mod:`~bubblecal.inference.tmcmc.sampler`: :class:`TMCMC`, the NumPyro front end (presets, replicas);
+- :mod:`~bubblecal.inference.tmcmc.kernel`: :class:`TMCMCKernel`, TMCMC as a ``numpyro.infer.MCMC`` kernel;
 - :mod:`~bubblecal.inference.tmcmc.results`: :class:`TMCMCResults`, what a run reports;
 - :mod:`~bubblecal.inference.tmcmc.core`: the pure, jittable core on flat particle arrays, BlackJAX-style
   (:func:`init`, :func:`step`, :func:`run`, :func:`tmcmc`);
@@ -19,13 +20,15 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 from bubblecal.inference.tmcmc._programs import clear_program_cache
 from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
 from bubblecal.inference.tmcmc.evaluator import Evaluator
+from bubblecal.inference.tmcmc.kernel import TMCMCKernel, TMCMCKernelState
 from bubblecal.inference.tmcmc.moves import KernelMove, Move, MoveResult, RandomWalk, hmc_move, nuts_move
 from bubblecal.inference.tmcmc.results import STAGE_COLUMNS, TMCMCResults
 from bubblecal.inference.tmcmc.sampler import PRESETS, TMCMC
 from bubblecal.inference.tmcmc.state import STATUS_NAMES, StageInfo, TMCMCConfig, TMCMCState
 
 __all__ = [
-    "TMCMC", "PRESETS", "TMCMCResults", "STAGE_COLUMNS", "clear_program_cache", "TMCMCState", "StageInfo",
+    "TMCMC", "TMCMCKernel", "TMCMCKernelState", "PRESETS", "TMCMCResults", "STAGE_COLUMNS", "clear_program_cache",
+    "TMCMCState", "StageInfo",
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
     "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator",
 ]
