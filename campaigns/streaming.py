@@ -131,5 +131,5 @@ def _run_dask(client, tasks: list[CampaignTask], simulate: Callable, writer, bar
         client.cancel([f for f, _ in futures.values()])
         raise
     finally:
-        if topic is not None:
+        if topic is not None and client.status == "running":  # a closed client has nothing left to unsubscribe
             client.unsubscribe_topic(topic)
