@@ -1,15 +1,16 @@
 """The campaign loop: run the pending part of a design on Dask (or in-process) and append the records.
 
-The client process is the store's only writer: each task's records go out in one atomic, fsync'ed append as
-the task completes (``as_completed``), so a killed worker (Dask reschedules its task) or an interrupted client
-(the next run skips what is stored) loses and duplicates nothing.  In-process runs (``scheduler_address=
-'inline'``) also write each curve as soon as a streaming tier finishes it (provenance ``streamed``).
+The client process is the store's only writer, and it writes each curve as soon as a streaming tier finishes
+it (provenance ``streamed``): in process (``scheduler_address='inline'``) through the task's ``on_curve`` hook,
+on Dask through events the workers send (:mod:`bubblecal.campaigns.streaming`).  Each finished task then writes
+its samples not already written, in one atomic, fsync'ed append.  So a killed worker (Dask re-runs its task) or
+an interrupted client (the next run skips what is stored) loses at most the curves in flight and duplicates
+nothing.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import socket
@@ -27,6 +28,7 @@ from bubblecal.campaigns.errors import CampaignConfigError, CampaignError
 from bubblecal.campaigns.progress import _Progress
 from bubblecal.campaigns.records import task_records
 from bubblecal.campaigns.scheduler import CONNECT_TIMEOUT_S, check_scheduler_address
+from bubblecal.campaigns.streaming import _run_dask
 from bubblecal.campaigns.tasks import (
     CampaignTask,
     TaskResult,
@@ -184,8 +186,13 @@ class _RecordWriter:
             self.counts[r["status"]] += 1
         return len(recs)
 
-    def curve_done(self, task: CampaignTask, t_task: float, r: int, y_row, status: str, info: Mapping) -> int:
-        """Append one finished curve of a running task at once (an interrupted task keeps it); returns 0 or 1."""
+    def curve_done(self, task: CampaignTask, r: int, y_row, status: str, info: Mapping, *, seconds: float,
+                   host: str | None = None, pid: int | None = None) -> int:
+        """Append one finished curve of a running task at once (an interrupted task keeps it); returns 0 or 1.
+
+        ``seconds`` [s] is the task's compute time up to this curve; ``host`` and ``pid`` name the process that
+        computed it (default: this one).  A sample already written in this run is skipped.
+        """
         sid = task.sample_ids[r]
         if sid in self.written:
             return 0
@@ -195,8 +202,8 @@ class _RecordWriter:
                                   grid=task.replica_grid(r))
         res = TaskResult(x=np.asarray(task.replica_grid(r), dtype=np.float64),
                          y=np.asarray(y_row, dtype=np.float64)[None, :],
-                         status=[status], info=dict(info), compute_seconds=time.perf_counter() - t_task,
-                         host=socket.gethostname(), pid=os.getpid())
+                         status=[status], info=dict(info), compute_seconds=float(seconds),
+                         host=host or socket.gethostname(), pid=os.getpid() if pid is None else int(pid))
         recs = task_records(self.config, one, res, code_version=self.version, design_hash=self.design_hash,
                             provenance={"task": task.index, "replicas_in_task": task.n_replicas, "streamed": True})
         self.store.append_many(recs)
@@ -213,37 +220,14 @@ def _run_inline(tasks: list[CampaignTask], simulate: Callable, writer: _RecordWr
 
         def on_curve(r, y_row, status, info, task=task, t_task=t_task):
             """Write replica ``r``'s finished curve at once."""
-            bar.update(writer.curve_done(task, t_task, r, y_row, status, info), writer.counts)
+            bar.update(writer.curve_done(task, r, y_row, status, info, seconds=time.perf_counter() - t_task),
+                       writer.counts)
 
         try:
             res, err = _execute_task(simulate, task, on_curve if streams else None), None
         except Exception as exc:  # recorded or re-raised by task_done()
             res, err = None, exc
         bar.update(writer.task_done(task, res, err), writer.counts)
-
-
-def _run_dask(client, tasks: list[CampaignTask], simulate: Callable, writer: _RecordWriter, bar: _Progress,
-              name: str) -> None:
-    """Submit every task to ``client`` and write each result as it completes; cancel the rest on any error."""
-    from distributed import as_completed
-
-    token = hashlib.sha256(f"{time.time_ns()}-{os.getpid()}".encode()).hexdigest()[:8]
-    futures = {}
-    for task in tasks:
-        fut = client.submit(_execute_task, simulate, task, key=f"{name}-t{task.index:05d}-{token}", pure=False)
-        futures[fut.key] = (fut, task)
-    try:
-        for fut in as_completed([f for f, _ in futures.values()]):
-            task = futures[fut.key][1]
-            try:
-                res, err = fut.result(), None
-            except Exception as exc:  # recorded or re-raised by task_done()
-                res, err = None, exc
-            bar.update(writer.task_done(task, res, err), writer.counts)
-            fut.release()
-    except BaseException:
-        client.cancel([f for f, _ in futures.values()])
-        raise
 
 
 def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str | None = None,

@@ -356,7 +356,8 @@ def _execute_task(simulate: Callable[[CampaignTask], TaskResult], task: Campaign
     task : CampaignTask
         The task.
     on_curve : callable, optional
-        Passed on to ``simulate`` when given (in-process runs only: a Dask worker cannot write the client's store).
+        Passed on to ``simulate`` when given (in process it writes the curve; on a Dask worker it sends the curve
+        to the client, :mod:`bubblecal.campaigns.streaming`).
 
     Returns
     -------
