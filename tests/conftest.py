@@ -77,3 +77,18 @@ def synthetic_bundle(tmp_path_factory) -> Path:
     from bubblecal.surrogates import write_synthetic_bundle
 
     return write_synthetic_bundle(tmp_path_factory.mktemp("synthetic_bundle"), seed=0, quick=True)
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_compilation_cache(tmp_path_factory):
+    """Commands run in-process (``calibrate``, ``evidence``) switch the persistent compilation cache on: in
+    the tests it is a folder of the session, never the user's."""
+    from bubblecal.workflows.compile_cache import CACHE_ENV
+
+    saved = os.environ.get(CACHE_ENV)
+    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("jax_cache"))
+    yield
+    if saved is None:
+        os.environ.pop(CACHE_ENV, None)
+    else:
+        os.environ[CACHE_ENV] = saved

@@ -82,12 +82,15 @@ def calibrate(
     phase3: str = typer.Option(_D.phase3, "--phase3", help="published (Korali: population prior over p(psi | D), "
                                "which holds the curve's own data) | exact (leave-one-out psi weights: the joint "
                                "model's per-bubble marginal)."),
+    cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
+                               "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
 ) -> None:
     """Calibrate the shell parameters of Definity and/or SonoVue: staged hierarchical TMCMC (or joint NUTS)
     on the shipped curves, acoustic data, priors and surrogates; writes NetCDF per phase, summary.csv,
     figures and report.md under OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
+    _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     priors_map = {}
     if priors is not None:
@@ -123,6 +126,14 @@ def calibrate(
             raise fail(str(exc)) from None
         _run_agents(plan, sampler, figures)
     console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
+
+
+def _compilation_cache(on: bool) -> None:
+    """Switch the persistent compilation cache on (``--cache``); its problems print as one warning line."""
+    if on:
+        from bubblecal.workflows.compile_cache import enable_compilation_cache
+
+        enable_compilation_cache(say=lambda m: console.print(f"[yellow]warning:[/] {escape(m)}", highlight=False))
 
 
 def _run_agents(plan, sampler: str, figures: bool) -> None:
@@ -164,6 +175,8 @@ def evidence(
     bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
     device: str = typer.Option(_D.device, "--device", help=" | ".join(DEVICES)),
     seed: int = typer.Option(_D.seed, "--seed"),
+    cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
+                               "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
 ) -> None:
     """ln Z of the full and the reduced shell per curve (TMCMC, replica mean ± SE), the Bayes factor
     ln B = ln Z_full − ln Z_reduced ± error and its Kass–Raftery verdict; CSV + table (and in report.md)."""
@@ -172,6 +185,7 @@ def evidence(
     from bubblecal.workflows.console import make_table
     from bubblecal.workflows.evidence import run_evidence
 
+    _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     if any(a not in AGENTS for a in agents):
         raise fail(f"--agent must be definity, sonovue or all, got {agent!r}")

@@ -199,6 +199,35 @@ class TMCMC(TMCMCResults):
         self._results: list[dict] = []
         self._samples_cache: dict | None = None
 
+    def prior_log_likelihood(self, rng_key, *args, **kwargs) -> np.ndarray:
+        """Log likelihood of ``num_particles`` exact prior draws, with the compiled programs of :meth:`run`.
+
+        The draws and their evaluation are the programs a run's first stage uses (same model structure, same
+        number of particles), so checking a model before sampling compiles nothing that the run would not.
+
+        Parameters
+        ----------
+        rng_key : jax.Array
+            PRNG key of the draws.
+        *args, **kwargs
+            Arguments of the model (as in :meth:`run`).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (num_particles,): the log likelihood of each draw (NaN or ±inf where it is not finite).
+
+        Raises
+        ------
+        ValueError
+            If the model has a discrete or no latent site.
+        """
+        flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
+        data = tuple(jnp.asarray(v) for v in flat.data)
+        model = _model_programs(flat, self.config.chunk_size)
+        position = model.draws(rng_key, data, self.num_particles)
+        return np.asarray(model.evaluate(position, data)[1])
+
     def run(self, rng_key, *args, **kwargs) -> TMCMC:
         """Run ``num_replicas`` independent TMCMC runs of ``model(*args, **kwargs)``.
 

@@ -2,7 +2,10 @@
 
 A dataset whose likelihood is non-finite over the prior box stops TMCMC at its first stage ("all prior draws
 non-finite") after the surrogates were compiled; evaluating it at :data:`PREFLIGHT_DRAWS` draws of a fixed
-seed names the dataset (curve or acoustic table, and its file) before any phase runs.
+seed names the dataset (curve or acoustic table, and its file) before any phase runs. The draws are made and
+evaluated by phase 1's own compiled programs (:meth:`bubblecal.inference.TMCMC.prior_log_likelihood`: a batch
+of the phase's population, of which the first :data:`PREFLIGHT_DRAWS` are judged), so the check compiles
+nothing that phase 1 would not compile anyway.
 """
 
 from __future__ import annotations
@@ -39,18 +42,24 @@ def preflight(plan, n_draws: int = PREFLIGHT_DRAWS, seed: int = PREFLIGHT_SEED) 
         Naming the agent, the dataset and its file, and the values of the log likelihood, when one draw of a
         dataset gives a non-finite log likelihood (nothing has been sampled or written).
     """
-    from bubblecal.models import prior_draw_log_likelihoods
-    from bubblecal.workflows.calibrate.device import on_device
-    from bubblecal.workflows.calibrate.run import _dataset_objects
+    import jax
 
+    from bubblecal.inference.tmcmc import TMCMC
+    from bubblecal.workflows.calibrate.config import phase_tmcmc_options
+    from bubblecal.workflows.calibrate.device import on_device
+    from bubblecal.workflows.calibrate.run import _dataset_objects, _pad_curves
+
+    options = phase_tmcmc_options(plan.config)[0]
+    options["num_particles"] = max(options["num_particles"], n_draws)
     with on_device(plan.config.device):
         for ap in plan.agents:
             table = plan.config.data_dir and Path(plan.config.data_dir) / "acoustic_observations_published.csv"
             table = table if table and table.is_file() else "the shipped acoustic table"
             files = [c.path or c.source for c in ap.curves] + [table] * len(ap.acoustic)
-            # padded curves (masked points add nothing) share one shape, so their operations compile once
-            for dataset, where in zip(_dataset_objects(ap, pad=True), files, strict=True):
-                ll = prior_draw_log_likelihoods(dataset.model, dataset.args, dataset.kwargs, n_draws, seed)
+            # the datasets as phase 1 sees them (same padding): their programs are phase 1's
+            for dataset, where in zip(_dataset_objects(ap, _pad_curves(plan.config)), files, strict=True):
+                sampler = TMCMC(dataset.model, **options)
+                ll = sampler.prior_log_likelihood(jax.random.PRNGKey(seed), *dataset.args, **dataset.kwargs)[:n_draws]
                 if not np.all(np.isfinite(ll)):
                     shown = ", ".join(f"{v:.4g}" for v in ll)
                     raise CalibrationError(

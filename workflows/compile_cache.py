@@ -1,0 +1,146 @@
+"""The persistent JAX compilation cache of the command line: compiled programs kept on disk between runs.
+
+Switched on by the commands that sample (``bubblecal calibrate``, ``bubblecal evidence``; ``--no-cache`` turns it
+off), never at ``import bubblecal``: a library user's JAX configuration stays theirs. The folder is
+``platformdirs.user_cache_dir("bubblecal")/jax`` (``$XDG_CACHE_HOME/bubblecal/jax`` or ``~/.cache/bubblecal/jax``
+without platformdirs), or the folder named by the environment variable :data:`CACHE_ENV`.
+
+Entries are keyed by a hash of the program, the jaxlib version, the backend and the compile options, so a
+folder shared by two runs, two checkouts or two JAX versions only ever returns a program compiled from the
+same inputs. JAX writes an entry as one compressed file (no lock, not atomic); an entry that cannot be read
+(torn by a concurrent or killed write, garbage bytes, another format) fails its checksum or its
+deserialisation and JAX compiles the program again. Such failures reach the user as one warning line naming
+the folder (:func:`enable_compilation_cache`), and entries that do not decompress are then deleted so that
+the next run writes them afresh (entries younger than a minute are spared: another run may be writing them).
+A folder that cannot be used at all (a file, not writable) gives one warning line and the run goes on
+without the cache. Nothing the cache does touches the run's own outputs.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ["CACHE_ENV", "default_cache_dir", "enable_compilation_cache"]
+
+#: Environment variable naming the compilation cache folder (instead of the user's cache folder).
+CACHE_ENV = "BUBBLECAL_CACHE_DIR"
+
+# the messages JAX warns with when an entry cannot be read or written (jax._src.compiler)
+_JAX_CACHE_WARNINGS = ("Error reading persistent compilation cache entry",
+                       "Error writing persistent compilation cache entry")
+_state: dict = {"folder": None, "say": None, "warned": set(), "previous": None}
+
+
+def default_cache_dir() -> Path:
+    """The compilation cache folder: :data:`CACHE_ENV` if set, else the user's cache folder + ``bubblecal/jax``.
+
+    Returns
+    -------
+    pathlib.Path
+        Not created here.
+    """
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV]).expanduser()
+    try:
+        from platformdirs import user_cache_dir
+    except ImportError:  # platformdirs comes with ArviZ; without it the XDG convention
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        return base / "bubblecal" / "jax"
+    return Path(user_cache_dir("bubblecal")) / "jax"
+
+
+def _usable(folder: Path) -> str | None:
+    """Why ``folder`` cannot hold the cache (None when it can): created if missing, probed with a file."""
+    if folder.exists() and not folder.is_dir():
+        return "it is a file, not a folder"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-"):
+            pass
+    except OSError as exc:
+        return f"it cannot be written ({exc.strerror or exc})"
+    return None
+
+
+def _remove_damaged(folder: Path, min_age_s: float = 60.0) -> int:
+    """Delete the entries of ``folder`` that do not decompress (torn or garbage), so that JAX writes them again.
+
+    Entries younger than ``min_age_s`` are left alone: another run may be writing them right now.
+    """
+    try:  # the compression JAX wrote with (zstandard where installed, else zlib)
+        from jax._src.compilation_cache import decompress_executable
+    except ImportError:  # another JAX layout: leave the entries; JAX recompiles around them
+        return 0
+    removed = 0
+    now = time.time()
+    for entry in folder.glob("*-cache"):
+        try:
+            if now - entry.stat().st_mtime < min_age_s:
+                continue
+            decompress_executable(entry.read_bytes())
+        except OSError:
+            continue
+        except Exception:  # noqa: BLE001 - any decompression error marks the entry as damaged
+            try:
+                entry.unlink()
+                removed += 1
+            except OSError:
+                pass
+    return removed
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """``warnings.showwarning`` that turns JAX's cache-entry warnings into one line naming the folder."""
+    text = str(message)
+    if _state["folder"] is not None and text.startswith(_JAX_CACHE_WARNINGS):
+        kind = "read" if "reading" in text else "written"
+        if kind not in _state["warned"]:  # once per kind and process: a damaged folder fails every entry
+            _state["warned"].add(kind)
+            detail = text.split(": ", 1)[-1]
+            removed = _remove_damaged(_state["folder"]) if kind == "read" else 0
+            note = f"; removed {removed} damaged entries" if removed else ""
+            _state["say"](f"compilation cache {_state['folder']}: an entry could not be {kind} ({detail}){note}; "
+                          "compiling instead (delete the folder or pass --no-cache to silence this)")
+        return
+    _state["previous"](message, category, filename, lineno, file, line)
+
+
+def enable_compilation_cache(folder: Path | None = None, *, say: Callable[[str], None] | None = None
+                             ) -> Path | None:
+    """Keep compiled JAX programs in ``folder`` for later runs (every program, however small or quick).
+
+    Parameters
+    ----------
+    folder : pathlib.Path or None
+        The cache folder (created if missing); None: :func:`default_cache_dir`.
+    say : callable or None
+        Receives the one-line warnings (an unusable folder; an entry that could not be read or written).
+        Default: :func:`warnings.warn` with a :class:`RuntimeWarning`.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The folder in use; None when it cannot be used (the run compiles as without a cache).
+    """
+    import jax
+
+    folder = Path(folder) if folder is not None else default_cache_dir()
+    say = say or (lambda m: warnings.warn(m, RuntimeWarning, stacklevel=3))
+    why = _usable(folder)
+    if why is not None:
+        say(f"compilation cache {folder}: {why}; running without it (pass --no-cache to silence this)")
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    # our programs compile in well under JAX's default thresholds on a GPU, yet there are hundreds of them
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+    _state.update(folder=folder, say=say)
+    if warnings.showwarning is not _show_warning:
+        _state["previous"] = warnings.showwarning
+        warnings.showwarning = _show_warning
+    return folder
