@@ -137,6 +137,7 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
     ValueError
         If ``samples`` is empty or its sites disagree on the draw axes.
     """
+    import jax
     from numpyro.infer import log_likelihood
 
     if not samples:
@@ -149,12 +150,19 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
     names = list(observed_sites(model, arrays, args, kwargs, batch_ndims))
     total = math.prod(batch)
     flat = {k: v.reshape((total,) + v.shape[batch_ndims:]) for k, v in arrays.items()}
+    size = min(chunk_size, total)
+    kw = dict(kwargs or {})
+    # one compiled program per call: the model's arguments are constants, the last chunk is padded to size
+    evaluate = jax.jit(lambda chunk: log_likelihood(model, chunk, *args, parallel=True, **kw))
     parts: dict[str, list] = {n: [] for n in names}
-    for a in range(0, total, chunk_size):
-        chunk = {k: v[a:a + chunk_size] for k, v in flat.items()}
-        ll = log_likelihood(model, chunk, *args, parallel=True, **dict(kwargs or {}))
+    for a in range(0, total, size):
+        chunk = {k: v[a:a + size] for k, v in flat.items()}
+        n_real = next(iter(chunk.values())).shape[0]
+        if n_real < size:
+            chunk = {k: np.concatenate([v, np.repeat(v[-1:], size - n_real, axis=0)]) for k, v in chunk.items()}
+        ll = evaluate(chunk)
         for n in names:
-            parts[n].append(np.asarray(ll[n], dtype=np.float32))
+            parts[n].append(np.asarray(ll[n], dtype=np.float32)[:n_real])
     out = {}
     for n in names:
         v = np.concatenate(parts[n], axis=0)
