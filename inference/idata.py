@@ -274,5 +274,5 @@ def pareto_k(log_weights) -> np.ndarray:
     import arviz as az
 
     lw = np.asarray(log_weights, dtype=np.float64)
-    _, k = az.psislw(lw, reff=1.0)
+    _, k = az.psislw(lw.T, reff=1.0)  # ArviZ wants the draws on the last axis
     return np.asarray(k)

@@ -79,3 +79,11 @@ def test_pareto_k_of_pareto_tailed_weights(alpha):
     """Importance ratios with a Pareto(α) tail have k = 1/α (PSIS's estimate, 4,000 draws, ± 0.15)."""
     w = np.random.default_rng(3).pareto(alpha, size=4000) + 1.0
     assert float(pareto_k(np.log(w))) == pytest.approx(1.0 / alpha, abs=0.15)
+
+
+def test_pareto_k_per_column():
+    """(S, n) weights: one k per column, each that of its own column's tail."""
+    rng = np.random.default_rng(4)
+    lw = np.log(np.stack([rng.pareto(a, size=4000) + 1.0 for a in (1.0, 4.0)], axis=-1))
+    k = pareto_k(lw)
+    assert k.shape == (2,) and k[0] == pytest.approx(1.0, abs=0.15) and k[1] == pytest.approx(0.25, abs=0.15)
