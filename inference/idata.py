@@ -219,8 +219,10 @@ def build_inference_data(posterior: Mapping[str, np.ndarray], *, sample_stats: M
         groups["log_likelihood"] = {k: np.asarray(v) for k, v in log_likelihood.items()}
     if observed_data:
         groups["observed_data"] = {k: np.asarray(v) for k, v in observed_data.items()}
-    if info.constant_data:
-        groups["constant_data"] = {k: np.asarray(v) for k, v in info.constant_data.items()}
+    constant = {k: np.asarray(v) for k, v in info.constant_data.items()}
+    scalars = {k: v for k, v in constant.items() if v.ndim == 0}  # ArviZ would give them a '<name>_dim_0'
+    if len(scalars) < len(constant):
+        groups["constant_data"] = {k: v for k, v in constant.items() if v.ndim > 0}
     dims = {}
     for group, values in groups.items():
         lead = 2 if group in ("posterior", "sample_stats", "log_likelihood") else 0
@@ -230,6 +232,13 @@ def build_inference_data(posterior: Mapping[str, np.ndarray], *, sample_stats: M
                 dims[k] = d
     coords = {k: np.asarray(v) for k, v in info.coords.items()}
     idata = az.from_dict(**groups, dims=dims, coords=coords)
+    if scalars:
+        import xarray as xr
+
+        if "constant_data" in idata.groups():
+            idata.constant_data = idata.constant_data.assign({k: ((), v) for k, v in scalars.items()})
+        else:
+            idata.add_groups({"constant_data": xr.Dataset({k: ((), v) for k, v in scalars.items()})})
     if extra_stats:
         import xarray as xr
 
