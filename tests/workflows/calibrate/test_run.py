@@ -132,6 +132,7 @@ def _check_arviz_groups(run_dir, diameters):
             assert idata.constant_data["loading"].attrs["units"] == "DPD length"
             assert idata.constant_data["diameter_um"].attrs["units"] == "um"
             assert idata.posterior["ka"].attrs["units"].startswith("DPD 2-D modulus")
+        if path.name.startswith("phase1_"):  # phase 3's tempered total also holds the population-prior factor
             # the pointwise log likelihood is the sampler's: it sums to the stored total of every draw
             np.testing.assert_allclose(idata.log_likelihood["y"].sum("points"), idata.sample_stats["loglik"],
                                        rtol=1e-4, atol=1e-2)
