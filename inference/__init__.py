@@ -13,6 +13,8 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
 - :func:`run_staged` and the staged (Korali-style) hierarchy (section 4);
 - posterior-predictive metrics (section 7): :func:`predictive_band`, :func:`coverage`,
   :func:`predictive_crps`, :func:`map_index`, ...;
+- :class:`ExportInfo`, :func:`build_inference_data`, :func:`pointwise_log_likelihood`, :func:`pareto_k` —
+  ArviZ-complete exports (named dims, units, pointwise log likelihood) and PSIS Pareto k̂;
 - :func:`sobol_along` — Sobol sensitivity along a loading coordinate (section 8; SALib is imported
   only when it runs).
 """
@@ -29,6 +31,7 @@ from bubblecal.inference.hierarchical import (
     run_phase,
     run_staged,
 )
+from bubblecal.inference.idata import ExportInfo, build_inference_data, pareto_k, pointwise_log_likelihood
 from bubblecal.inference.nuts import NUTSResult, run_nuts
 from bubblecal.inference.predictive import (
     PredictiveBand,
@@ -58,6 +61,8 @@ __all__ = [
     # staged hierarchy
     "Dataset", "PhaseResult", "StagedResult", "run_phase", "run_staged", "ess_table", "compare_staged_joint",
     "ESS_PREFIX",
+    # ArviZ export and PSIS
+    "ExportInfo", "build_inference_data", "pointwise_log_likelihood", "pareto_k",
     # posterior-predictive metrics
     "PredictiveBand", "CRPSResult", "mixture_cdf", "mixture_quantile", "predictive_band", "coverage",
     "gaussian_crps", "crps_ensemble", "predictive_crps", "map_index", "map_estimate",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import jax
@@ -29,6 +29,12 @@ class NUTSResult:
         Divergent transitions after warm-up.
     mcmc : numpyro.infer.MCMC
         The NumPyro MCMC object.
+    diverging : numpy.ndarray or None
+        (chain, draw) divergence flags.
+    potential_energy : numpy.ndarray or None
+        (chain, draw) potential energy (−log density of the unconstrained model).
+    model_call : tuple or None
+        (model, args, kwargs) of the run (for the pointwise log likelihood of the export).
     """
 
     samples: dict
@@ -38,6 +44,51 @@ class NUTSResult:
     min_n_eff: float
     num_divergences: int
     mcmc: MCMC = field(repr=False)
+    diverging: np.ndarray | None = field(default=None, repr=False)
+    potential_energy: np.ndarray | None = field(default=None, repr=False)
+    model_call: tuple | None = field(default=None, repr=False)
+
+    def to_inference_data(self, info=None, log_likelihood=True, chunk_size: int = 1024):
+        """The chains as ArviZ InferenceData.
+
+        Parameters
+        ----------
+        info : bubblecal.inference.idata.ExportInfo or None
+            Dimension names, coordinates, units, constant data and attributes from the caller.
+        log_likelihood : bool or mapping of str to array_like
+            True: the pointwise log likelihood and observed values of the model's observed sites; a mapping:
+            those (chain, draw, ...) arrays instead; False: none.
+        chunk_size : int
+            Draws per vectorised evaluation of the pointwise log likelihood.
+
+        Returns
+        -------
+        arviz.InferenceData
+            posterior (chain, draw, ...); sample_stats 'lp' (−potential energy) and 'diverging' per draw;
+            log_likelihood and observed_data; r_hat, ESS and divergences in the attrs.
+        """
+        from bubblecal.inference.idata import build_inference_data, observed_sites, pointwise_log_likelihood
+
+        stats = {}
+        if self.potential_energy is not None:
+            stats["lp"] = -np.asarray(self.potential_energy)
+        if self.diverging is not None:
+            stats["diverging"] = np.asarray(self.diverging, dtype=bool)
+        observed = None
+        if log_likelihood is True and self.model_call is not None:
+            model, args, kwargs = self.model_call
+            keep = dict(info.keep) if info is not None else None
+            pointwise = pointwise_log_likelihood(model, self.samples_by_chain, args, kwargs, batch_ndims=2,
+                                                 chunk_size=chunk_size, keep=keep)
+            observed = observed_sites(model, self.samples_by_chain, args, kwargs, batch_ndims=2)
+            observed = {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
+                        for k, v in observed.items()}
+        else:
+            pointwise = dict(log_likelihood) if isinstance(log_likelihood, Mapping) else None
+        attrs = {"inference_library": "numpyro.infer.NUTS", "max_r_hat": self.max_r_hat,
+                 "min_n_eff": self.min_n_eff, "num_divergences": self.num_divergences}
+        return build_inference_data(self.samples_by_chain, sample_stats=stats or None, log_likelihood=pointwise,
+                                    observed_data=observed, info=info, attrs=attrs)
 
     def get_samples(self) -> dict:
         """The chains-concatenated samples (as ``MCMC.get_samples``)."""
@@ -121,13 +172,14 @@ def run_nuts(
         chain_method=chain_method,
         progress_bar=progress_bar,
     )
-    mcmc.run(rng_key, *args, extra_fields=("diverging",), **kwargs)
+    mcmc.run(rng_key, *args, extra_fields=("diverging", "potential_energy"), **kwargs)
     by_chain = {k: np.asarray(v) for k, v in mcmc.get_samples(group_by_chain=True).items()}
     flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in by_chain.items()}
     summ = summary(by_chain, group_by_chain=True)
     r_hats = [np.max(np.nan_to_num(np.asarray(s["r_hat"]), nan=1.0)) for s in summ.values()]
     n_effs = [np.min(np.asarray(s["n_eff"])) for s in summ.values()]
-    div = int(np.asarray(mcmc.get_extra_fields()["diverging"]).sum())
+    extra = mcmc.get_extra_fields(group_by_chain=True)
+    div = int(np.asarray(extra["diverging"]).sum())
     return NUTSResult(
         samples=flat,
         samples_by_chain=by_chain,
@@ -136,4 +188,7 @@ def run_nuts(
         min_n_eff=float(np.min(n_effs)),
         num_divergences=div,
         mcmc=mcmc,
+        diverging=np.asarray(extra["diverging"]),
+        potential_energy=np.asarray(extra["potential_energy"]),
+        model_call=(model, args, kwargs),
     )

@@ -33,7 +33,8 @@ from bubblecal.models.distributions import hyperprior_sites
 from bubblecal.models.population import importance_ess, importance_log_weights, staged_log_likelihood
 from bubblecal.priors import PriorSpec
 
-__all__ = ["phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name", "leave_one_out_log_weights"]
+__all__ = ["phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name", "leave_one_out_log_weights",
+           "dataset_log_likelihood"]
 
 #: Name of the factor site that carries log L(ψ) (TMCMC tempers it as the likelihood).
 PHASE2_FACTOR = "population_likelihood"
@@ -111,6 +112,49 @@ def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: Prio
     numpyro.factor(PHASE2_FACTOR, staged_log_likelihood(m, tau, datasets, bounds))
 
 
+def dataset_log_likelihood(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
+                           phase1_samples: Mapping[str, np.ndarray], bounds: Mapping[str, tuple[float, float]],
+                           chunk: int = 256) -> np.ndarray:
+    """Dataset i's own phase-2 term log L_i(ψ_s) at every phase-2 draw (its pointwise log likelihood).
+
+    log L_i(ψ) = logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k)) − log N_i.
+
+    Parameters
+    ----------
+    m_samples, tau_samples : mapping of str to array_like
+        Pooled parameter name -> (S,) phase-2 draws of the population mean / spread (DPD units).
+    phase1_samples : mapping of str to array_like
+        Dataset i's (N_i,) phase-1 draws (DPD units), as phase 2 used them.
+    bounds : mapping of str to (float, float)
+        Prior ranges of the pooled parameters.
+    chunk : int
+        ψ draws per evaluation chunk (memory S × N_i otherwise).
+
+    Returns
+    -------
+    numpy.ndarray
+        (S,) float64 (dimensionless log density); −inf or NaN where L_i(ψ_s) is 0 or undefined.
+
+    Raises
+    ------
+    ValueError
+        If the dataset has none of the pooled parameters.
+    """
+    names = [k for k in m_samples if k in phase1_samples and k in bounds]
+    if not names:
+        raise ValueError("the dataset has none of the pooled parameters")
+    S = int(np.asarray(m_samples[names[0]]).shape[0])
+    th = {k: jnp.asarray(phase1_samples[k]) for k in names}
+    n_i = int(th[names[0]].shape[0])
+    out = np.empty(S)
+    for a in range(0, S, chunk):
+        m = {k: jnp.asarray(m_samples[k][a:a + chunk]) for k in names}
+        tau = {k: jnp.asarray(tau_samples[k][a:a + chunk]) for k in names}
+        lw = importance_log_weights(m, tau, th, bounds, names=names)  # (chunk, N_i)
+        out[a:a + chunk] = np.asarray(logsumexp(lw, axis=-1)) - math.log(n_i)
+    return out
+
+
 def leave_one_out_log_weights(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
                               phase1_samples: Mapping[str, np.ndarray], bounds: Mapping[str, tuple[float, float]],
                               chunk: int = 256) -> np.ndarray:
@@ -140,18 +184,10 @@ def leave_one_out_log_weights(m_samples: Mapping[str, np.ndarray], tau_samples: 
     ValueError
         If the dataset has none of the pooled parameters or no draw gives it a finite likelihood.
     """
-    names = [k for k in m_samples if k in phase1_samples and k in bounds]
-    if not names:
-        raise ValueError("leave_one_out_log_weights: the dataset has none of the pooled parameters")
-    S = int(np.asarray(m_samples[names[0]]).shape[0])
-    th = {k: jnp.asarray(phase1_samples[k]) for k in names}
-    n_i = int(th[names[0]].shape[0])
-    out = np.empty(S)
-    for a in range(0, S, chunk):
-        m = {k: jnp.asarray(m_samples[k][a:a + chunk]) for k in names}
-        tau = {k: jnp.asarray(tau_samples[k][a:a + chunk]) for k in names}
-        lw = importance_log_weights(m, tau, th, bounds, names=names)  # (chunk, N_i)
-        out[a:a + chunk] = -(np.asarray(logsumexp(lw, axis=-1)) - math.log(n_i))
+    try:
+        out = -dataset_log_likelihood(m_samples, tau_samples, phase1_samples, bounds, chunk)
+    except ValueError as exc:
+        raise ValueError(f"leave_one_out_log_weights: {exc}") from None
     out[~np.isfinite(out)] = -np.inf  # L_i(ψ_s) = 0 or undefined: that draw gets no weight
     if np.all(np.isneginf(out)):
         raise ValueError("leave_one_out_log_weights: no phase-2 draw gives the dataset a finite likelihood")

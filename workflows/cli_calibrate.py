@@ -24,7 +24,7 @@ from bubblecal.workflows.calibrate import (
 )
 from bubblecal.workflows.confirm import DEFAULT_TIER
 from bubblecal.workflows.console import console, fail
-from bubblecal.workflows.evidence import DEFAULT_REPLICAS
+from bubblecal.workflows.evidence import DEFAULT_REPLICAS, PARETO_K_LIMIT
 
 #: The defaults of ``calibrate`` (and of the options ``evidence`` shares with it): one source of truth.
 _D = CalibrationConfig()
@@ -179,7 +179,8 @@ def evidence(
                                "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
 ) -> None:
     """ln Z of the full and the reduced shell per curve (TMCMC, replica mean ± SE), the Bayes factor
-    ln B = ln Z_full − ln Z_reduced ± error and its Kass–Raftery verdict; CSV + table (and in report.md)."""
+    ln B = ln Z_full − ln Z_reduced ± error and its Kass–Raftery verdict, beside PSIS-LOO (elpd_loo ± SE,
+    p_loo, points with Pareto k > 0.7, az.compare); CSV + table (and in report.md)."""
     from bubblecal.surrogates import load_bundle
     from bubblecal.workflows.calibrate import CalibrationError, check_device, resolve_bundle
     from bubblecal.workflows.console import make_table
@@ -205,12 +206,17 @@ def evidence(
     df = run_evidence(agents, b, population=population, replicas=replicas, seed=seed, device=device, out=out,
                       curves=tuple(curve or ()),
                       progress=lambda m: console.print(f"  {m}", highlight=False))
-    table = make_table("Model evidence per curve: full vs reduced shell", ("curve", "ln Z full", "ln Z reduced",
-                                                                          "ln B (full - reduced)", "verdict"))
+    table = make_table("Model evidence per curve: full vs reduced shell (ln Z, Bayes factor; PSIS-LOO)",
+                       ("curve", "ln Z full", "ln Z reduced", "ln B (full - reduced)", "verdict", "elpd_loo full",
+                        "elpd_loo reduced", f"Pareto k > {PARETO_K_LIMIT} (full, reduced)", "LOO compare"))
     for r in df.itertuples():
         table.add_row(r.curve, f"{r.log_z_full:.3f} ± {r.log_z_full_se:.3f}",
                       f"{r.log_z_reduced:.3f} ± {r.log_z_reduced_se:.3f}",
-                      f"{r.ln_bayes_factor:.3f} ± {r.ln_bayes_factor_se:.3f}", r.verdict)
+                      f"{r.ln_bayes_factor:.3f} ± {r.ln_bayes_factor_se:.3f}", r.verdict,
+                      f"{r.elpd_loo_full:.2f} ± {r.elpd_loo_full_se:.2f} (p_loo {r.p_loo_full:.1f})",
+                      f"{r.elpd_loo_reduced:.2f} ± {r.elpd_loo_reduced_se:.2f} (p_loo {r.p_loo_reduced:.1f})",
+                      f"{r.pareto_k_bad_full}, {r.pareto_k_bad_reduced}",
+                      f"{r.loo_favours} by {r.elpd_diff:.2f} ± {r.elpd_diff_se:.2f}")
     console.print(table)
     console.print(f"wrote {', '.join(str(Path(out) / a / 'evidence.csv') for a in agents)}", highlight=False)
 

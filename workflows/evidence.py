@@ -8,6 +8,11 @@ sqrt(SE_full² + SE_reduced²). Verdict (Kass & Raftery 1995, on 2 ln B): < 2 "n
 mention", 2–6 "positive", 6–10 "strong", > 10 "very strong", in favour of the model with the larger
 evidence; "inconclusive (Monte Carlo error)" when |ln B| < 2 × its error.
 
+Beside ln Z, PSIS-LOO (Vehtari, Gelman & Gabry 2017, through ArviZ) of each model: the particles of every
+replica are one chain, the pointwise log likelihood is one value per curve point; elpd_loo ± its SE,
+p_loo, the number of points whose Pareto k̂ exceeds 0.7 (their leave-one-out estimate is unreliable), and
+``az.compare`` of the two models (elpd difference ± its SE, the model ranked first).
+
 Written to ``out/<agent>/evidence.csv`` (read by :func:`bubblecal.workflows.report.write_report`).
 The single-curve TMCMC is the code path of ``bubblecal compare`` (:func:`bubblecal.models.mechanical_model`
 under :class:`bubblecal.inference.tmcmc.TMCMC`).
@@ -23,14 +28,18 @@ import numpy as np
 
 from bubblecal.workflows.calibrate import DEFAULT_POPULATION
 
-__all__ = ["kass_raftery", "run_evidence", "EVIDENCE_COLUMNS", "DEFAULT_REPLICAS"]
+__all__ = ["kass_raftery", "loo_columns", "run_evidence", "EVIDENCE_COLUMNS", "DEFAULT_REPLICAS", "PARETO_K_LIMIT"]
 
 #: Independent TMCMC runs per model and curve (at least 2 give ln Z an error bar).
 DEFAULT_REPLICAS = 3
 #: Columns of ``evidence.csv``.
 EVIDENCE_COLUMNS = ("agent", "curve", "diameter_um", "log_z_full", "log_z_full_se", "log_z_reduced",
                     "log_z_reduced_se", "ln_bayes_factor", "ln_bayes_factor_se", "favours", "verdict", "num_particles",
-                    "num_replicas", "seconds")
+                    "num_replicas", "seconds", "elpd_loo_full", "elpd_loo_full_se", "p_loo_full", "pareto_k_bad_full",
+                    "elpd_loo_reduced", "elpd_loo_reduced_se", "p_loo_reduced", "pareto_k_bad_reduced",
+                    "elpd_diff", "elpd_diff_se", "loo_favours")
+#: Pareto k̂ above which a point's PSIS leave-one-out estimate is unreliable.
+PARETO_K_LIMIT = 0.7
 
 
 def kass_raftery(ln_b: float, se: float = 0.0) -> tuple[str, str]:
@@ -65,6 +74,41 @@ def kass_raftery(ln_b: float, se: float = 0.0) -> tuple[str, str]:
     return favours, strength
 
 
+def loo_columns(idatas) -> dict:
+    """PSIS-LOO of the full and the reduced model of one curve, and their comparison.
+
+    Parameters
+    ----------
+    idatas : mapping of str to arviz.InferenceData
+        'full' and 'reduced' -> a run with a pointwise log likelihood over the curve's points.
+
+    Returns
+    -------
+    dict
+        ``elpd_loo_<model>``, ``elpd_loo_<model>_se``, ``p_loo_<model>``, ``pareto_k_bad_<model>`` (points
+        with k̂ > :data:`PARETO_K_LIMIT`), ``elpd_diff`` and ``elpd_diff_se`` (first-ranked minus second,
+        from ``az.compare``) and ``loo_favours`` (the first-ranked model).
+    """
+    import warnings
+
+    import arviz as az
+
+    row = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ArviZ warns on k̂ > 0.7; the count goes into the table instead
+        for model, idata in idatas.items():
+            loo = az.loo(idata, pointwise=True)
+            row[f"elpd_loo_{model}"] = float(loo["elpd_loo"])
+            row[f"elpd_loo_{model}_se"] = float(loo["se"])
+            row[f"p_loo_{model}"] = float(loo["p_loo"])
+            row[f"pareto_k_bad_{model}"] = int(np.sum(np.asarray(loo["pareto_k"]) > PARETO_K_LIMIT))
+        cmp = az.compare(dict(idatas), ic="loo")
+    second = cmp.iloc[-1]
+    row.update({"elpd_diff": float(second["elpd_diff"]), "elpd_diff_se": float(second["dse"]),
+                "loo_favours": str(cmp.index[0])})
+    return row
+
+
 def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replicas: int = DEFAULT_REPLICAS,
                  seed: int = 0, device: str = "cpu", out: Path | None = None, curves: tuple[str, ...] = (),
                  num_mcmc_steps: int = 10, progress: Callable[[str], None] | None = None):
@@ -96,7 +140,8 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
     Returns
     -------
     pandas.DataFrame
-        Columns :data:`EVIDENCE_COLUMNS`. ln Z is dimensionless (natural log of a density of the curve's y
+        Columns :data:`EVIDENCE_COLUMNS` (PSIS-LOO columns from :func:`loo_columns`). ln Z and elpd are
+        dimensionless (natural log of a density of the curve's y
         in DPD units).
     """
     import time
@@ -122,6 +167,7 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
             sur = bundle.get(curve.kind, curve.diameter_um)
             row = {"agent": agent, "curve": curve.name, "diameter_um": curve.diameter_um}
             t0 = time.perf_counter()
+            idatas = {}
             for model_name, spec in specs.items():
                 key, sub = jax.random.split(key)
                 say(f"{curve.name}: {model_name} shell, N = {population} x {replicas} replicas")
@@ -131,6 +177,8 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
                     tm.run(sub, np.asarray(curve.x), np.asarray(curve.y), sur, spec)
                 row[f"log_z_{model_name}"] = tm.log_evidence
                 row[f"log_z_{model_name}_se"] = tm.log_evidence_se
+                with on_device(device):
+                    idatas[model_name] = tm.to_inference_data()
             ln_b = row["log_z_full"] - row["log_z_reduced"]
             se = math.hypot(row["log_z_full_se"], row["log_z_reduced_se"])
             favours, verdict = kass_raftery(ln_b, se)
@@ -138,7 +186,11 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
                         "verdict": f"{verdict} for the {favours} shell" if favours and "inconclusive" not in verdict
                         else verdict, "num_particles": population, "num_replicas": replicas,
                         "seconds": time.perf_counter() - t0})
-            say(f"{curve.name}: ln B = {ln_b:.2f} ± {se:.2f} ({row['verdict']})")
+            row.update(loo_columns(idatas))
+            say(f"{curve.name}: ln B = {ln_b:.2f} ± {se:.2f} ({row['verdict']}); elpd_loo full "
+                f"{row['elpd_loo_full']:.2f} ± {row['elpd_loo_full_se']:.2f}, reduced {row['elpd_loo_reduced']:.2f} ± "
+                f"{row['elpd_loo_reduced_se']:.2f}; Pareto k > {PARETO_K_LIMIT}: {row['pareto_k_bad_full']} full, "
+                f"{row['pareto_k_bad_reduced']} reduced")
             agent_rows.append(row)
         if out is not None:
             folder = Path(out) / agent

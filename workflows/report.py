@@ -185,10 +185,13 @@ def write_report(result, plan) -> Path:
             lines.append(f"| {r.name} | {_fmt(r.log_evidence, 6)} | {r.status}{reused} | {_fmt(r.seconds, 3)} |")
         lines += ["", "Phase-2 importance-sampling ESS per dataset (a collapse towards 1 means phase 1 did not cover "
                   "what ψ proposes): [ess.csv](ess.csv)", "",
-                  "| dataset | ESS min | ESS 5 % | ESS median | median / N |", "|---|---|---|---|---|"]
+                  "| dataset | ESS min | ESS 5 % | ESS median | median / N | Pareto k (leave-one-out weights) |",
+                  "|---|---|---|---|---|---|"]
         for r in result.ess.itertuples():
+            k = getattr(r, "pareto_k", math.nan)
+            flag = " (> 0.7: unreliable)" if math.isfinite(k) and k > 0.7 else ""
             lines.append(f"| {r.dataset} | {r.ess_min:.1f} | {r.ess_p05:.1f} | {r.ess_median:.1f} | "
-                         f"{r.ess_median_fraction:.3f} |")
+                         f"{r.ess_median_fraction:.3f} | {_fmt(k, 3)}{flag} |")
         lines.append("")
     else:
         lines += ["## NUTS diagnostics", "", f"{result.joint.diagnostics or 'reused from disk'}", ""]
@@ -197,13 +200,17 @@ def write_report(result, plan) -> Path:
         import pandas as pd
 
         e = pd.read_csv(ev)
+        loo = "elpd_loo_full" in e.columns  # evidence.csv written before PSIS-LOO has no such columns
         lines += ["## Model evidence: full vs reduced shell (per curve)", "",
-                  "| curve | ln Z full | ln Z reduced | ln B = ln Z_full − ln Z_reduced | verdict |",
-                  "|---|---|---|---|---|"]
+                  "| curve | ln Z full | ln Z reduced | ln B = ln Z_full − ln Z_reduced | verdict |"
+                  + (" elpd_loo full | elpd_loo reduced | Pareto k > 0.7 (full, reduced) |" if loo else ""),
+                  "|---|---|---|---|---|" + ("---|---|---|" if loo else "")]
         for r in e.itertuples():
+            cells = (f" {r.elpd_loo_full:.2f} ± {r.elpd_loo_full_se:.2f} | {r.elpd_loo_reduced:.2f} ± "
+                     f"{r.elpd_loo_reduced_se:.2f} | {r.pareto_k_bad_full}, {r.pareto_k_bad_reduced} |" if loo else "")
             lines.append(f"| {r.curve} | {r.log_z_full:.3f} ± {r.log_z_full_se:.3f} | {r.log_z_reduced:.3f} ± "
                          f"{r.log_z_reduced_se:.3f} | {r.ln_bayes_factor:.3f} ± {r.ln_bayes_factor_se:.3f} | "
-                         f"{r.verdict} |")
+                         f"{r.verdict} |" + cells)
         lines += ["", "Source: [evidence.csv](../evidence.csv)", ""]
     if result.figures:
         lines += ["## Figures", ""]

@@ -10,7 +10,9 @@
   (compression: force), nm (indentation: depth) or MHz (acoustics) (``docs/inference.md`` section 7); the
   dataset ``population (new bubble)`` holds the population-predictive draws of the pooled parameters;
 * ``ess`` (``ess.csv``): the phase-2 importance-sampling ESS per dataset
-  (:func:`bubblecal.inference.hierarchical.ess_table`);
+  (:func:`bubblecal.inference.hierarchical.ess_table`) and ``pareto_k``, the PSIS Pareto k̂ of the dataset's
+  leave-one-out importance weights 1 / L_i(ψ) over the phase-2 draws (:func:`bubblecal.workflows.calibrate.
+  phase2_pareto_k`; above 0.7 the leave-one-out estimate, and phase 3 exact, is unreliable for that dataset);
 * ``bands``: predictive medians and 90 % bands at the data and on a dense grid (for the figures).
 """
 
@@ -237,5 +239,18 @@ def summarise_agent(result, config) -> None:
     result.summary.to_csv(ap.out_dir / "summary.csv", index=False)
     if result.staged is not None:
         result.ess = result.staged.ess()
+        result.ess["pareto_k"] = _phase2_pareto_k(result, list(result.ess["dataset"]))
         result.ess.to_csv(ap.out_dir / "ess.csv", index=False)
+
+
+def _phase2_pareto_k(result, names) -> list[float]:
+    """Pareto k̂ of each dataset's phase-2 leave-one-out weights, in the order of ``names`` (NaN without the
+    pointwise log likelihood, e.g. a run stored as ``.npz``)."""
+    from bubblecal.workflows.calibrate import PHASE2_LOGLIK, phase2_pareto_k
+
+    ll = result.pointwise.get("phase2", {}).get(PHASE2_LOGLIK)
+    if ll is None:
+        return [math.nan] * len(names)
+    k = dict(zip(result.plan.dataset_names, phase2_pareto_k(ll), strict=True))
+    return [float(k.get(n, math.nan)) for n in names]
 

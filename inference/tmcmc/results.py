@@ -8,7 +8,6 @@ the per-stage table, the constrained samples, a printed summary and an ArviZ exp
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -202,21 +201,37 @@ class TMCMCResults:
         with np.printoptions(linewidth=200):
             print(self.stage_info.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
 
-    def to_inference_data(self):
-        """The first replica as ArviZ InferenceData.
+    def to_inference_data(self, info=None, log_likelihood=True, chunk_size: int = 1024):
+        """Every replica as one chain of an ArviZ InferenceData.
+
+        Parameters
+        ----------
+        info : bubblecal.inference.idata.ExportInfo or None
+            Dimension names, coordinates, units, constant data and attributes from the caller.
+        log_likelihood : bool or mapping of str to array_like
+            True: the pointwise log likelihood of the model's observed sites (and their observed values) at
+            every particle of every replica; a mapping: those (chain, draw, ...) arrays instead (for models
+            whose likelihood is a factor); False: no log_likelihood group.
+        chunk_size : int
+            Particles per vectorised evaluation of the pointwise log likelihood.
 
         Returns
         -------
         arviz.InferenceData
-            posterior (1 chain × N draws); sample_stats 'loglik' (total log likelihood) and 'log_prior'
-            (in the sampling space); a 'tmcmc_stages' group with the stage table; the evidence,
-            status and settings in the attrs.
+            posterior (num_replicas chains x N draws); sample_stats 'lp' (log prior + log likelihood in the
+            sampling space), 'loglik' (total log likelihood), 'log_prior' and the stage table
+            ``stage_<column>`` (dims chain, stage; NaN past a replica's last stage; wall times in the attrs
+            only); log_likelihood and observed_data; the evidence, status, settings and library versions
+            in the attrs of every group.
         """
-        import arviz as az
-        import xarray as xr
+        from bubblecal.inference.idata import build_inference_data, observed_sites, pointwise_log_likelihood
 
-        samples = self.get_samples()
-        st = self.state
+        self._need_run()
+        replicas = [self.get_samples(r) for r in range(self.num_replicas)]
+        posterior = {k: np.stack([s[k] for s in replicas]) for k in replicas[0]}
+        states = [res["state"] for res in self._results]
+        ll = np.stack([np.asarray(st.log_likelihood) for st in states])
+        lprior = np.stack([np.asarray(st.log_prior) for st in states])
         attrs = {
             "inference_library": "bubblecal.inference.tmcmc",
             "preset": self.preset,
@@ -229,23 +244,31 @@ class TMCMCResults:
             "status": self.status,
             "target_cov": self.target_cov,
             "num_evaluations": self.num_evaluations,
+            "stage_seconds": [float(sum(row["seconds"] for row in res["stages"])) for res in self._results],
         }
-        idata = az.from_dict(
-            posterior={k: v[None] for k, v in samples.items()},
-            sample_stats={
-                "loglik": np.asarray(st.log_likelihood)[None],
-                "log_prior": np.asarray(st.log_prior)[None],
-            },
-        )
-        idata.posterior.attrs.update(attrs)
-        idata.sample_stats.attrs.update(attrs)
-        table = self.stage_info
-        ds = xr.Dataset(
-            {c: ("stage", table[c].to_numpy()) for c in table.columns if c != "stage"},
-            coords={"stage": table["stage"].to_numpy()},
-            attrs=attrs,
-        )
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            idata.add_groups({"tmcmc_stages": ds})
+        tables = [self.replica_stage_info(r) for r in range(self.num_replicas)]
+        n_stages = max(len(t) for t in tables)
+        stages = {}
+        for c in STAGE_COLUMNS:
+            if c in ("stage", "seconds"):
+                continue
+            values = np.full((self.num_replicas, n_stages), np.nan)
+            for r, t in enumerate(tables):
+                values[r, :len(t)] = t[c].to_numpy(dtype=float)
+            stages[f"stage_{c}"] = (("chain", "stage"), values)
+        observed = None
+        if log_likelihood is True:
+            args, kwargs = self._model_args
+            keep = dict(info.keep) if info is not None else None
+            pointwise = pointwise_log_likelihood(self.model, posterior, args, kwargs, batch_ndims=2,
+                                                 chunk_size=chunk_size, keep=keep)
+            observed = observed_sites(self.model, posterior, args, kwargs, batch_ndims=2)
+            observed = {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
+                        for k, v in observed.items()}
+        else:
+            pointwise = dict(log_likelihood) if log_likelihood else None
+        idata = build_inference_data(posterior, sample_stats={"lp": lprior + ll, "loglik": ll, "log_prior": lprior},
+                                     log_likelihood=pointwise, observed_data=observed, info=info,
+                                     extra_stats=stages, attrs=attrs)
+        idata.sample_stats.coords["stage"] = np.arange(n_stages)
         return idata

@@ -196,6 +196,7 @@ class TMCMC(TMCMCResults):
         )
         self._flat: FlatModel | None = None
         self._data: tuple = ()  # the model's arrays on the device (FlatModel.data)
+        self._model_args: tuple = ((), {})
         self._results: list[dict] = []
         self._samples_cache: dict | None = None
 
@@ -251,6 +252,7 @@ class TMCMC(TMCMCResults):
         """
         flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
         self._flat = flat
+        self._model_args = (args, dict(kwargs))  # for the pointwise log likelihood of the export
         self._samples_cache = None
         n, move, cfg = self.num_particles, self.move, self.config
         # the model's arrays go to the device once, then every program call takes them as arguments

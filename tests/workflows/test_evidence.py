@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
@@ -41,3 +42,28 @@ def test_tiny_evidence_run(tmp_path, synthetic_bundle):
     assert math.isfinite(row["ln_bayes_factor"]) and row["ln_bayes_factor_se"] >= 0
     assert row["ln_bayes_factor"] == pytest.approx(row["log_z_full"] - row["log_z_reduced"])
     assert pd.read_csv(tmp_path / "definity" / "evidence.csv").shape[0] == 1
+    assert math.isfinite(row["elpd_loo_full"]) and math.isfinite(row["elpd_loo_reduced_se"])
+    assert row["loo_favours"] in ("full", "reduced") and row["pareto_k_bad_full"] >= 0
+
+
+def test_loo_columns_rank_the_better_fitting_model():
+    """Two models of 30 normal points: the one at the data's mean has the larger elpd_loo, az.compare ranks it
+    first, and elpd_loo equals the analytic sum of log mean_s p(y_j | θ_s) to PSIS accuracy."""
+    from scipy import stats
+
+    from bubblecal.inference import build_inference_data
+    from bubblecal.workflows.evidence import loo_columns
+
+    rng = np.random.default_rng(0)
+    y = rng.normal(0.0, 1.0, 30)
+    idatas = {}
+    for name, centre in (("full", 0.0), ("reduced", 1.5)):
+        mu = rng.normal(centre, 0.05, (2, 400))
+        ll = stats.norm.logpdf(y[None, None, :], mu[..., None], 1.0)
+        idatas[name] = build_inference_data({"mu": mu}, log_likelihood={"y": ll}, observed_data={"y": y})
+    row = loo_columns(idatas)
+    assert row["loo_favours"] == "full" and row["elpd_diff"] > 0 and row["elpd_diff_se"] > 0
+    assert row["pareto_k_bad_full"] == 0 and isinstance(row["pareto_k_bad_reduced"], int)
+    mu = idatas["full"].posterior["mu"].values.ravel()
+    lpd = np.log(stats.norm.pdf(y[None, :], mu[:, None], 1.0).mean(axis=0)).sum()
+    assert row["elpd_loo_full"] == pytest.approx(lpd, abs=0.5) and 0 < row["p_loo_full"] < 1

@@ -50,19 +50,30 @@ from bubblecal.workflows.calibrate.config import (
     phase_tmcmc_options,
 )
 from bubblecal.workflows.calibrate.device import check_device, on_device
+from bubblecal.workflows.calibrate.export import (
+    PHASE2_LOGLIK,
+    joint_export,
+    phase2_log_likelihood,
+    phase2_pareto_k,
+    phase_exports,
+)
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
+from bubblecal.workflows.calibrate.phase_files import (
+    PhaseFileError,
+    phase_format,
+    read_phase,
+    read_pointwise,
+    write_phase,
+)
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle
 from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_calibration
 from bubblecal.workflows.calibrate.store import (
-    PhaseFileError,
     PhaseStore,
     array_hash,
     bundle_hashes,
     config_hash,
     phase_dependencies,
     phase_hashes,
-    read_phase,
-    write_phase,
 )
 
 __all__ = [
@@ -72,6 +83,8 @@ __all__ = [
     "min_population", "check_device", "on_device",
     "AgentPlan", "Plan", "make_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
     "PhaseStore", "PhaseFileError", "phase_dependencies",
-    "write_phase", "read_phase", "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
+    "write_phase", "read_phase", "read_pointwise", "phase_format",
+    "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
     "AgentResult", "run_agent", "run_calibration",
+    "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
 ]

@@ -23,14 +23,10 @@ import numpy as np
 
 from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
 from bubblecal.workflows.calibrate.device import on_device
+from bubblecal.workflows.calibrate.export import PHASE2_LOGLIK, phase2_log_likelihood, phase_exports
+from bubblecal.workflows.calibrate.phase_files import write_phase
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
-from bubblecal.workflows.calibrate.store import (
-    PhaseStore,
-    bundle_hashes,
-    config_hash,
-    phase_hashes,
-    write_phase,
-)
+from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes
 
 __all__ = ["AgentResult", "run_agent", "run_calibration"]
 
@@ -61,6 +57,8 @@ class AgentResult:
     figures : list of Path
     report : Path or None
     evidence : object or None
+    pointwise : dict
+        Phase name -> observed site -> (draw, ...) pointwise log likelihood (phase 2: one column per dataset).
     """
 
     plan: AgentPlan
@@ -75,6 +73,7 @@ class AgentResult:
     figures: list[Path] = field(default_factory=list)
     report: Path | None = None
     evidence: object | None = None
+    pointwise: dict = field(default_factory=dict)
 
 
 def _curve_arguments(ap: AgentPlan, pad: bool) -> list[tuple[tuple, dict]]:
@@ -184,7 +183,15 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     key = jax.random.PRNGKey(config.seed + (0 if ap.agent == "definity" else 1000))
 
     if config.sampler == "tmcmc":
-        phase2_factory, phase3_factory, datasets = _phase_models(ap, config)
+        phase2_model_factory, phase3_factory, datasets = _phase_models(ap, config)
+        store.exports.update(phase_exports(ap, datasets))
+
+        def phase2_factory(samples, names):
+            # phase 2's likelihood is a factor: its pointwise log likelihood per dataset is computed from the
+            # phase-1 draws it was given
+            store.pointwise_fns["phase2"] = lambda r: {PHASE2_LOGLIK: phase2_log_likelihood(r.samples, samples,
+                                                                                            ap.spec)}
+            return phase2_model_factory(samples, names)
 
         def load(name):
             result = store.load(name)
@@ -219,7 +226,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
 
     t0 = time.perf_counter()
     result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
-                         population_predictive=None, seconds=seconds, reused=list(store.reused))
+                         population_predictive=None, seconds=seconds, reused=list(store.reused),
+                         pointwise=store.pointwise)
     if config.summaries or config.figures:
         from bubblecal.workflows.summary import summarise_agent
 
@@ -278,6 +286,7 @@ def _run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore,
     from bubblecal.inference.hierarchical import PhaseResult
     from bubblecal.inference.nuts import run_nuts
     from bubblecal.models import hierarchical_model, nuts_init_values
+    from bubblecal.workflows.calibrate.export import joint_export
 
     name = "joint_nuts"
     store.expected[name] = config_hash({"phases": store.expected, "nuts": [config.nuts_warmup, config.nuts_samples,
@@ -301,15 +310,34 @@ def _run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore,
     result = PhaseResult(name=name, samples=samples, log_evidence=math.nan, log_evidence_se=math.nan,
                          status="converged" if res.converged else "not converged", seconds=seconds)
     store.loglik[name] = total_ll
+    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
+    idata = _joint_inference_data(res, ap, kwargs, total_ll, joint_export(ap), diag) if config.netcdf else None
     write_phase(store.path(name), result, total_ll, {"config_hash": store.expected[name], "phase": name,
-                                                      "max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff,
-                                                      "num_divergences": res.num_divergences})
+                                                      "phase_result_chains": "all", **diag}, idata=idata)
     store.manifest["phases"][name] = {"file": store.path(name).name, "config_hash": store.expected[name],
                                       "status": result.status, "seconds": seconds, "max_r_hat": res.max_r_hat,
                                       "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
     store.write_manifest()
-    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
     return _JointResult(samples, total_ll, seconds, diag, False)
+
+
+def _joint_inference_data(res, ap: AgentPlan, kwargs, total_ll, export, diag):
+    """The joint run's chains as InferenceData: every observation of every dataset in one variable 'y'."""
+    from bubblecal.inference.idata import build_inference_data, pointwise_log_likelihood
+    from bubblecal.models import hierarchical_model
+
+    info, sites = export
+    pw = pointwise_log_likelihood(hierarchical_model, res.samples_by_chain, (ap.curves, ap.surrogates, ap.spec),
+                                  kwargs, batch_ndims=2)
+    observed = [np.asarray(c.y, dtype=float) for c in ap.curves]
+    observed += [np.asarray(d.frequency_MHz, dtype=float) for d in ap.acoustic] if ap.spec.acoustic else []
+    chains = res.diverging.shape[0]
+    stats = {"lp": -np.asarray(res.potential_energy), "diverging": np.asarray(res.diverging, dtype=bool),
+             "loglik": np.asarray(total_ll).reshape(chains, -1)}
+    return build_inference_data(res.samples_by_chain, sample_stats=stats,
+                                log_likelihood={"y": np.concatenate([pw[s] for s in sites], axis=-1)},
+                                observed_data={"y": np.concatenate(observed)}, info=info,
+                                attrs={"inference_library": "numpyro.infer.NUTS", **diag})
 
 
 def run_calibration(plan: Plan, *, progress: Callable[[str], None] | None = None,

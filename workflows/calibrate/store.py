@@ -18,10 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import atomic_write
+from bubblecal.inference.idata import IDATA_FORMAT
 from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
+from bubblecal.workflows.calibrate.phase_files import PhaseFileError, phase_format, read_phase, read_pointwise
 
 __all__ = ["config_hash", "array_hash", "phase_hashes", "bundle_hashes", "PhaseStore", "PhaseFileError",
-           "phase_dependencies", "write_phase", "read_phase"]
+           "phase_dependencies"]
 
 
 def config_hash(obj) -> str:
@@ -109,7 +111,13 @@ class PhaseStore:
         Receives one line per damaged phase file (the file named, and that it is recomputed).
 
     A stored phase file that cannot be read (truncated, garbage) is not reused: that phase runs again, and so
-    does every phase that depends on it (:func:`phase_dependencies`), while the others are still reused.
+    does every phase that depends on it (:func:`phase_dependencies`), while the others are still reused. So
+    is a NetCDF file written before the ArviZ groups (:func:`phase_format` below
+    :data:`~bubblecal.inference.idata.IDATA_FORMAT`), with a one-line notice.
+
+    ``exports[name]`` (:class:`~bubblecal.inference.idata.ExportInfo`) names the dimensions, units and constant
+    data of a phase's file; ``pointwise_fns[name](result)`` gives the pointwise log likelihood of a phase whose
+    model has no observed site (phase 2); :attr:`pointwise` holds each phase's pointwise log likelihood.
     """
 
     def __init__(self, folder: Path, netcdf: bool = True, force: bool = False, run_info: Mapping | None = None,
@@ -120,6 +128,9 @@ class PhaseStore:
         self.say = say or (lambda _m: None)
         self.expected: dict[str, str] = {}
         self.loglik: dict[str, np.ndarray] = {}
+        self.exports: dict = {}
+        self.pointwise_fns: dict[str, Callable] = {}
+        self.pointwise: dict[str, dict[str, np.ndarray]] = {}
         self.reused: list[str] = []
         self.recomputed: list[str] = []
         self.manifest_path = self.folder / "manifest.json"
@@ -182,11 +193,19 @@ class PhaseStore:
             return None
         try:
             result, loglik = read_phase(path)
+            legacy = path.suffix == ".nc" and phase_format(path) < IDATA_FORMAT
+            pointwise = {} if legacy else read_pointwise(path)
         except PhaseFileError as exc:
             self.say(f"{exc}; recomputing {name} and the phases that depend on it")
             self.recomputed.append(name)
             return None
+        if legacy:
+            self.say(f"{path}: written before the ArviZ groups (log_likelihood, observed_data, constant_data); "
+                     f"recomputing {name} and the phases that depend on it")
+            self.recomputed.append(name)
+            return None
         self.loglik[name] = loglik
+        self.pointwise[name] = pointwise
         self.reused.append(name)
         return result
 
@@ -203,8 +222,14 @@ class PhaseStore:
         loglik = np.asarray(result.sampler.state.log_likelihood) if result.sampler is not None else None
         if loglik is not None:
             self.loglik[name] = loglik
-        attrs = {"config_hash": self.expected.get(name, ""), "phase": name}
-        write_phase(path, result, loglik, attrs)
+        attrs = {"config_hash": self.expected.get(name, ""), "phase": name, "phase_result_chains": "first"}
+        fn = self.pointwise_fns.get(name)
+        pointwise = fn(result) if fn is not None else None
+        if pointwise is not None:
+            self.pointwise[name] = {k: np.asarray(v) for k, v in pointwise.items()}
+        from bubblecal.workflows.calibrate.phase_files import write_phase
+
+        write_phase(path, result, loglik, attrs, info=self.exports.get(name), pointwise=pointwise)
         self.manifest["phases"][name] = {
             "file": path.name, "config_hash": self.expected.get(name, ""), "log_evidence": result.log_evidence,
             "log_evidence_se": result.log_evidence_se if math.isfinite(result.log_evidence_se) else None,
@@ -232,111 +257,3 @@ def phase_dependencies(name: str) -> tuple[str, ...]:
     if name.startswith("phase3_"):
         return ("phase1_" + name.removeprefix("phase3_"), "phase2")
     return ()
-
-
-class PhaseFileError(ValueError):
-    """A stored phase file cannot be read (truncated, damaged, not a phase file); the message names it."""
-
-
-def write_phase(path: Path, result, loglik, attrs: Mapping) -> Path:
-    """Write a phase result atomically: ArviZ NetCDF (``.nc``) or plain ``.npz`` (samples + attrs JSON).
-
-    Parameters
-    ----------
-    path : Path
-        Target file; its suffix picks the format.
-    result : bubblecal.inference.hierarchical.PhaseResult
-        Draws (DPD units), log evidence and its standard error, status, seconds.
-    loglik : array_like or None
-        Log likelihood of every draw (stored for the MAP).
-    attrs : Mapping
-        Extra metadata (config hash, phase name, diagnostics).
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
-    path = Path(path)
-    meta = {"log_evidence": result.log_evidence, "log_evidence_se": result.log_evidence_se, "status": result.status,
-            "seconds": result.seconds, "name": result.name, **attrs}
-    if path.suffix == ".nc":
-        import arviz as az
-
-        if result.sampler is not None:
-            idata = result.sampler.to_inference_data()
-        else:
-            stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
-            idata = az.from_dict(posterior={k: np.asarray(v)[None] for k, v in result.samples.items()},
-                                 sample_stats=stats)
-        idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
-                                          ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
-                                      for k, v in meta.items()})
-        atomic_write(path, lambda p: idata.to_netcdf(str(p)))
-    else:
-        arrays = {f"sample__{k}": np.asarray(v) for k, v in result.samples.items()}
-        if loglik is not None:
-            arrays["loglik"] = np.asarray(loglik)
-        arrays["meta"] = np.array(json.dumps(meta, default=str))
-
-        def _w(p):
-            with open(p, "wb") as fh:
-                np.savez(fh, **arrays)
-
-        atomic_write(path, _w)
-    return path
-
-
-def read_phase(path: Path):
-    """Read a file written by :func:`write_phase`.
-
-    Parameters
-    ----------
-    path : Path
-        A ``.nc`` or ``.npz`` phase file.
-
-    Returns
-    -------
-    tuple
-        (:class:`~bubblecal.inference.hierarchical.PhaseResult`, log likelihood per draw or None).
-
-    Raises
-    ------
-    PhaseFileError
-        The file is missing, truncated, damaged or holds no phase (the message names it and the cause).
-    """
-    try:
-        return _read_phase(Path(path))
-    except Exception as exc:  # h5py, netCDF4, zipfile and JSON each raise their own kinds on damaged bytes
-        raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
-
-
-def _read_phase(path: Path):
-    """:func:`read_phase` without the error translation."""
-    from bubblecal.inference.hierarchical import PhaseResult
-
-    if path.suffix == ".nc":
-        import arviz as az
-
-        idata = az.from_netcdf(str(path))
-        post = idata.posterior
-        samples = {k: np.asarray(post[k].values[0]) for k in post.data_vars}
-        meta = dict(post.attrs)
-        loglik = (np.asarray(idata.sample_stats["loglik"].values[0])
-                  if "sample_stats" in idata.groups() and "loglik" in idata.sample_stats else None)
-    else:
-        with np.load(path, allow_pickle=False) as npz:
-            samples = {k[len("sample__"):]: npz[k] for k in npz.files if k.startswith("sample__")}
-            loglik = npz["loglik"] if "loglik" in npz.files else None
-            meta = json.loads(str(npz["meta"]))
-
-    def _f(v):
-        try:
-            return float(v)
-        except (TypeError, ValueError):
-            return math.nan
-
-    result = PhaseResult(name=str(meta.get("name", meta.get("phase", path.stem))), samples=samples,
-                         log_evidence=_f(meta.get("log_evidence")), log_evidence_se=_f(meta.get("log_evidence_se")),
-                         status=str(meta.get("status", "converged")), seconds=_f(meta.get("seconds")))
-    return result, loglik

@@ -204,10 +204,11 @@ def test_samples_stage_table_and_exports():
     assert table["num_evaluations"].sum() == tm.num_evaluations
     assert np.isfinite(tm.log_evidence_se) and tm.log_evidence_se > 0
     idata = tm.to_inference_data()
-    assert idata.posterior["x"].shape == (1, 500)
-    assert "loglik" in idata.sample_stats
+    assert idata.posterior["x"].shape == (2, 500)  # one chain per replica
+    np.testing.assert_array_equal(idata.posterior["x"].values[1], tm.get_samples(1)["x"])
+    assert "loglik" in idata.sample_stats and "lp" in idata.sample_stats
     assert idata.posterior.attrs["log_evidence"] == pytest.approx(tm.log_evidence)
-    assert "beta" in idata.tmcmc_stages
+    np.testing.assert_allclose(idata.sample_stats["stage_beta"].values[0, :len(table)], table["beta"])
     tm.print_summary()
 
 

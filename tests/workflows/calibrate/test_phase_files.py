@@ -1,0 +1,73 @@
+"""Phase files written before the ArviZ groups: detected, named in one line and recomputed with the phases that
+depend on them (never mixed); `.npz` files are reused as before; the joint run's chains read back concatenated."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bubblecal.inference.hierarchical import PhaseResult
+from bubblecal.workflows.calibrate import PhaseStore, phase_format, read_phase, write_phase
+
+NAMES = ["phase1_a", "phase1_b", "phase2", "phase3_a", "phase3_b"]
+
+
+def _store(folder, netcdf=True, said=None):
+    st = PhaseStore(folder, netcdf=netcdf, say=said.append if said is not None else None)
+    st.expected = {n: f"hash-{n}" for n in NAMES}
+    return st
+
+
+def _legacy_nc(path, samples, loglik, meta):
+    """A phase file as the code before the ArviZ groups wrote it: posterior + sample_stats 'loglik' only."""
+    import arviz as az
+
+    idata = az.from_dict(posterior={k: np.asarray(v)[None] for k, v in samples.items()},
+                         sample_stats={"loglik": np.asarray(loglik)[None]})
+    idata.posterior.attrs.update(meta)
+    idata.to_netcdf(str(path))
+
+
+def test_legacy_netcdf_phase_is_named_and_recomputed_with_its_dependants(tmp_path):
+    first = _store(tmp_path)
+    for k, n in enumerate(NAMES):
+        first.save(PhaseResult(n, {"ka": np.arange(5.0) + k}, -1.0, 0.1, "converged", 1.0))
+    assert all(phase_format(tmp_path / f"{n}.nc") == 2 for n in NAMES)
+    # phase1_b rewritten as the old code did (same hash in the manifest)
+    _legacy_nc(tmp_path / "phase1_b.nc", {"ka": np.arange(5.0) + 1}, np.zeros(5),
+               {"name": "phase1_b", "log_evidence": -1.0, "config_hash": "hash-phase1_b"})
+    assert phase_format(tmp_path / "phase1_b.nc") == 0
+    said = []
+    st = _store(tmp_path, said=said)
+    loaded = {n: st.load(n) for n in NAMES}
+    assert [n for n, r in loaded.items() if r is not None] == ["phase1_a"]
+    assert st.recomputed == ["phase1_b", "phase2", "phase3_a", "phase3_b"]
+    (notice,) = [m for m in said if "phase1_b.nc" in m]
+    assert "written before the ArviZ groups" in notice and "\n" not in notice
+
+
+def test_npz_phase_files_are_reused_and_netcdf_holds_the_groups(tmp_path):
+    import arviz as az
+
+    st = _store(tmp_path, netcdf=False)
+    st.save(PhaseResult("phase1_a", {"ka": np.arange(4.0)}, -2.0, 0.1, "converged", 1.0))
+    again = _store(tmp_path, netcdf=False)
+    assert np.array_equal(again.load("phase1_a").samples["ka"], np.arange(4.0)) and again.reused == ["phase1_a"]
+    # a phase without a sampler (loaded, or from a caller) still gets the versions and its pointwise loglik
+    path = write_phase(tmp_path / "x.nc", PhaseResult("x", {"m_ka": np.arange(6.0)}, -1.0, 0.1, "converged", 1.0),
+                       np.zeros(6), {"phase": "x"}, pointwise={"population_likelihood": -np.ones((6, 2))})
+    idata = az.from_netcdf(str(path))
+    assert idata.log_likelihood["population_likelihood"].shape == (1, 6, 2)
+    assert "arviz_version" in idata.posterior.attrs and "bubblecal_version" in idata.log_likelihood.attrs
+
+
+def test_joint_file_chains_are_concatenated_on_read(tmp_path):
+    from bubblecal.inference import build_inference_data
+
+    by_chain = {"ka": np.arange(12.0).reshape(3, 4)}
+    idata = build_inference_data(by_chain, sample_stats={"loglik": -np.arange(12.0).reshape(3, 4)})
+    res = PhaseResult("joint_nuts", {"ka": by_chain["ka"].reshape(-1)}, float("nan"), float("nan"), "converged", 1.0)
+    path = write_phase(tmp_path / "joint_nuts.nc", res, None, {"phase_result_chains": "all", "phase": "joint_nuts"},
+                       idata=idata)
+    back, loglik = read_phase(path)
+    np.testing.assert_array_equal(back.samples["ka"], np.arange(12.0))
+    np.testing.assert_array_equal(loglik, -np.arange(12.0))

@@ -1,0 +1,198 @@
+"""Phase files of a calibration run: ArviZ NetCDF (``.nc``) or plain ``.npz``, written atomically and read back.
+
+The NetCDF layout (groups, dimensions, attributes) is ``docs/data-formats.md``, section "Calibration outputs".
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from bubblecal.data import atomic_write
+
+__all__ = ["PhaseFileError", "write_phase", "read_phase", "read_pointwise", "phase_format"]
+
+
+class PhaseFileError(ValueError):
+    """A stored phase file cannot be read (truncated, damaged, not a phase file); the message names it."""
+
+
+def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointwise=None, idata=None) -> Path:
+    """Write a phase result atomically: ArviZ NetCDF (``.nc``) or plain ``.npz`` (samples + attrs JSON).
+
+    Parameters
+    ----------
+    path : Path
+        Target file; its suffix picks the format.
+    result : bubblecal.inference.hierarchical.PhaseResult
+        Draws (DPD units), log evidence and its standard error, status, seconds.
+    loglik : array_like or None
+        Log likelihood of every draw (stored for the MAP).
+    attrs : Mapping
+        Extra metadata (config hash, phase name, diagnostics).
+    info : bubblecal.inference.idata.ExportInfo or None
+        Dimension names, units and constant data of the NetCDF groups.
+    pointwise : mapping of str to array_like or None
+        (draw, ...) pointwise log likelihood (else the sampler's model gives it).
+    idata : arviz.InferenceData or None
+        Write this (the joint run's chains) instead of building one from ``result``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    meta = {"log_evidence": result.log_evidence, "log_evidence_se": result.log_evidence_se, "status": result.status,
+            "seconds": result.seconds, "name": result.name, **attrs}
+    if path.suffix == ".nc":
+
+        from bubblecal.inference.idata import build_inference_data
+
+        ll = {k: np.asarray(v)[None] for k, v in pointwise.items()} if pointwise is not None else None
+        if idata is None and result.sampler is not None:
+            idata = result.sampler.to_inference_data(info, log_likelihood=True if ll is None else ll)
+        elif idata is None:
+            stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
+            idata = build_inference_data({k: np.asarray(v)[None] for k, v in result.samples.items()},
+                                         sample_stats=stats, log_likelihood=ll, info=info)
+        idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
+                                          ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
+                                      for k, v in meta.items()})
+        atomic_write(path, lambda p: idata.to_netcdf(str(p)))
+    else:
+        arrays = {f"sample__{k}": np.asarray(v) for k, v in result.samples.items()}
+        if loglik is not None:
+            arrays["loglik"] = np.asarray(loglik)
+        arrays["meta"] = np.array(json.dumps(meta, default=str))
+
+        def _w(p):
+            with open(p, "wb") as fh:
+                np.savez(fh, **arrays)
+
+        atomic_write(path, _w)
+    return path
+
+
+def read_phase(path: Path):
+    """Read a file written by :func:`write_phase`.
+
+    Parameters
+    ----------
+    path : Path
+        A ``.nc`` or ``.npz`` phase file.
+
+    Returns
+    -------
+    tuple
+        (:class:`~bubblecal.inference.hierarchical.PhaseResult`, log likelihood per draw or None).
+
+    Raises
+    ------
+    PhaseFileError
+        The file is missing, truncated, damaged or holds no phase (the message names it and the cause).
+    """
+    try:
+        return _read_phase(Path(path))
+    except Exception as exc:  # h5py, netCDF4, zipfile and JSON each raise their own kinds on damaged bytes
+        raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
+
+
+def _read_phase(path: Path):
+    """:func:`read_phase` without the error translation."""
+    from bubblecal.inference.hierarchical import PhaseResult
+
+    if path.suffix == ".nc":
+        import arviz as az
+
+        idata = az.from_netcdf(str(path))
+        post = idata.posterior
+        meta = dict(post.attrs)
+        # a TMCMC file's chains are replicas and the result is the first; the joint run's are NUTS chains
+        pick = _all_chains if meta.get("phase_result_chains") == "all" else (lambda v: np.asarray(v.values[0]))
+        samples = {k: pick(post[k]) for k in post.data_vars}
+        loglik = (pick(idata.sample_stats["loglik"])
+                  if "sample_stats" in idata.groups() and "loglik" in idata.sample_stats else None)
+    else:
+        with np.load(path, allow_pickle=False) as npz:
+            samples = {k[len("sample__"):]: npz[k] for k in npz.files if k.startswith("sample__")}
+            loglik = npz["loglik"] if "loglik" in npz.files else None
+            meta = json.loads(str(npz["meta"]))
+
+    def _f(v):
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return math.nan
+
+    result = PhaseResult(name=str(meta.get("name", meta.get("phase", path.stem))), samples=samples,
+                         log_evidence=_f(meta.get("log_evidence")), log_evidence_se=_f(meta.get("log_evidence_se")),
+                         status=str(meta.get("status", "converged")), seconds=_f(meta.get("seconds")))
+    return result, loglik
+
+
+def _all_chains(var) -> np.ndarray:
+    """(chain, draw, ...) values with chains concatenated."""
+    v = np.asarray(var.values)
+    return v.reshape((-1,) + v.shape[2:])
+
+
+def phase_format(path: Path) -> int:
+    """The ``bubblecal_idata_format`` of a NetCDF phase file (0 when written before the ArviZ groups).
+
+    Parameters
+    ----------
+    path : Path
+        A ``.nc`` phase file.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    PhaseFileError
+        The file cannot be read.
+    """
+    import xarray as xr
+
+    try:
+        with xr.open_dataset(path, group="posterior", engine="h5netcdf") as ds:
+            return int(ds.attrs.get("bubblecal_idata_format", 0))
+    except Exception as exc:  # h5py and netCDF4 raise their own kinds on damaged bytes
+        raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
+
+
+def read_pointwise(path: Path) -> dict[str, np.ndarray]:
+    """The first chain's pointwise log likelihood of a phase file (empty for ``.npz`` or without the group).
+
+    Parameters
+    ----------
+    path : Path
+        A phase file.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Observed site -> (draw, ...) log likelihood.
+
+    Raises
+    ------
+    PhaseFileError
+        The file cannot be read.
+    """
+    if Path(path).suffix != ".nc":
+        return {}
+    import xarray as xr
+
+    try:
+        with xr.open_dataset(path, group="log_likelihood", engine="h5netcdf") as ds:
+            return {k: np.asarray(v.values[0]) for k, v in ds.data_vars.items()}
+    except OSError:
+        return {}
+    except Exception as exc:  # h5py raises its own kinds on damaged bytes
+        raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
