@@ -6,6 +6,7 @@ A campaign file that says ``device = "cuda"`` on a machine without a CUDA device
 
 from __future__ import annotations
 
+from bubblecal._extras import require
 from bubblecal.campaigns.errors import CampaignError
 
 __all__ = ["cuda_device_count", "check_device"]
@@ -20,7 +21,7 @@ def cuda_device_count() -> int:
         The count.
     """
     try:
-        import warp as wp
+        wp = require("warp", "sim")
     except ImportError:
         return 0
     wp.config.quiet = True

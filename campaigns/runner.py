@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.campaigns.config import CampaignConfig, _is_int
 from bubblecal.campaigns.design import design_points
 from bubblecal.campaigns.devices import check_device, cuda_device_count
@@ -224,7 +225,7 @@ def _run_inline(tasks: list[CampaignTask], simulate: Callable, writer: _RecordWr
 def _run_dask(client, tasks: list[CampaignTask], simulate: Callable, writer: _RecordWriter, bar: _Progress,
               name: str) -> None:
     """Submit every task to ``client`` and write each result as it completes; cancel the rest on any error."""
-    from distributed import as_completed
+    as_completed = require("distributed", "sim").as_completed
 
     token = hashlib.sha256(f"{time.time_ns()}-{os.getpid()}".encode()).hexdigest()[:8]
     futures = {}
@@ -302,6 +303,12 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
         raise ValueError(f"limit must be an integer >= 0 (samples), got {limit!r}")
     simulate = simulate or simulate_task
     scheduler_address = check_scheduler_address(scheduler_address)
+    # the [sim] extra, checked before the store is opened: without it every sample would be recorded 'failed'
+    if client is None and scheduler_address != "inline":
+        require("distributed", "sim")
+    if simulate is simulate_task and client is None and scheduler_address in (None, "inline"):
+        for module in ("warp", "trimesh"):  # simulated on this machine (remote workers bring their own)
+            require(module, "sim")
     store = _open_store(config)
     design = design_points(config)
     pending = pending_indices(config, store)
@@ -335,7 +342,8 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
             bar = _Progress(progress, len(todo), config.name)
             _run_inline(tasks, simulate, writer, bar)
         else:
-            from distributed import Client, LocalCluster
+            distributed = require("distributed", "sim")
+            Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
             if client is None:
                 if scheduler_address:
