@@ -307,8 +307,8 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
     if client is None and scheduler_address != "inline":
         require("distributed", "sim")
     if simulate is simulate_task and client is None and scheduler_address in (None, "inline"):
-        for module in ("warp", "trimesh"):  # simulated on this machine (remote workers bring their own)
-            require(module, "sim")
+        require("warp", "sim")  # simulated on this machine (remote workers bring their own)
+        require("trimesh", "sim")
     store = _open_store(config)
     design = design_points(config)
     pending = pending_indices(config, store)

@@ -219,8 +219,8 @@ def confirm(
 
     if scale is not None and tier not in ("explicit", "implicit"):
         raise fail(f"--scale {scale:g}: only the explicit and implicit tiers run MD protocols (tier is {tier!r})")
-    for module in ("warp", "trimesh"):  # the DPD tiers: checked before any run folder is touched
-        require(module, "sim")
+    require("warp", "sim")  # the DPD tiers: checked before any run folder is touched
+    require("trimesh", "sim")
     runs = find_runs(results)
     if not runs:
         raise fail(f"{results}: no calibration run folder (manifest.json) found")

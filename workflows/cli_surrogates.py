@@ -120,8 +120,10 @@ def train(
     if setup not in LOADING_PROTOCOLS:
         raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
     # the [train] extra, before any data is read or network trained (ONNX only where it is exported)
-    for module in ("torch", "onnx", "onnxruntime") if onnx else ("torch",):
-        require(module, "train")
+    require("torch", "train")
+    if onnx:
+        require("onnx", "train")
+        require("onnxruntime", "train")
     if over_diameter == (diameter is not None):
         raise typer.BadParameter("give --diameter D (one network per diameter) or --over-diameter, not both")
     if ldo_bands and not over_diameter:
