@@ -67,7 +67,7 @@ curves then crawl (measurements in benchmarks/RESULTS.md).  Several GPUs on one 
 ``dask_cuda.LocalCUDACluster`` (one worker per GPU, CUDA_VISIBLE_DEVICES set per worker) and its address; a
 plain LocalCluster puts every 'cuda' worker on GPU 0.
 
-Clusters (SLURM via dask-jobqueue, not a dependency of bubblecal)::
+Clusters (SLURM via dask-jobqueue, the ``[cluster]`` extra)::
 
     from dask_jobqueue import SLURMCluster
     cluster = SLURMCluster(queue="gpu", cores=4, memory="16GB", processes=1,

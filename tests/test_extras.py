@@ -305,3 +305,11 @@ def test_the_lock_pins_every_requirement_exactly():
         assert _name(req.name) in lock, f"requirements.lock does not pin {req.name}"
         assert req.specifier.contains(lock[_name(req.name)]), f"the lock's {req.name} is outside {req.specifier}"
     assert lock["jax-cuda13-plugin"] == lock["jaxlib"] == lock["jax"]
+
+
+def test_the_readme_commands_install_the_core_then_all_and_ci_runs_the_second():
+    section = (ROOT / "README.md").read_text().split("## The two commands", 1)[1].split("\n## ", 1)[0]
+    main_job, suite = re.findall(r"```bash\n(.*?)\n```", section, re.DOTALL)
+    assert "-e . &&" in main_job and "[" not in main_job and main_job.endswith("bubblecal calibrate --out calibration")
+    assert '-e ".[all]" &&' in suite and suite.endswith("python -m pytest")
+    assert suite in (ROOT / ".ci" / "run").read_text().splitlines()

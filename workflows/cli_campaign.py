@@ -4,7 +4,7 @@ A thin command line over :mod:`bubblecal.campaigns` (Dask is imported by the run
 commands are registered on the ``sim`` group by :mod:`bubblecal.workflows.cli_sim`.  A command's docstring up to
 the form feed (``\\f``) is its ``--help`` text; the numpydoc sections after it are for readers of the code.
 
-Campaigns on a SLURM cluster (dask-jobqueue is not a bubblecal dependency; ``pip install dask-jobqueue``)::
+Campaigns on a SLURM cluster (dask-jobqueue comes with the ``[cluster]`` extra: ``pip install 'bubblecal[cluster]'``)::
 
     # in a long-lived Python process on the login node
     from dask_jobqueue import SLURMCluster
