@@ -313,3 +313,26 @@ def test_the_readme_commands_install_the_core_then_all_and_ci_runs_the_second():
     assert "-e . &&" in main_job and "[" not in main_job and main_job.endswith("bubblecal calibrate --out calibration")
     assert '-e ".[all]" &&' in suite and suite.endswith("python -m pytest")
     assert suite in (ROOT / ".ci" / "run").read_text().splitlines()
+
+
+def test_info_names_the_extra_of_each_optional_package(monkeypatch):
+    """`bubblecal info` marks a missing optional package with the extra that installs it."""
+    from typer.testing import CliRunner
+
+    from bubblecal.workflows import cli_info
+    from bubblecal.workflows.cli import app
+
+    assert {name: cli_info._EXTRA_OF.get(name) for name in cli_info._PACKAGES if name in cli_info._EXTRA_OF} == {
+        "torch": "train", "warp-lang": "sim", "trimesh": "sim", "onnxruntime": "train", "SALib": "sensitivity",
+        "dask": "sim"}
+    version = metadata.version
+
+    def without_torch(name):
+        if name == "torch":
+            raise metadata.PackageNotFoundError(name)
+        return version(name)
+
+    monkeypatch.setattr(cli_info.metadata, "version", without_torch)
+    monkeypatch.setenv("COLUMNS", "200")
+    res = CliRunner().invoke(app, ["info"])
+    assert res.exit_code == 0 and "not installed (extra [train])" in res.output
