@@ -1,5 +1,5 @@
-"""The lean install and its extras: ``_extras.require``, the package and CLI without any extra (a subprocess whose
-import system refuses every optional library), and that every third-party import of the package is either a core
+"""The lean install and its extras: ``_extras.require``, the package and CLI without any extra (a subprocess to
+which every optional library is absent), and that every third-party import of the package is either a core
 dependency or goes through ``require`` with an extra of pyproject that installs it."""
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ LAYER_EXTRAS = {"data": set(), "priors": set(), "models": set(), "surrogates": {
                 "campaigns": {"sim", "cluster"}, "inference": {"sensitivity"}, "workflows": set(EXTRAS)}
 #: Imported by package code without being a direct dependency, each with the core dependency that requires it.
 THROUGH_CORE = {"tqdm": "numpyro"}
-#: Every optional library, by import name: the subprocess below refuses them all.
+#: Every optional library, by import name: absent in the subprocess below.
 OPTIONAL = sorted({m for mods in EXTRAS.values() for m in mods} | {"onnx_ir", "rtree"})
 
 
@@ -91,23 +91,31 @@ def test_require_refuses_an_unknown_extra_or_a_library_of_another_extra():
 
 
 # -------------------------------------------------------------------------------------------------
-# the lean core: a subprocess that refuses every optional library
+# the lean core: a subprocess without any optional library
 # -------------------------------------------------------------------------------------------------
 _LEAN = '''
-import contextlib, importlib.abc, io, json, sys
+import contextlib, io, json, sys
 REFUSED = set(sys.argv[1].split(","))
 
 
-class Refuse(importlib.abc.MetaPathFinder):
-    """An import system without the optional libraries."""
+class Hide:
+    """A finder of sys.meta_path that does not see the optional libraries: to the import system they are absent
+    (import raises ModuleNotFoundError, importlib.util.find_spec returns None, sys.modules has no entry), as
+    libraries that probe for an optional one expect (xarray for dask, scipy for torch)."""
+
+    def __init__(self, finder):
+        self.finder = finder
 
     def find_spec(self, name, path=None, target=None):
         if name.split(".")[0] in REFUSED:
-            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
-        return None
+            return None
+        return self.finder.find_spec(name, path, target)
+
+    def __getattr__(self, attr):
+        return getattr(self.finder, attr)
 
 
-sys.meta_path.insert(0, Refuse())
+sys.meta_path[:] = [Hide(finder) for finder in sys.meta_path]
 out = {}
 import bubblecal, bubblecal.data, bubblecal.priors, bubblecal.models, bubblecal.surrogates, bubblecal.sim
 import bubblecal.campaigns, bubblecal.inference, bubblecal.workflows, bubblecal.workflows.cli
