@@ -11,13 +11,18 @@ models -> surrogates, priors, data; surrogates, priors, sim -> data; inference k
 - ``bubblecal.models``      NumPyro models
 - ``bubblecal.inference``   TMCMC, NUTS, hierarchy, predictive metrics, sensitivity
 - ``bubblecal.workflows``   the ``bubblecal`` command line and pipelines
+
+The lean install calibrates; simulation, training and the rest come with extras (README, "Install"): using a part
+whose extra is missing raises :class:`MissingExtraError`, which names the extra to install.
 """
 
 from importlib.metadata import PackageNotFoundError, version
+
+from bubblecal._extras import MissingExtraError
 
 try:
     __version__ = version("bubblecal")
 except PackageNotFoundError:  # running from a source tree that was never installed
     __version__ = "0.0.0+unknown"
 
-__all__ = ["__version__"]
+__all__ = ["__version__", "MissingExtraError"]

@@ -61,6 +61,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+from bubblecal._extras import require  # noqa: E402
 from bubblecal.inference import tmcmc as core  # noqa: E402
 
 D = 8
@@ -205,7 +206,7 @@ def bubblecal_runner(log_prior, log_lik, n, steps, move_name, chunk_size, hmc_st
 
 
 def blackjax_runner(log_prior, log_lik, n, steps):
-    import blackjax
+    blackjax = require("blackjax", "bench")  # names the [bench] extra when it is missing
     from blackjax.mcmc.random_walk import build_additive_step, normal
     from blackjax.smc import resampling
     from blackjax.smc.base import extend_params

@@ -69,7 +69,7 @@ gpus=N)`` (``bubblecal sim campaign CFG --gpus N``) starts one worker process pe
 (:func:`check_gpus`); a plain LocalCluster puts every 'cuda' worker on GPU 0.  A run with fewer tasks than
 workers splits its tasks so every worker has one of the same cost (:func:`make_tasks`).
 
-Clusters: SLURM through dask-jobqueue (not a dependency of bubblecal), one GPU job per worker, in
+Clusters: SLURM through dask-jobqueue (the ``[cluster]`` extra), one GPU job per worker, in
 :mod:`bubblecal.campaigns.slurm` (``python -m bubblecal.campaigns.slurm --jobs 8``; then ``--scheduler
 tcp://...``); a ``dask cuda worker`` cluster of one's own works the same way.  docs/distributed.md.
 

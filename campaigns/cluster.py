@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 
+from bubblecal._extras import require
 from bubblecal.campaigns.errors import CampaignError
 from bubblecal.campaigns.scheduler import CONNECT_TIMEOUT_S, connect_scheduler
 
@@ -45,8 +46,9 @@ def gpu_cluster(gpu_ids: Sequence[str], *, silence_logs: int = logging.ERROR):
     CampaignError
         ``gpu_ids`` is empty or repeats a GPU (two workers on one GPU time-slice it).
     """
-    from distributed import Nanny, Scheduler, SpecCluster
-    from distributed.worker_memory import parse_memory_limit
+    distributed = require("distributed", "sim")
+    Nanny, Scheduler, SpecCluster = distributed.Nanny, distributed.Scheduler, distributed.SpecCluster
+    parse_memory_limit = require("distributed.worker_memory", "sim").parse_memory_limit
 
     ids = [str(g) for g in gpu_ids]
     if not ids or len(set(ids)) != len(ids):
@@ -87,7 +89,8 @@ def open_client(scheduler_address: str | None, *, gpu_ids: Sequence[str] | None 
         The remote scheduler does not answer within ``connect_timeout_s``, or the workers started here did not
         all join within :data:`WORKER_START_TIMEOUT_S`.
     """
-    from distributed import Client, LocalCluster
+    distributed = require("distributed", "sim")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     if scheduler_address:
         return connect_scheduler(scheduler_address, connect_timeout_s), None

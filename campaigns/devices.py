@@ -14,6 +14,7 @@ import subprocess
 import sys
 from collections.abc import Mapping
 
+from bubblecal._extras import require
 from bubblecal.campaigns.errors import CampaignError
 
 __all__ = ["cuda_device_count", "check_device", "visible_gpus", "check_gpus"]
@@ -28,7 +29,7 @@ def cuda_device_count() -> int:
         The count.
     """
     try:
-        import warp as wp
+        wp = require("warp", "sim")
     except ImportError:
         return 0
     wp.config.quiet = True

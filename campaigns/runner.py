@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.campaigns.cluster import GPU_WORKER_DEVICE, open_client
 from bubblecal.campaigns.config import CampaignConfig, _is_int
 from bubblecal.campaigns.design import design_points
@@ -301,6 +302,12 @@ def run_campaign(config: CampaignConfig, *, client=None, scheduler_address: str 
             raise CampaignConfigError("gpus", f"{gpus} GPUs start one worker per GPU on this machine, so they "
                                               f"cannot come with {given}")
         gpu_ids = check_gpus(gpus)  # before the store is touched: too many GPUs runs nothing
+    # the [sim] extra, checked before the store is opened: without it every sample would be recorded 'failed'
+    if client is None and scheduler_address != "inline":
+        require("distributed", "sim")
+    if simulate is simulate_task and client is None and scheduler_address in (None, "inline"):
+        require("warp", "sim")  # simulated on this machine (remote workers bring their own)
+        require("trimesh", "sim")
     store = _open_store(config)
     design = design_points(config)
     pending = pending_indices(config, store)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 
+from bubblecal._extras import require
 from bubblecal.campaigns.errors import CampaignConfigError, CampaignError
 
 __all__ = ["SCHEDULER_CHOICES", "CONNECT_TIMEOUT_S", "check_scheduler_address", "connect_scheduler"]
@@ -63,7 +64,7 @@ def connect_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S):
     CampaignError
         The scheduler cannot be reached within ``timeout_s`` (nothing was submitted; the store is unchanged).
     """
-    from distributed import Client
+    Client = require("distributed", "sim").Client
 
     try:
         return Client(address, timeout=f"{timeout_s}s")

@@ -25,7 +25,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bubblecal.campaigns.errors import CampaignError
+from bubblecal._extras import require
 
 __all__ = ["SlurmSettings", "slurm_cluster"]
 
@@ -88,14 +88,10 @@ def slurm_cluster(settings: SlurmSettings | None = None):
 
     Raises
     ------
-    CampaignError
-        dask-jobqueue is not installed.
+    bubblecal.MissingExtraError
+        dask-jobqueue (the ``[cluster]`` extra) is not installed.
     """
-    try:
-        from dask_jobqueue import SLURMCluster
-    except ImportError:
-        raise CampaignError("a SLURM cluster needs dask-jobqueue, which is not installed "
-                            "(pip install dask-jobqueue)") from None
+    SLURMCluster = require("dask_jobqueue", "cluster").SLURMCluster
     s = settings or SlurmSettings()
     kwargs = dict(queue=s.queue, walltime=s.walltime, cores=1, processes=1, job_cpu=s.cpus_per_gpu,
                   memory=s.memory, job_extra_directives=[f"--gres={s.gres}"],

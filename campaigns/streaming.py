@@ -20,6 +20,7 @@ import socket
 import time
 from collections.abc import Callable
 
+from bubblecal._extras import require
 from bubblecal.campaigns.progress import _Progress
 from bubblecal.campaigns.tasks import CampaignTask, TaskResult, _execute_task, _takes_on_curve
 
@@ -48,9 +49,7 @@ def _execute_streaming(simulate: Callable, task: CampaignTask, topic: str | None
     """
     if topic is None or not _takes_on_curve(simulate):
         return _execute_task(simulate, task)
-    from distributed import get_worker
-
-    worker = get_worker()
+    worker = require("distributed", "sim").get_worker()
     t_task = time.perf_counter()
     host, pid = socket.gethostname(), os.getpid()
 

@@ -15,7 +15,7 @@ parameter ranges, :func:`sobol_along`
    experimentally explored range), ignoring points where the output has no variance (there the
    indices are undefined and stored as NaN).
 
-SALib is imported inside the functions, so importing this module costs nothing.
+SALib (the ``[sensitivity]`` extra) is imported inside the functions, so importing this module costs nothing.
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+
+from bubblecal._extras import require
 
 __all__ = ["SobolResult", "saltelli_design", "sobol_indices", "sobol_along"]
 
@@ -139,7 +141,7 @@ def saltelli_design(bounds, N: int = 2048, *, calc_second_order: bool = False, s
     ValueError
         For an N that is not a power of two, an empty box, or bounds that are not finite with lo < hi.
     """
-    from SALib.sample import sobol as sobol_sample
+    sobol_sample = require("SALib.sample.sobol", "sensitivity")
 
     if N < 2 or (N & (N - 1)) != 0:
         raise ValueError(f"N must be a power of two >= 2 (Sobol' sequence balance), got {N}")
@@ -175,7 +177,7 @@ def sobol_indices(problem_bounds, Y, *, calc_second_order: bool = False, num_res
     ValueError
         If ``Y`` has non-finite values or the box is invalid.
     """
-    from SALib.analyze import sobol as sobol_analyze
+    sobol_analyze = require("SALib.analyze.sobol", "sensitivity")
 
     problem = _problem(problem_bounds)
     Y = np.asarray(Y, dtype=float)

@@ -26,7 +26,7 @@ ALLOWED = {
     "workflows": set(LAYERS),
 }
 #: Private helpers of the root package that every layer may use (they import nothing of bubblecal).
-ROOT_HELPERS = {"_lazy"}
+ROOT_HELPERS = {"_lazy", "_extras"}
 FORBIDDEN_THIRD_PARTY = {
     "data": {"jax", "numpyro", "torch", "warp"},
     "priors": {"jax", "numpyro", "torch", "warp"},
@@ -76,6 +76,14 @@ def _imports(path):
             yield node.module
         elif isinstance(node, ast.ImportFrom) and node.level > 0:
             yield "<relative>"
+        elif _is_require(node):  # an optional library: require("warp", "sim") (_extras.py)
+            yield node.args[0].value
+
+
+def _is_require(node) -> bool:
+    """Whether ``node`` is a call ``require("module", "extra")`` with literal arguments."""
+    return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "require" \
+        and len(node.args) == 2 and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args)
 
 
 def test_root_helpers_import_no_layer():

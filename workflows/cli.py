@@ -12,6 +12,8 @@ import importlib
 import typer
 
 from bubblecal import __version__
+from bubblecal._extras import MissingExtraError
+from bubblecal.workflows.console import fail
 
 #: The exit-status convention of every command (docs/data-formats.md, "Exit status").
 EXIT_STATUS_HELP = ("Exit status of every command: 0 success; 1 the run failed or an input is unusable (the message "
@@ -67,8 +69,17 @@ for _module in TOP_LEVEL_MODULES:
 
 
 def main() -> None:
-    """Console-script entry point."""
-    app()
+    """Console-script entry point: a command whose extra is not installed prints one message and exits 1.
+
+    Raises
+    ------
+    SystemExit
+        With the command's exit status (docs/data-formats.md, "Exit status").
+    """
+    try:
+        app()
+    except MissingExtraError as exc:
+        raise SystemExit(fail(str(exc)).exit_code) from None
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
+from bubblecal._extras import require
 from bubblecal.data import AGENTS
 from bubblecal.workflows.calibrate import (
     DEFAULT_PHASE2_SAMPLES,
@@ -238,6 +239,8 @@ def confirm(
 
     if scale is not None and tier not in ("explicit", "implicit"):
         raise fail(f"--scale {scale:g}: only the explicit and implicit tiers run MD protocols (tier is {tier!r})")
+    require("warp", "sim")  # the DPD tiers: checked before any run folder is touched
+    require("trimesh", "sim")
     runs = find_runs(results)
     if not runs:
         raise fail(f"{results}: no calibration run folder (manifest.json) found")

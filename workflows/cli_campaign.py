@@ -9,8 +9,8 @@ Several GPUs of one machine: ``--gpus N`` starts one Dask worker process per GPU
 
     bubblecal sim campaign definity_compression_1.5-8um --store /scratch/d.store --gpus 2
 
-A SLURM cluster (dask-jobqueue, ``pip install dask-jobqueue``; one GPU job per worker), or any Dask scheduler
-such as one with ``dask cuda worker`` processes: pass its address::
+A SLURM cluster (dask-jobqueue, the ``[cluster]`` extra: ``pip install 'bubblecal[cluster]'``; one GPU job per
+worker), or any Dask scheduler such as one with ``dask cuda worker`` processes: pass its address::
 
     python -m bubblecal.campaigns.slurm --jobs 8 --queue gpu      # on the login node; prints tcp://HOST:PORT
     bubblecal sim campaign definity_compression_1.5-8um --store /scratch/d.store --scheduler tcp://HOST:PORT

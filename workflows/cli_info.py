@@ -8,12 +8,15 @@ import typer
 from rich.table import Table
 
 from bubblecal import __version__
+from bubblecal._extras import DISTRIBUTIONS, EXTRAS
 from bubblecal.data import DEFAULT_UNITS, acoustic_observations, reference_curves
 from bubblecal.priors import available_priors
 from bubblecal.workflows.console import console
 
 _PACKAGES = ("numpy", "scipy", "jax", "jaxlib", "numpyro", "torch", "warp-lang", "trimesh", "onnxruntime", "arviz",
              "SALib", "dask", "matplotlib")
+#: Distribution -> the extra that installs it (named where it is missing).
+_EXTRA_OF = {DISTRIBUTIONS.get(module, module): extra for extra, modules in EXTRAS.items() for module in modules}
 
 
 def _devices() -> str:
@@ -36,7 +39,8 @@ def info() -> None:
         try:
             table.add_row(name, metadata.version(name))
         except metadata.PackageNotFoundError:
-            table.add_row(name, "[red]not installed[/]")
+            extra = _EXTRA_OF.get(name)
+            table.add_row(name, "[red]not installed[/]" + (f" (extra \\[{extra}])" if extra else ""))
     table.add_row("JAX devices", _devices())
     console.print(table)
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from bubblecal._extras import require
 from bubblecal.workflows.console import console, fail, make_table
 from bubblecal.workflows.sensitivity import SOBOL_N, SOBOL_POINTS
 
@@ -28,6 +29,7 @@ def sensitivity(
     from bubblecal.surrogates import SurrogateFormatError, load
     from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity, write_sensitivity
 
+    require("SALib", "sensitivity")  # before the surrogate is evaluated on the design
     try:
         name = resolve_reference_name(curve)
         agent, kind, diameter, *_ = REFERENCE_CURVES[name]

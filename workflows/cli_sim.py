@@ -13,6 +13,7 @@ from pathlib import Path
 
 import typer
 
+from bubblecal._extras import require
 from bubblecal.workflows.cli_campaign import campaign, campaign_status
 from bubblecal.workflows.console import console, fail, make_table
 
@@ -47,7 +48,8 @@ def verify(
     """
     if not (device == "cpu" or device.startswith("cuda")):
         raise typer.BadParameter("device must be 'cpu' or 'cuda' (or 'cuda:N')", param_hint="--device")
-    import warp as wp
+    wp = require("warp", "sim")
+    require("trimesh", "sim")  # the shell meshes
 
     wp.config.quiet = True
     from bubblecal.sim.validation.verify import main
@@ -134,7 +136,8 @@ def ringdown(
         raise typer.BadParameter("agent must be 'definity' or 'sonovue'", param_hint="--agent")
     if n_ka < 3:
         raise typer.BadParameter("need at least 3 k_a values for a quadratic", param_hint="--n-ka")
-    import warp as wp
+    wp = require("warp", "sim")
+    require("trimesh", "sim")  # the shell meshes
 
     wp.config.quiet = True
     from bubblecal.workflows.acoustic_sweep import (

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from bubblecal._extras import require
 from bubblecal.data import AGENTS, LOADING_PROTOCOLS
 from bubblecal.surrogates.bundle import DIAMETER_ATOL_UM
 
@@ -118,6 +119,11 @@ def train(
 
     if setup not in LOADING_PROTOCOLS:
         raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
+    # the [train] extra, before any data is read or network trained (ONNX only where it is exported)
+    require("torch", "train")
+    if onnx:
+        require("onnx", "train")
+        require("onnxruntime", "train")
     if over_diameter == (diameter is not None):
         raise typer.BadParameter("give --diameter D (one network per diameter) or --over-diameter, not both")
     if ldo_bands and not over_diameter:
@@ -157,7 +163,7 @@ def train(
     npz = export_sweep(result, out / f"{stem}.npz", nominal_diameter_um=diameter, filter_report=report)
     sur = load(npz)
     # parity: the exported JAX function against torch on the held-out points (in the network's own target)
-    import torch
+    torch = require("torch", "train")
 
     u, _, _, scale = result.holdout_set.network_points(result.inputs)
     with torch.no_grad():

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import warp as wp
+from bubblecal._extras import require
+
+wp = require("warp", "sim")
 
 __all__ = ["ChunkGraph"]
 

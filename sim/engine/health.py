@@ -24,9 +24,11 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
+
+wp = require("warp", "sim")
 
 __all__ = ["Status", "HealthConfig", "HealthReport", "HealthMonitor"]
 

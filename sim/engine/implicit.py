@@ -25,8 +25,8 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.graphs import ChunkGraph
 from bubblecal.sim.engine.implicit_observables import ImplicitObservables
 from bubblecal.sim.engine.implicit_settings import GAS_P0_DEFAULT, implicit_settings
@@ -44,6 +44,8 @@ from bubblecal.sim.engine.kernels.shell import ShellForceField, ShellParams
 from bubblecal.sim.engine.mesh import ShellMesh
 from bubblecal.sim.engine.particles import P_BACK_DEFAULT
 from bubblecal.sim.engine.system import resolve_dtype
+
+wp = require("warp", "sim")
 
 __all__ = ["ImplicitShellSystem"]
 

@@ -13,9 +13,11 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.health import Status
+
+wp = require("warp", "sim")
 
 __all__ = ["HealthThresholds", "ImplicitObservables"]
 

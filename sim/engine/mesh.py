@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.data import DEFAULT_UNITS, UnitSystem
 from bubblecal.sim.engine.geometry import (
     dihedral_angles,
@@ -321,7 +322,7 @@ def icosphere(radius_dpd: float, subdivisions: int, center=(0.0, 0.0, 0.0)) -> S
     ValueError
         On a non-positive radius or a subdivision level out of range.
     """
-    import trimesh
+    trimesh = require("trimesh", "sim")
 
     if not (isinstance(radius_dpd, (int, float)) and math.isfinite(radius_dpd) and radius_dpd > 0):
         raise ValueError(f"radius_dpd must be a positive finite number, got {radius_dpd!r}")

@@ -29,11 +29,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.graphs import ChunkGraph
 from bubblecal.sim.engine.kernels.fire import ACTIVE, CONVERGED, FROZEN, MAX_STEPS, NONFINITE, fire_kernels
 from bubblecal.sim.engine.minimize_device_async import ReplicaAsyncFire
+
+wp = require("warp", "sim")
 
 __all__ = ["DeviceFire", "DeviceFireResult", "numpy_force_fn", "STATUS_NAMES", "cuda_threads_per_replica"]
 

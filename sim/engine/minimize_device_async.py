@@ -12,9 +12,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.fire import NONFINITE
+
+wp = require("warp", "sim")
 
 __all__ = ["ReplicaAsyncFire"]
 

@@ -29,9 +29,11 @@ import math
 import time
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
+
+wp = require("warp", "sim")
 
 __all__ = ["neighbor_kernels", "grid_for_boxes", "NeighbourLists"]
 

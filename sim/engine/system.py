@@ -34,8 +34,8 @@ import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.graphs import ChunkGraph
 from bubblecal.sim.engine.kernels.bounce import bounce_kernels
 from bubblecal.sim.engine.kernels.integrate import integrate_kernels
@@ -44,6 +44,8 @@ from bubblecal.sim.engine.neighbors import NeighbourLists, grid_for_boxes, neigh
 from bubblecal.sim.engine.particles import N_TYPES, VERTEX, WALL
 from bubblecal.sim.engine.replicas import ReplicaSpec
 from bubblecal.sim.engine.system_observables import ParticleObservables
+
+wp = require("warp", "sim")
 
 __all__ = ["ParticleSystem", "resolve_dtype"]
 

@@ -8,9 +8,11 @@ method synchronises with the device.  Units: DPD (length r_c = 250 nm, energy k_
 from __future__ import annotations
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.particles import GAS, N_TYPES, VERTEX, WALL, WATER
+
+wp = require("warp", "sim")
 
 __all__ = ["ParticleObservables"]
 

@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.sim.engine import bubble_spec
 from bubblecal.sim.validation.result import CheckResult
 
@@ -51,7 +52,7 @@ def block_mean_sem(samples: np.ndarray, n_blocks: int = 10) -> tuple[float, floa
 
 def _wp_quiet():
     """Warp with its messages off."""
-    import warp as wp
+    wp = require("warp", "sim")
 
     wp.config.quiet = True
     return wp

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from bubblecal._extras import require
+
 __all__ = ["warp_quiet", "float64_field", "to_device"]
 
 
 def warp_quiet():
     """Warp, with its messages off and initialised (imported on first use)."""
-    import warp as wp
+    wp = require("warp", "sim")
 
     wp.config.quiet = True
     wp.init()

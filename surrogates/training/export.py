@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.data import PARAMETER_UNITS, SHELL_PARAMETERS
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.features import RESPONSE_SCALES, x_per_size
@@ -186,7 +187,8 @@ def export_onnx(model: TrainedMLP, path: str | Path) -> Path:
         ``path``: input ``u`` float32 (n, 7) = (ka, kb, b1, b2, a3, a4, x) [DPD units]; output ``y`` float32
         (n, 1) [DPD force or DPD length].
     """
-    import torch
+    torch = require("torch", "train")
+    require("onnx", "train")  # the exporter's own import, checked before anything is written
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.surrogates.features import response_scale
 
 __all__ = ["onnx_predict", "scaled_max_rel_diff", "onnx_parity"]
@@ -50,7 +51,7 @@ def onnx_predict(onnx_path: str | Path, u) -> np.ndarray:
         Raw network outputs (float32) [DPD force or DPD length; over its size scale for a network over the
         diameter].
     """
-    import onnxruntime as ort
+    ort = require("onnxruntime", "train")
 
     sess = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
     name = sess.get_inputs()[0].name

@@ -9,8 +9,10 @@ schedule needs no re-capture). Internal to training; not part of the curated API
 
 from __future__ import annotations
 
-import torch
-from torch import nn
+from bubblecal._extras import require
+
+torch = require("torch", "train")
+nn = torch.nn
 
 __all__ = ["EagerSteps", "GraphSteps"]
 

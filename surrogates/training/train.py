@@ -21,11 +21,13 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-import torch
-from torch import nn
 
+from bubblecal._extras import require
 from bubblecal.surrogates.mlp import mlp_forward
 from bubblecal.surrogates.training.steps import EagerSteps, GraphSteps
+
+torch = require("torch", "train")
+nn = torch.nn
 
 __all__ = ["TrainConfig", "TrainedMLP", "NormalisedMLP", "train_mlp", "numpy_forward"]
 

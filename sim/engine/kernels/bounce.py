@@ -27,9 +27,10 @@ The kick's random numbers come from the particle's persistent id and the step.
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
+
+wp = require("warp", "sim")
 
 
 @functools.cache

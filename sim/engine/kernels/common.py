@@ -3,7 +3,9 @@ periodic minimum image (lengths in DPD units)."""
 
 import functools
 
-import warp as wp
+from bubblecal._extras import require
+
+wp = require("warp", "sim")
 
 
 def kernel_decorator(dtype, family: str):

@@ -15,9 +15,10 @@ the caller's units (DPD for the quasi-static tier); FIRE's mass is the caller's 
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
+
+wp = require("warp", "sim")
 
 __all__ = ["ACTIVE", "CONVERGED", "MAX_STEPS", "NONFINITE", "FROZEN", "fire_kernels"]
 

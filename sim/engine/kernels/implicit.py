@@ -12,9 +12,10 @@ the second half kick (``finish_kick``).
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
+
+wp = require("warp", "sim")
 
 __all__ = ["implicit_kernels", "N_TAB", "T_NKT", "T_PEXT", "T_KBT", "T_GAMMA", "T_MASS", "T_NV", "T_NFREE"]
 

@@ -16,9 +16,10 @@ displacement and speed (used to schedule the next rebuild).
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
+
+wp = require("warp", "sim")
 
 
 @functools.cache

@@ -22,9 +22,10 @@ list; the reaction is atomically added to the solvent particle.
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator, min_image
+
+wp = require("warp", "sim")
 
 #: Offset added to vertex indices to form their persistent ids in the pair hash.
 VERTEX_ID_OFFSET = 1 << 30

@@ -20,10 +20,11 @@ replica r sits at row ``row_start[r] + v``.  DPD units throughout.
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.fire import ACTIVE
+
+wp = require("warp", "sim")
 
 __all__ = ["qs_kernels", "PLATE_TOP", "PLATE_BOTTOM", "PLATE_CONTACTS", "AX_ZMAX", "AX_ZMIN", "AX_TOP", "AX_BOTTOM"]
 

@@ -7,9 +7,11 @@ dtype, the replicas' vertex ``offsets`` / ``counts`` and centres ``zc``; ``f()``
 """
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.protocols.md_loading.kernels import md_loading_kernels
+
+wp = require("warp", "sim")
 
 __all__ = ["ImplicitAdapter", "ExplicitAdapter", "ANCHOR_BETA"]
 

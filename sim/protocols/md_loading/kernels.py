@@ -6,9 +6,10 @@ axial extent (DPD units).  The plate law is that of :class:`bubblecal.sim.protoc
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
+
+wp = require("warp", "sim")
 
 __all__ = ["md_loading_kernels"]
 

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.sim.protocols.health_status import STATUS_MAP
 from bubblecal.sim.protocols.md_loading.steps import ProtocolSteps
 from bubblecal.sim.protocols.plates import PlateContact, plate_cap_distance
@@ -54,7 +55,7 @@ def run_md_protocol(adapter, mesh, protocol: str, grid: np.ndarray, steps: Proto
     ValueError
         If a compression displacement brings the plates within half the LJ range of the reference's centre.
     """
-    import warp as wp
+    wp = require("warp", "sim")
 
     from bubblecal.sim.engine import pole_patches
     from bubblecal.sim.protocols.md_loading.kernels import md_loading_kernels

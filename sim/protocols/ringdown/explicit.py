@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.sim.protocols.ringdown.prediction import _schedule, breathing_mode_prediction
 from bubblecal.sim.protocols.ringdown.recording import (
     _common_info,
@@ -22,7 +23,7 @@ def _run_explicit(diameter_um, p, seeds, *, device, mass_factor, perturbation, e
                   record_every, dt, subdivisions, record_vertices, vertex_every, max_vertices, n_periods,
                   samples_per_period, health_every, progress, settings) -> RingdownBatch:
     """The explicit tier's ringdown (arguments checked and converted by :func:`ringdown_batch`)."""
-    import warp as wp
+    wp = require("warp", "sim")
 
     from bubblecal.sim.engine import ParticleSystem, bubble_spec
     from bubblecal.sim.engine.health import HealthConfig, HealthMonitor

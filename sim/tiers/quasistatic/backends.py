@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bubblecal._extras import require
 from bubblecal.sim.protocols.plates import PlateContact, plate_cap_distance
 from bubblecal.sim.tiers.quasistatic.settings import FireSettings, IdealGas, _check_params
 from bubblecal.sim.tiers.quasistatic.thermal_contact import (
@@ -52,7 +53,7 @@ class _DeviceChain:
                  loads: np.ndarray | None = None, replica_loads: np.ndarray | None = None,
                  radii: Sequence[float] | None = None, plate_heights: np.ndarray | None = None,
                  centers: Sequence[float] | None = None):
-        import warp as wp
+        wp = require("warp", "sim")
 
         from bubblecal.sim.engine.kernels.qs_loading import qs_kernels
         from bubblecal.sim.engine.kernels.shell import ShellForceField

@@ -13,11 +13,12 @@ kb in DPD energy (k_BT), c0 in 1 / DPD length; forces in DPD force units.
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.shell.geometry import geometry_funcs
 from bubblecal.sim.engine.kernels.shell.layout import E_BEND, P_C0, P_KB_JUL, P_KB_KANTOR
+
+wp = require("warp", "sim")
 
 __all__ = ["bending_kernels"]
 

@@ -10,9 +10,10 @@ optional inside gas pressure (DPD pressure) bound by :meth:`ShellForceField.set_
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
+
+wp = require("warp", "sim")
 
 __all__ = ["constraint_kernels"]
 

@@ -7,10 +7,11 @@ Read by :meth:`ShellForceField.health`; thresholds are the caller's (e.g. the im
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.shell.geometry import geometry_funcs
+
+wp = require("warp", "sim")
 
 __all__ = ["diagnostic_kernels"]
 

@@ -19,8 +19,8 @@ build).  Units: DPD (length r_c = 250 nm, energy k_BT, force k_BT / r_c).
 from collections.abc import Sequence
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.shell.launch import launch_forces, shell_kernels
 from bubblecal.sim.engine.kernels.shell.layout import (
     ENERGY_TERMS,
@@ -38,6 +38,8 @@ from bubblecal.sim.engine.kernels.shell.params import FORCE_MODES, ShellParams
 from bubblecal.sim.engine.kernels.shell.self_avoid import self_avoid_grid_plan
 from bubblecal.sim.engine.kernels.shell.topology import pack_topology, param_row, resolve_replicas, vertex_csr
 from bubblecal.sim.engine.mesh import ShellMesh
+
+wp = require("warp", "sim")
 
 __all__ = ["ShellForceField"]
 

@@ -12,13 +12,14 @@ device (docs/decisions.md).
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.shell.bending import bending_kernels
 from bubblecal.sim.engine.kernels.shell.constraints import constraint_kernels
 from bubblecal.sim.engine.kernels.shell.layout import P_KB_KANTOR
 from bubblecal.sim.engine.kernels.shell.lim import lim_kernels
+
+wp = require("warp", "sim")
 
 __all__ = ["gather_kernels"]
 

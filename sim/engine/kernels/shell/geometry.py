@@ -9,7 +9,9 @@ Lengths are DPD lengths (r_c = 250 nm); angles in radians.
 
 import functools
 
-import warp as wp
+from bubblecal._extras import require
+
+wp = require("warp", "sim")
 
 __all__ = ["geometry_funcs"]
 

@@ -9,8 +9,7 @@ scatter which also accumulates energies), Juelicher bending (four passes, five w
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.shell.bending import bending_kernels
 from bubblecal.sim.engine.kernels.shell.constraints import constraint_kernels
 from bubblecal.sim.engine.kernels.shell.diagnostics import diagnostic_kernels
@@ -18,6 +17,8 @@ from bubblecal.sim.engine.kernels.shell.gather import gather_kernels
 from bubblecal.sim.engine.kernels.shell.lim import lim_kernels
 from bubblecal.sim.engine.kernels.shell.self_avoid import self_avoid_kernels
 from bubblecal.sim.engine.kernels.shell.viscosity import viscosity_kernels
+
+wp = require("warp", "sim")
 
 __all__ = ["shell_kernels", "launch_forces"]
 

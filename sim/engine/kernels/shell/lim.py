@@ -12,8 +12,7 @@ already has.  Forces in DPD force units (k_BT / r_c), energies in k_BT.
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.shell.constraints import constraint_kernels
 from bubblecal.sim.engine.kernels.shell.layout import (
@@ -31,6 +30,8 @@ from bubblecal.sim.engine.kernels.shell.layout import (
     P_PB,
     P_V0,
 )
+
+wp = require("warp", "sim")
 
 __all__ = ["lim_kernels"]
 

@@ -8,8 +8,8 @@ method synchronises with the device; results are float64, DPD units (length r_c 
 # (no "from __future__ import annotations": Warp must see the closure types of the kernel signatures)
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.shell.launch import launch_forces
 from bubblecal.sim.engine.kernels.shell.layout import (
     E_AREA,
@@ -20,6 +20,8 @@ from bubblecal.sim.engine.kernels.shell.layout import (
     P_KVTOT,
     P_PB,
 )
+
+wp = require("warp", "sim")
 
 __all__ = ["ShellFieldMeasurements"]
 

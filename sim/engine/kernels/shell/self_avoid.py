@@ -15,11 +15,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import warp as wp
 
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.shell.layout import E_SA, P_SA_EPS, P_SA_RC
 from bubblecal.sim.engine.mesh import ShellMesh
+
+wp = require("warp", "sim")
 
 __all__ = ["self_avoid_kernels", "SelfAvoidGridPlan", "self_avoid_grid_plan"]
 

@@ -8,10 +8,11 @@ velocities in DPD velocity units.
 
 import functools
 
-import warp as wp
-
+from bubblecal._extras import require
 from bubblecal.sim.engine.kernels.common import kernel_decorator
 from bubblecal.sim.engine.kernels.shell.layout import P_ETA
+
+wp = require("warp", "sim")
 
 __all__ = ["viscosity_kernels"]
 
