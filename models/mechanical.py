@@ -44,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import numpyro
@@ -329,6 +330,8 @@ def mechanical_prediction(samples: Mapping, surrogate: Callable, spec: PriorSpec
     noise_name = noise_name or spec.mechanical_noise_name
     values = {k: jnp.asarray(samples[k])[:, None] for k in spec.parameters}
     params, d0 = shell_params(values, spec)  # (S, 1, 6), (S, 1)
-    yhat = predict_mechanical(surrogate, setup, params, d0, jnp.asarray(np.asarray(x, float))[None, :])
+    # a float array in JAX's default precision, concrete or traced (the prediction may run under jit)
+    x = jnp.asarray(x, dtype=jax.dtypes.canonicalize_dtype(np.float64))
+    yhat = predict_mechanical(surrogate, setup, params, d0, x[None, :])
     sigma = jnp.asarray(samples[noise_name])[:, None]
     return yhat, noise_sd(yhat, sigma, sd_floor_for(y_scale, sd_floor_rel))

@@ -2,8 +2,9 @@
 
 Each draw is one eager trace of the model (the latent sites drawn from their priors, the observed sites
 scored at those values), so no whole program is compiled for it (only its operations, once per shape: pad
-curves to one length, :func:`~bubblecal.models.pad_curve`, to share them); a calibration runs it before sampling
-(:mod:`bubblecal.workflows.calibrate.preflight`) to name a dataset whose likelihood is not finite.
+curves to one length, :func:`~bubblecal.models.pad_curve`, to share them): a quick check of any model. The
+calibration's preflight (:mod:`bubblecal.workflows.calibrate.preflight`) evaluates its draws with phase 1's
+compiled programs instead, which the run needs anyway.
 """
 
 from __future__ import annotations

@@ -138,6 +138,41 @@ def _param_rows(base: dict, samples: Mapping[str, np.ndarray], names, map_index:
     return rows
 
 
+#: Points of the dense grid of the predictive bands (figures).
+_GRID_POINTS = 80
+#: Prediction points (data + grid) are padded to a multiple of this, so curves share compiled programs.
+_POINT_BUCKET = 64
+
+
+def _curve_predictions(predict, thin: Mapping, samples: Mapping, imap: int | None, surrogate, spec, x, grid,
+                       y_scale: float):
+    """Predictive (mean, sd) at the data and on the grid, and the MAP model curve on the grid, in one call.
+
+    The thinned draws and the MAP draw are evaluated together at the data and grid points (padded to a
+    multiple of :data:`_POINT_BUCKET` with the last grid point), through ``predict`` with the surrogate as
+    a :class:`~bubblecal.models.TracedSurrogate` (its weights are arguments, not constants).
+    Returns numpy arrays ``(mu, sd)`` (S, len(x)), ``(gmu, gsd)`` (S, len(grid)), and the MAP curve
+    (len(grid),) or None without a MAP index.
+    """
+    from bubblecal.models import TracedSurrogate, mechanical_prediction
+
+    names = [*spec.parameters, spec.mechanical_noise_name]
+    s = len(np.asarray(thin[names[0]]))
+    best = imap if imap is not None else 0
+    values = {k: np.append(np.asarray(thin[k]), np.asarray(samples[k])[best]) for k in names}
+    n, m = len(x), len(grid)
+    points = np.concatenate([x, grid])
+    points = np.pad(points, (0, -len(points) % _POINT_BUCKET), mode="edge")
+    wrapped = TracedSurrogate.wrap(surrogate)
+    if isinstance(wrapped, TracedSurrogate):
+        mu, sd = predict(values, wrapped, points, y_scale)
+    else:  # another callable (e.g. a closed-form law) cannot be an argument of a program: evaluated as is
+        mu, sd = mechanical_prediction(values, surrogate, spec, points, y_scale=y_scale)
+    mu, sd = np.asarray(mu, dtype=float), np.asarray(sd, dtype=float)
+    map_curve = mu[s, n:n + m] if imap is not None else None
+    return mu[:s, :n], sd[:s, :n], mu[:s, n:n + m], sd[:s, n:n + m], map_curve
+
+
 def summarise_agent(result, config) -> None:
     """Fill ``result.summary``, ``result.ess``, ``result.bands``, ``result.population_predictive``; write CSVs.
 
@@ -155,6 +190,10 @@ def summarise_agent(result, config) -> None:
     from bubblecal.inference import map_index, predictive_band, predictive_crps
     from bubblecal.models import mechanical_prediction, sample_population_predictive
     from bubblecal.models.acoustic import acoustic_prediction
+
+    # one compiled prediction per agent: curves of one network shape (and point bucket) share its program
+    predict = jax.jit(lambda values, surrogate, x, y_scale: mechanical_prediction(values, surrogate, ap.spec, x,
+                                                                                  y_scale=y_scale))
 
     ap = result.plan
     spec = ap.spec
@@ -184,27 +223,21 @@ def summarise_agent(result, config) -> None:
         else:
             x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
             y_scale = float(np.max(np.abs(y)))
-            mu, sd = mechanical_prediction(thin, d["surrogate"], spec, x, y_scale=y_scale)
-            mu, sd = np.asarray(mu, dtype=float), np.asarray(sd, dtype=float)
+            grid = np.linspace(0.0, float(x.max()) * 1.02, _GRID_POINTS)
+            mu, sd, gmu, gsd, map_curve = _curve_predictions(predict, thin, samples, imap, d["surrogate"], spec,
+                                                             x, grid, y_scale)
             band = predictive_band(mu, sd, 0.9)
             crps = predictive_crps(mu, sd, y, replicates=config.crps_replicates, seed=rng)
             conv, unit = _y_to_physical(kind)
             cov = band.coverage(y)
             crps_mean = float(conv(crps.mean))
             crps_sd = float(conv(np.std(crps.replicates, ddof=1))) if crps.replicates.size > 1 else 0.0
-            grid = np.linspace(0.0 if kind == "compression" else 0.0, float(x.max()) * 1.02, 80)
-            gmu, gsd = mechanical_prediction(thin, d["surrogate"], spec, grid, y_scale=y_scale)
-            gband = predictive_band(np.asarray(gmu, dtype=float), np.asarray(gsd, dtype=float), 0.9)
+            gband = predictive_band(gmu, gsd, 0.9)
             # the model curve itself (no observation noise): the spread of the surrogate prediction
-            gmodel = np.quantile(np.asarray(gmu, dtype=float), [0.05, 0.5, 0.95], axis=0)
+            gmodel = np.quantile(gmu, [0.05, 0.5, 0.95], axis=0)
             bands[name] = {"kind": kind, "x": x, "y": y, "median": band.median, "lower": band.lower,
                            "upper": band.upper, "grid": grid, "grid_median": gband.median, "grid_lower": gband.lower,
-                           "grid_upper": gband.upper, "grid_model": gmodel,
-                           "map_curve": (np.asarray(mechanical_prediction({k: np.asarray(v)[imap:imap + 1]
-                                                                           for k, v in samples.items()},
-                                                                          d["surrogate"], spec, grid,
-                                                                          y_scale=y_scale)[0])[0]
-                                         if imap is not None else None)}
+                           "grid_upper": gband.upper, "grid_model": gmodel, "map_curve": map_curve}
             names = [*spec.parameters, noise]
             diameter = float(obj.diameter_um)
         base = {"agent": ap.agent, "workflow": ap.workflow, "dataset": name, "kind": kind, "diameter_um": diameter,

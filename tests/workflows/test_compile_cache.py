@@ -138,3 +138,28 @@ def test_two_processes_share_one_folder(tmp_path):
         assert _result_ok(out) and "SAY" not in out and "Error" not in err
     out, err = _finish(_run(folder))
     assert _result_ok(out) and _hits(err) == len(_entries(folder)) > 0 and "SAY" not in out
+
+
+def test_calibrate_with_an_unusable_cache_warns_once_and_keeps_its_phases(tmp_path, monkeypatch, synthetic_bundle):
+    from typer.testing import CliRunner
+
+    from bubblecal.workflows.cli import app
+
+    args = ["calibrate", "--agent", "definity", "--workflow", "reduced", "--curve", "definity_compression_2.1um",
+            "--bundle", str(synthetic_bundle), "--population", "120", "--phase2-samples", "120", "--mcmc-steps", "2",
+            "--no-figures", "--out", str(tmp_path / "out")]
+    blocker = tmp_path / "cache-is-a-file"
+    blocker.write_text("x")
+    monkeypatch.setenv(CACHE_ENV, str(blocker))
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert text.count(f"compilation cache {blocker}: it is a file, not a folder; running without it") == 1
+    phases = sorted(p.name for p in (tmp_path / "out" / "definity" / "reduced").glob("phase*"))
+    assert len(phases) == 3  # phase 1, 2 and 3 of the one curve
+    absent = tmp_path / "never-created"
+    monkeypatch.setenv(CACHE_ENV, str(absent))
+    result = CliRunner().invoke(app, [*args, "--no-cache"])
+    assert result.exit_code == 0, result.output
+    assert not absent.exists() and "compilation cache" not in result.output
+    assert sorted(p.name for p in (tmp_path / "out" / "definity" / "reduced").glob("phase*")) == phases
