@@ -14,6 +14,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
+from bubblecal.workflows.choices import LoadingProtocol, Units, choice_value
 from bubblecal.workflows.console import console, fail, make_table
 from bubblecal.workflows.domain import prior_box_domain_warnings
 
@@ -26,8 +27,8 @@ def _finite(value: float) -> float | None:
 def compare(
     curve: str = typer.Option(None, "--curve", help="Shipped reference curve, e.g. definity-2.1 or sonovue-3.2."),
     data: Path = typer.Option(None, "--data", help="Your curve CSV instead of --curve (needs --kind and --units)."),
-    kind: str = typer.Option(None, "--kind", help="compression | indentation (with --data)."),
-    units: str = typer.Option("dpd", "--units", help="dpd | physical (with --data)."),
+    kind: LoadingProtocol = typer.Option(None, "--kind", help="Loading protocol of --data."),
+    units: Units = typer.Option("dpd", "--units", help="Units of --data."),
     surrogate: Path = typer.Option(..., "--surrogate", help="Mechanical surrogate .npz (bubblecal surrogates train)."),
     priors: str = typer.Option(None, "--priors", help="Priors name or TOML path (default: the agent's reduced "
                                                       "workflow; with --data, <kind's agent>_reduced)."),
@@ -47,6 +48,7 @@ def compare(
     from bubblecal.surrogates import SurrogateFormatError, load
 
     # ---- inputs, all checked before any sampling ------------------------------------------------
+    kind, units = choice_value(kind), choice_value(units)
     if (curve is None) == (data is None):
         raise fail("give exactly one of --curve NAME or --data FILE")
     for name, value, minimum in (("--particles", particles, 2), ("--replicas", replicas, 1),
