@@ -96,11 +96,11 @@ def compare(
 
     key_tm, key_nuts = jax.random.split(jax.random.PRNGKey(seed))
     console.print(f"curve {name} ({curve_kind}, {obs.x.size} points), priors {spec.name}, surrogate {surrogate}")
-    tm = TMCMC(mechanical_model, num_particles=particles, num_replicas=replicas)
+    tm = TMCMC(mechanical_model, num_particles=particles, num_replicas=replicas, progress=True)
     tm.run(key_tm, obs.x, obs.y, model_s, spec)
     nuts = run_nuts(mechanical_model, obs.x, obs.y, model_s, spec, rng_key=key_nuts,
                     num_warmup=nuts_samples if nuts_warmup is None else nuts_warmup, num_samples=nuts_samples,
-                    num_chains=nuts_chains, init_strategy=init_to_value(values=nuts_init_values(spec)))
+                    num_chains=nuts_chains, init_strategy=init_to_value(values=nuts_init_values(spec)), progress=True)
     names = [*spec.parameters, spec.mechanical_noise_name]
     result = compare_posteriors(tm, nuts, names=names)
 
