@@ -93,7 +93,8 @@ def run_nuts(
     max_tree_depth : int
         NUTS maximum tree depth.
     progress : bool
-        Show the warm-up and sampling phases (a rich line); the draws do not depend on it.
+        Show the warm-up and sampling phases (a rich line); the draws do not depend on it, but the two phases
+        are compiled separately (one compilation more than without it).
     init_strategy : callable or None
         A NumPyro init strategy (default ``init_to_uniform``), e.g. ``init_to_value(values=...)`` to
         start chains away from a flat region of the likelihood.
