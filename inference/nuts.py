@@ -1,4 +1,9 @@
-"""NUTS cross-check runner: NumPyro NUTS over several chains with r_hat / bulk ESS per parameter."""
+"""NUTS cross-check runner: NumPyro NUTS over several chains with r_hat / bulk ESS per parameter.
+
+Progress is drawn with rich (``progress=True``: the warm-up and sampling phases on one line), not with
+NumPyro's own bar: with it on, the run is ``MCMC.warmup`` then ``MCMC.run`` from the warmed-up state and its
+key, which continues the same chains, so a seed gives the same draws with progress on or off.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,8 @@ import jax
 import numpy as np
 from numpyro.diagnostics import summary
 from numpyro.infer import MCMC, NUTS, init_to_uniform
+
+from bubblecal._progress import ProgressLine
 
 
 @dataclass
@@ -111,7 +118,7 @@ def run_nuts(
     target_accept_prob: float = 0.8,
     dense_mass: bool = False,
     max_tree_depth: int = 10,
-    progress_bar: bool = False,
+    progress: bool = False,
     init_strategy: Callable | None = None,
     **kwargs,
 ) -> NUTSResult:
@@ -136,8 +143,9 @@ def run_nuts(
         Dense mass matrix adaptation.
     max_tree_depth : int
         NUTS maximum tree depth.
-    progress_bar : bool
-        NumPyro's progress bar.
+    progress : bool
+        Show the warm-up and sampling phases (a rich line); the draws do not depend on it, but the two phases
+        are compiled separately (one compilation more than without it).
     init_strategy : callable or None
         A NumPyro init strategy (default ``init_to_uniform``), e.g. ``init_to_value(values=...)`` to
         start chains away from a flat region of the likelihood.
@@ -170,9 +178,21 @@ def run_nuts(
         num_samples=num_samples,
         num_chains=num_chains,
         chain_method=chain_method,
-        progress_bar=progress_bar,
+        progress_bar=False,
     )
-    mcmc.run(rng_key, *args, extra_fields=("diverging", "potential_energy"), **kwargs)
+    if progress and num_warmup > 0:
+        with ProgressLine(f"NUTS {num_chains} chain(s)", total=2) as line:
+            line.update(info=f"warm-up: {num_warmup} steps per chain")
+            mcmc.warmup(rng_key, *args, **kwargs)
+            line.update(advance=1, info=f"sampling: {num_samples} draws per chain")
+            # the warmed-up state carries the chains' keys: running from them continues the same chains
+            mcmc.run(mcmc.post_warmup_state.rng_key, *args, extra_fields=("diverging", "potential_energy"), **kwargs)
+            line.update(advance=1)
+    else:
+        with ProgressLine(f"NUTS {num_chains} chain(s)", total=1, enabled=progress) as line:
+            line.update(info=f"sampling: {num_samples} draws per chain")
+            mcmc.run(rng_key, *args, extra_fields=("diverging", "potential_energy"), **kwargs)
+            line.update(advance=1)
     by_chain = {k: np.asarray(v) for k, v in mcmc.get_samples(group_by_chain=True).items()}
     flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in by_chain.items()}
     summ = summary(by_chain, group_by_chain=True)

@@ -36,7 +36,7 @@ from bubblecal.data import DEFAULT_UNITS as units
 from bubblecal.data import load_reference
 from bubblecal.priors import load_priors
 from bubblecal.surrogates import default_bundle_path, load_bundle
-from bubblecal.workflows.sensitivity import averaging_range, surrogate_sensitivity
+from bubblecal.workflows import averaging_range, surrogate_sensitivity
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
 N, POINTS = (256, 16) if SMALL else (2048, 40)

@@ -11,14 +11,16 @@ Pipelines: :mod:`~bubblecal.workflows.calibrate` (the main job: config, plan, ph
 Command line: :mod:`~bubblecal.workflows.cli` (the typer root) and one thin ``cli_<group>`` module per
 command group or top-level command; :mod:`~bubblecal.workflows.console` (shared console, errors, tables).
 Nothing outside this layer imports it.  The pipelines' entry points are exported here for notebooks and
-scripts (``from bubblecal.workflows import CalibrationConfig, make_plan, run_calibration``); they are imported on
-first access, so that the command line starts without loading JAX.
+scripts (``from bubblecal.workflows import CalibrationConfig, make_plan, run_calibration``, ``run_evidence``,
+``confirm_run``, ``surrogate_sensitivity``); they are imported on first access, so that the command line starts
+without loading JAX.  The closed sets of option values are enums in :mod:`~bubblecal.workflows.choices`.
 """
 
 from bubblecal._lazy import lazy_exports
 
 __all__ = ["CalibrationConfig", "CalibrationError", "config_from_agents", "make_plan", "run_calibration",
-           "run_agent", "read_phase", "app", "main"]
+           "run_agent", "read_phase", "run_evidence", "kass_raftery", "confirm_run", "find_runs",
+           "surrogate_sensitivity", "averaging_range", "app", "main"]
 
 _LAZY = {
     "CalibrationConfig": "bubblecal.workflows.calibrate",
@@ -28,6 +30,12 @@ _LAZY = {
     "run_calibration": "bubblecal.workflows.calibrate",
     "run_agent": "bubblecal.workflows.calibrate",
     "read_phase": "bubblecal.workflows.calibrate",
+    "run_evidence": "bubblecal.workflows.evidence",
+    "kass_raftery": "bubblecal.workflows.evidence",
+    "confirm_run": "bubblecal.workflows.confirm",
+    "find_runs": "bubblecal.workflows.confirm",
+    "surrogate_sensitivity": "bubblecal.workflows.sensitivity",
+    "averaging_range": "bubblecal.workflows.sensitivity",
     "app": "bubblecal.workflows.cli",
     "main": "bubblecal.workflows.cli",
 }

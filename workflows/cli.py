@@ -18,7 +18,7 @@ from bubblecal.workflows.console import fail
 #: The exit-status convention of every command (docs/data-formats.md, "Exit status").
 EXIT_STATUS_HELP = ("Exit status of every command: 0 success; 1 the run failed or an input is unusable (the message "
                     "names the file, option or value and what is allowed); 2 usage error (unknown option, missing "
-                    "argument, a value of the wrong type).")
+                    "argument, a value of the wrong type or outside an option's listed choices).")
 
 app = typer.Typer(
     name="bubblecal",

@@ -18,31 +18,38 @@ from bubblecal.data import AGENTS
 from bubblecal.workflows.calibrate import (
     DEFAULT_PHASE2_SAMPLES,
     DEFAULT_POPULATION,
-    DEVICES,
     PAPER_POPULATION,
-    WORKFLOWS,
     CalibrationConfig,
 )
+from bubblecal.workflows.choices import ALL_AGENTS, AgentOrAll, JaxDevice, Phase3, Sampler, Tier, Workflow, choice_value
 from bubblecal.workflows.confirm import DEFAULT_TIER
 from bubblecal.workflows.console import console, fail
 from bubblecal.workflows.evidence import DEFAULT_REPLICAS, PARETO_K_LIMIT
 
 #: The defaults of ``calibrate`` (and of the options ``evidence`` shares with it): one source of truth.
 _D = CalibrationConfig()
-#: ``--agent`` value selecting every agent.
-ALL_AGENTS = "all"
-_AGENT_HELP = " | ".join((*AGENTS, ALL_AGENTS))
 
 
 class _PhaseProgress:
-    """A rich progress bar over the phases of one agent, fed by run_staged's progress messages."""
+    """A rich progress bar over the phases of one agent, fed by run_staged's progress messages, and a line
+    for the running TMCMC phase's stages (stage, beta, ESS, acceptance, log Z so far; the bar is beta)."""
 
     def __init__(self, progress, total: int, label: str):
         """Add a task of ``total`` phases labelled ``label`` to the rich ``progress``."""
         self.progress = progress
         self.task = progress.add_task(label, total=total)
+        self.stage_task = None
         self.label = label
         self.t0 = time.perf_counter()
+
+    def stage(self, replica: int, row) -> None:
+        """Show one TMCMC stage row (the reporter of ``TMCMC(progress=...)``)."""
+        from bubblecal.inference.tmcmc import stage_text
+
+        if self.stage_task is None:
+            self.stage_task = self.progress.add_task("", total=1.0)
+        self.progress.update(self.stage_task, completed=min(float(row["beta"]), 1.0),
+                             description=f"  TMCMC {escape(stage_text(row))}")
 
     def __call__(self, message: str) -> None:
         """Show ``message``; a message that ends a phase advances the bar and is printed."""
@@ -53,15 +60,16 @@ class _PhaseProgress:
 
 
 def calibrate(
-    agent: str = typer.Option(ALL_AGENTS, "--agent", help=_AGENT_HELP),
-    workflow: str = typer.Option(_D.workflow, "--workflow", help=" | ".join(WORKFLOWS)),
-    sampler: str = typer.Option(_D.sampler, "--sampler", help="tmcmc (staged phases 1-2-3) | nuts (joint model)"),
+    agent: AgentOrAll = typer.Option(ALL_AGENTS, "--agent", case_sensitive=False, help="Contrast agent(s)."),
+    workflow: Workflow = typer.Option(_D.workflow, "--workflow", help="Priors set and data."),
+    sampler: Sampler = typer.Option(_D.sampler, "--sampler", help="tmcmc (staged phases 1-2-3) | nuts (joint "
+                                    "model)."),
     population: int = typer.Option(_D.population, "--population", help="TMCMC particles per phase (default "
                                    f"{DEFAULT_POPULATION}; --paper: {PAPER_POPULATION})."),
     paper: bool = typer.Option(_D.paper, "--paper", help="Published settings: N = 50,000, CoV 0.8/0.6, scaling "
                                "0.04."),
     out: Path = typer.Option(_D.out, "--out", help="Output folder (OUT/<agent>/<workflow>/...)."),
-    device: str = typer.Option(_D.device, "--device", help=f"{' | '.join(DEVICES)} (JAX device)."),
+    device: JaxDevice = typer.Option(_D.device, "--device", help="JAX device."),
     bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
     force: bool = typer.Option(_D.force, "--force", help="Rerun finished phases instead of reusing them."),
     seed: int = typer.Option(_D.seed, "--seed"),
@@ -80,7 +88,7 @@ def calibrate(
     nuts_chains: int = typer.Option(_D.nuts_chains, "--nuts-chains"),
     netcdf: bool = typer.Option(_D.netcdf, "--netcdf/--npz", help="Phase files as ArviZ NetCDF (else .npz)."),
     figures: bool = typer.Option(_D.figures, "--figures/--no-figures", help="Draw figures and report.md."),
-    phase3: str = typer.Option(_D.phase3, "--phase3", help="published (Korali: population prior over p(psi | D), "
+    phase3: Phase3 = typer.Option(_D.phase3, "--phase3", help="published (Korali: population prior over p(psi | D), "
                                "which holds the curve's own data) | exact (leave-one-out psi weights: the joint "
                                "model's per-bubble marginal)."),
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
@@ -91,6 +99,7 @@ def calibrate(
     figures and report.md under OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
+    agent, workflow, sampler, device, phase3 = (choice_value(o) for o in (agent, workflow, sampler, device, phase3))
     _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     priors_map = {}
@@ -151,7 +160,7 @@ def _run_agents(plan, sampler: str, figures: bool) -> None:
                       "{task.total} phases"), TimeElapsedColumn(), console=console, transient=True) as progress:
             reporter = _PhaseProgress(progress, n_phases, ap.agent)
             try:
-                result = run_agent(plan, ap, progress=reporter)
+                result = run_agent(plan, ap, progress=reporter, stages=reporter.stage)
             except RuntimeError as exc:
                 raise fail(f"{ap.agent}: {exc} (finished phases are kept in {ap.out_dir})") from None
         if figures:
@@ -168,13 +177,13 @@ def _run_agents(plan, sampler: str, figures: bool) -> None:
 
 
 def evidence(
-    agent: str = typer.Option(ALL_AGENTS, "--agent", help=_AGENT_HELP),
+    agent: AgentOrAll = typer.Option(ALL_AGENTS, "--agent", case_sensitive=False, help="Contrast agent(s)."),
     population: int = typer.Option(DEFAULT_POPULATION, "--population", help="TMCMC particles per run."),
     replicas: int = typer.Option(DEFAULT_REPLICAS, "--replicas", help="Independent TMCMC runs per model (ln Z ± SE)."),
     curve: list[str] = typer.Option(None, "--curve", help="Only these curves (repeatable)."),
     out: Path = typer.Option(_D.out, "--out", help="Output root: OUT/<agent>/evidence.csv."),
     bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
-    device: str = typer.Option(_D.device, "--device", help=" | ".join(DEVICES)),
+    device: JaxDevice = typer.Option(_D.device, "--device", help="JAX device."),
     seed: int = typer.Option(_D.seed, "--seed"),
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
                                "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
@@ -182,15 +191,15 @@ def evidence(
     """ln Z of the full and the reduced shell per curve (TMCMC, replica mean ± SE), the Bayes factor
     ln B = ln Z_full − ln Z_reduced ± error and its Kass–Raftery verdict, beside PSIS-LOO (elpd_loo ± SE,
     p_loo, points with Pareto k > 0.7, az.compare); CSV + table (and in report.md)."""
+    from bubblecal.inference.tmcmc import StageDisplay
     from bubblecal.surrogates import load_bundle
     from bubblecal.workflows.calibrate import CalibrationError, check_device, resolve_bundle
     from bubblecal.workflows.console import make_table
     from bubblecal.workflows.evidence import run_evidence
 
+    agent, device = choice_value(agent), choice_value(device)
     _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
-    if any(a not in AGENTS for a in agents):
-        raise fail(f"--agent must be definity, sonovue or all, got {agent!r}")
     if population < 100 or replicas < 2:
         raise fail(f"--population must be >= 100 and --replicas >= 2 (for an error bar), got {population}, {replicas}")
     try:
@@ -204,9 +213,13 @@ def evidence(
                 b.get(c.kind, c.diameter_um)
     except (CalibrationError, KeyError) as exc:
         raise fail(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
-    df = run_evidence(agents, b, population=population, replicas=replicas, seed=seed, device=device, out=out,
-                      curves=tuple(curve or ()),
-                      progress=lambda m: console.print(f"  {m}", highlight=False))
+    display = StageDisplay("TMCMC", num_replicas=replicas, console=console)
+    try:
+        df = run_evidence(agents, b, population=population, replicas=replicas, seed=seed, device=device, out=out,
+                          curves=tuple(curve or ()), progress=lambda m: console.print(f"  {m}", highlight=False),
+                          stages=display)
+    finally:
+        display.close()
     table = make_table("Model evidence per curve: full vs reduced shell (ln Z, Bayes factor; PSIS-LOO)",
                        ("curve", "ln Z full", "ln Z reduced", "ln B (full - reduced)", "verdict", "elpd_loo full",
                         "elpd_loo reduced", f"Pareto k > {PARETO_K_LIMIT} (full, reduced)", "LOO compare"))
@@ -225,7 +238,7 @@ def evidence(
 def confirm(
     results: Path = typer.Argument(..., help="A calibration output folder (OUT, OUT/<agent> or "
                                    "OUT/<agent>/<workflow>)."),
-    tier: str = typer.Option(DEFAULT_TIER, "--tier", help="explicit | implicit | quasistatic"),
+    tier: Tier = typer.Option(DEFAULT_TIER, "--tier", help="DPD fidelity tier."),
     device: str = typer.Option("cuda", "--device", help="Warp device: cuda | cpu"),
     subdivisions: int = typer.Option(None, "--subdivisions", help="Icosphere level (default: the tier's)."),
     scale: float = typer.Option(None, "--scale", min=0.01, max=1.0,
@@ -237,6 +250,7 @@ def confirm(
     from bubblecal.workflows.confirm import confirm_run, find_runs
     from bubblecal.workflows.console import make_table
 
+    tier = choice_value(tier)
     if scale is not None and tier not in ("explicit", "implicit"):
         raise fail(f"--scale {scale:g}: only the explicit and implicit tiers run MD protocols (tier is {tier!r})")
     require("warp", "sim")  # the DPD tiers: checked before any run folder is touched

@@ -14,6 +14,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
+from bubblecal.workflows.choices import LoadingProtocol, Units, choice_value
 from bubblecal.workflows.console import console, fail, make_table
 from bubblecal.workflows.domain import prior_box_domain_warnings
 
@@ -26,8 +27,8 @@ def _finite(value: float) -> float | None:
 def compare(
     curve: str = typer.Option(None, "--curve", help="Shipped reference curve, e.g. definity-2.1 or sonovue-3.2."),
     data: Path = typer.Option(None, "--data", help="Your curve CSV instead of --curve (needs --kind and --units)."),
-    kind: str = typer.Option(None, "--kind", help="compression | indentation (with --data)."),
-    units: str = typer.Option("dpd", "--units", help="dpd | physical (with --data)."),
+    kind: LoadingProtocol = typer.Option(None, "--kind", help="Loading protocol of --data."),
+    units: Units = typer.Option("dpd", "--units", help="Units of --data."),
     surrogate: Path = typer.Option(..., "--surrogate", help="Mechanical surrogate .npz (bubblecal surrogates train)."),
     priors: str = typer.Option(None, "--priors", help="Priors name or TOML path (default: the agent's reduced "
                                                       "workflow; with --data, <kind's agent>_reduced)."),
@@ -47,6 +48,7 @@ def compare(
     from bubblecal.surrogates import SurrogateFormatError, load
 
     # ---- inputs, all checked before any sampling ------------------------------------------------
+    kind, units = choice_value(kind), choice_value(units)
     if (curve is None) == (data is None):
         raise fail("give exactly one of --curve NAME or --data FILE")
     for name, value, minimum in (("--particles", particles, 2), ("--replicas", replicas, 1),
@@ -94,11 +96,11 @@ def compare(
 
     key_tm, key_nuts = jax.random.split(jax.random.PRNGKey(seed))
     console.print(f"curve {name} ({curve_kind}, {obs.x.size} points), priors {spec.name}, surrogate {surrogate}")
-    tm = TMCMC(mechanical_model, num_particles=particles, num_replicas=replicas)
+    tm = TMCMC(mechanical_model, num_particles=particles, num_replicas=replicas, progress=True)
     tm.run(key_tm, obs.x, obs.y, model_s, spec)
     nuts = run_nuts(mechanical_model, obs.x, obs.y, model_s, spec, rng_key=key_nuts,
                     num_warmup=nuts_samples if nuts_warmup is None else nuts_warmup, num_samples=nuts_samples,
-                    num_chains=nuts_chains, init_strategy=init_to_value(values=nuts_init_values(spec)))
+                    num_chains=nuts_chains, init_strategy=init_to_value(values=nuts_init_values(spec)), progress=True)
     names = [*spec.parameters, spec.mechanical_noise_name]
     result = compare_posteriors(tm, nuts, names=names)
 

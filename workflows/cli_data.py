@@ -9,14 +9,13 @@ from rich.table import Table
 
 from bubblecal.data import (
     DEFAULT_UNITS,
-    KINDS,
-    UNITS,
     DataError,
     acoustic_observations,
     load_curve,
     reference_curves,
     resolve_reference_name,
 )
+from bubblecal.workflows.choices import LoadingProtocol, Units, choice_value
 from bubblecal.workflows.console import console, fail, make_table
 
 app = typer.Typer(help="Reference force curves and acoustic observations.", no_args_is_help=True)
@@ -81,10 +80,11 @@ def show(name: str = typer.Argument(None, help="Curve name (e.g. definity-2.1, s
 @app.command("check")
 def check(
     file: Path = typer.Argument(..., help="CSV file with a header row."),
-    kind: str = typer.Option(..., "--kind", help=f"Loading protocol: {' | '.join(KINDS)}."),
-    units: str = typer.Option("dpd", "--units", help=f"Units of the file: {' | '.join(UNITS)}."),
+    kind: LoadingProtocol = typer.Option(..., "--kind", help="Loading protocol."),
+    units: Units = typer.Option("dpd", "--units", help="Units of the file."),
 ) -> None:
     """Validate a loading-curve CSV; exit status 1 with every problem listed if it is invalid."""
+    kind, units = choice_value(kind), choice_value(units)
     try:
         curve = load_curve(file, kind, units)
     except DataError as exc:

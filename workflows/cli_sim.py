@@ -14,6 +14,7 @@ from pathlib import Path
 import typer
 
 from bubblecal._extras import require
+from bubblecal.workflows.choices import Agent, RingdownTier, choice_value
 from bubblecal.workflows.cli_campaign import campaign, campaign_status
 from bubblecal.workflows.console import console, fail, make_table
 
@@ -64,14 +65,14 @@ app.command("campaign-status")(campaign_status)
 
 @app.command("ringdown")
 def ringdown(
-    agent: str = typer.Option(..., "--agent", help="definity or sonovue (sets k_b and the k_a range)."),
+    agent: Agent = typer.Option(..., "--agent", case_sensitive=False, help="Sets k_b and the k_a range."),
     diameter: float = typer.Option(..., "--diameter", help="Bubble diameter [um]."),
     out: Path = typer.Option(..., "--out", help="Output folder (CSV, JSON, PNG, traces .npz)."),
     n_ka: int = typer.Option(28, "--n-ka", help="Number of k_a values over the agent's acoustic prior range."),
     ka_min: float = typer.Option(None, "--ka-min", help="Lowest k_a [DPD] (default: prior range)."),
     ka_max: float = typer.Option(None, "--ka-max", help="Highest k_a [DPD] (default: prior range)."),
-    tier: str = typer.Option("implicit", "--tier", help="implicit (shell-mass-only inertia, docs/physics.md check 7) "
-                             "or explicit (water + gas particles)."),
+    tier: RingdownTier = typer.Option("implicit", "--tier", help="implicit (shell-mass-only inertia, "
+                                      "docs/physics.md check 7) or explicit (water + gas particles)."),
     device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda (cuda:N)."),
     mass_factor: float = typer.Option(160.0, "--mass-factor", help="Shell mass multiplier (f x sqrt(M) undone)."),
     subdivisions: int = typer.Option(None, "--subdivisions", help="Icosphere level (default 4; 5 above 5 um)."),
@@ -130,10 +131,7 @@ def ringdown(
 
     if not (device == "cpu" or device.startswith("cuda")):
         raise typer.BadParameter("device must be 'cpu' or 'cuda' (or 'cuda:N')", param_hint="--device")
-    if tier not in ("implicit", "explicit"):
-        raise typer.BadParameter("tier must be 'implicit' or 'explicit'", param_hint="--tier")
-    if agent.lower() not in ("definity", "sonovue"):
-        raise typer.BadParameter("agent must be 'definity' or 'sonovue'", param_hint="--agent")
+    agent, tier = choice_value(agent), choice_value(tier)
     if n_ka < 3:
         raise typer.BadParameter("need at least 3 k_a values for a quadratic", param_hint="--n-ka")
     wp = require("warp", "sim")

@@ -12,8 +12,9 @@ import numpy as np
 import typer
 
 from bubblecal._extras import require
-from bubblecal.data import AGENTS, LOADING_PROTOCOLS
+from bubblecal.data import AGENTS
 from bubblecal.surrogates.bundle import DIAMETER_ATOL_UM
+from bubblecal.workflows.choices import Agent, LawFormName, LoadingProtocol, choice_value
 
 app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, export, inspection.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -53,7 +54,7 @@ def _fail(msg: str, code: int = 1):
 @app.command("train")
 def train(
     dataset: Path = typer.Argument(..., help="Published-layout table (.csv/.dat) or campaign store (dir/.jsonl)."),
-    setup: str = typer.Option(..., "--setup", help="compression | indentation"),
+    setup: LoadingProtocol = typer.Option(..., "--setup", help="Loading protocol of the data."),
     diameter: float = typer.Option(None, "--diameter", help="Nominal bubble diameter [um] (names the files); must "
                                    "match the data's 2 x 0.25 um x median radius_dpd within 0.025 um. Not with "
                                    "--over-diameter."),
@@ -117,8 +118,7 @@ def train(
         scaled_max_rel_diff,
     )
 
-    if setup not in LOADING_PROTOCOLS:
-        raise typer.BadParameter(f"--setup must be compression or indentation, got {setup!r}")
+    setup = choice_value(setup)
     # the [train] extra, before any data is read or network trained (ONNX only where it is exported)
     require("torch", "train")
     if onnx:
@@ -254,7 +254,7 @@ def _acoustic_text(path: Path) -> str:
 @app.command("synthetic")
 def synthetic(
     out: Path = typer.Argument(..., help="Output CSV in the published row layout."),
-    setup: str = typer.Option("compression", "--setup"),
+    setup: LoadingProtocol = typer.Option("compression", "--setup", help="Loading protocol."),
     n_curves: int = typer.Option(400, "--n-curves"),
     diameter: float = typer.Option(2.1, "--diameter", help="Bubble diameter [um]."),
     noise: float = typer.Option(0.01, help="Relative (multiplicative) Gaussian noise per point."),
@@ -264,6 +264,7 @@ def synthetic(
     from bubblecal.data import radius_dpd_from_diameter_um
     from bubblecal.surrogates.training import make_synthetic, write_published
 
+    setup = choice_value(setup)
     ts = make_synthetic(n_curves, setup, radius_dpd=radius_dpd_from_diameter_um(diameter), noise=noise, seed=seed)
     write_published(ts, out)
     typer.echo(f"wrote {ts.n_curves} {setup} curves to {out}")
@@ -287,12 +288,14 @@ def acoustic(
     stores: list[Path] = typer.Argument(..., help="Ringdown campaign store(s) of one agent (directory, .jsonl, "
                                                   ".jsonl.gz), e.g. from `bubblecal sim campaign definity_ringdown`."),
     out: Path = typer.Option(..., "--out", help="Acoustic surrogate JSON to write."),
-    agent: str = typer.Option(None, "--agent", help="definity or sonovue (default: from the campaign name)."),
+    agent: Agent = typer.Option(None, "--agent", case_sensitive=False, help="Contrast agent (default: from the "
+                                "campaign name)."),
     rows: Path = typer.Option(None, "--rows", help="Also write every fitted ringdown row (CSV)."),
     t_start: float = typer.Option(None, "--t-start", help="Fit R(t) only after this DPD time."),
     law: bool = typer.Option(False, "--law", help="Fit one law f_res(k_a, D) continuous in the diameter (file "
                              "format version 2) instead of one quadratic per diameter."),
-    form: str = typer.Option(None, "--form", help="Form of the --law (default gas-coupled; docs/decisions.md)."),
+    form: LawFormName = typer.Option(None, "--form", help="Form of the --law (default gas-coupled; "
+                                     "docs/decisions.md)."),
 ) -> None:
     """Fit the acoustic surrogate from ringdown stores or row CSVs: one f_res^2(k_a) quadratic per diameter
     (LOO errors), or with --law one law continuous in the diameter (leave-diameters-out errors)."""
@@ -300,6 +303,7 @@ def acoustic(
     from bubblecal.workflows.acoustic_sweep import acoustic_law_from_stores, acoustic_surrogate_from_stores
     from bubblecal.workflows.console import fail
 
+    agent, form = choice_value(agent), choice_value(form)
     for s in stores:
         if not s.exists():
             raise fail(f"{s}: no such ringdown store")

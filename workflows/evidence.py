@@ -21,7 +21,7 @@ under :class:`bubblecal.inference.tmcmc.TMCMC`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -111,7 +111,8 @@ def loo_columns(idatas) -> dict:
 
 def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replicas: int = DEFAULT_REPLICAS,
                  seed: int = 0, device: str = "cpu", out: Path | None = None, curves: tuple[str, ...] = (),
-                 num_mcmc_steps: int = 10, progress: Callable[[str], None] | None = None):
+                 num_mcmc_steps: int = 10, progress: Callable[[str], None] | None = None,
+                 stages: Callable[[int, Mapping], None] | None = None):
     """ln Z of the full and the reduced shell for every curve of ``agents``, and the Bayes factors.
 
     Parameters
@@ -136,6 +137,9 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
         Random-walk Metropolis steps per TMCMC stage.
     progress : callable or None
         Receives one-line messages.
+    stages : callable or None
+        ``stages(replica, row)``: each TMCMC stage (the ``progress`` reporter of
+        :class:`~bubblecal.inference.TMCMC`).
 
     Returns
     -------
@@ -172,7 +176,8 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
                 key, sub = jax.random.split(key)
                 say(f"{curve.name}: {model_name} shell, N = {population} x {replicas} replicas")
                 tm = TMCMC(mechanical_model, num_particles=population, num_replicas=replicas,
-                           target_cov=PAPER_COV[0], cov_scale=PAPER_COV_SCALE, num_mcmc_steps=num_mcmc_steps)
+                           target_cov=PAPER_COV[0], cov_scale=PAPER_COV_SCALE, num_mcmc_steps=num_mcmc_steps,
+                           progress=stages or False)
                 with on_device(device):
                     tm.run(sub, np.asarray(curve.x), np.asarray(curve.y), sur, spec)
                 row[f"log_z_{model_name}"] = tm.log_evidence

@@ -12,6 +12,8 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 - :mod:`~bubblecal.inference.tmcmc.tempering`: exponent, weights, resampling and covariance of a stage;
 - :mod:`~bubblecal.inference.tmcmc.moves`: the :class:`Move` interface, :class:`RandomWalk`,
   :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`;
+- :mod:`~bubblecal.inference.tmcmc.progress`: the per-stage reporter (``TMCMC(..., progress=True)`` or a
+  callable ``report(replica, row)``), :class:`StageDisplay` and :func:`stage_text`;
 - :mod:`~bubblecal.inference.tmcmc.evaluator`: :class:`Evaluator`, the densities over a population;
 - private: ``_flat_model`` (a NumPyro model as flat prior / likelihood functions) and ``_programs``
   (compiled programs cached per process; :func:`clear_program_cache`).
@@ -22,6 +24,7 @@ from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcm
 from bubblecal.inference.tmcmc.evaluator import Evaluator
 from bubblecal.inference.tmcmc.kernel import TMCMCKernel, TMCMCKernelState
 from bubblecal.inference.tmcmc.moves import KernelMove, Move, MoveResult, RandomWalk, hmc_move, nuts_move
+from bubblecal.inference.tmcmc.progress import StageDisplay, StageReporter, stage_text
 from bubblecal.inference.tmcmc.results import STAGE_COLUMNS, TMCMCResults
 from bubblecal.inference.tmcmc.sampler import PRESETS, TMCMC
 from bubblecal.inference.tmcmc.state import STATUS_NAMES, StageInfo, TMCMCConfig, TMCMCState
@@ -30,5 +33,5 @@ __all__ = [
     "TMCMC", "TMCMCKernel", "TMCMCKernelState", "PRESETS", "TMCMCResults", "STAGE_COLUMNS", "clear_program_cache",
     "TMCMCState", "StageInfo",
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
-    "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator",
+    "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "StageDisplay", "StageReporter", "stage_text",
 ]

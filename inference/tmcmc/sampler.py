@@ -49,6 +49,7 @@ from bubblecal.inference.tmcmc._programs import (
     _stage_programs,
 )
 from bubblecal.inference.tmcmc.moves import Move, RandomWalk
+from bubblecal.inference.tmcmc.progress import StageReporter, stage_reporter
 from bubblecal.inference.tmcmc.results import TMCMCResults
 from bubblecal.inference.tmcmc.state import (
     STATUS_MAX_STAGES,
@@ -119,6 +120,10 @@ class TMCMC(TMCMCResults):
     compiled : bool
         Run all stages in one ``lax.while_loop`` (no host round-trip per stage; the 'seconds' column
         then holds the run's mean per stage).
+    progress : bool or callable
+        Report each stage (stage, β, ESS, acceptance, log Z so far): False (default) nothing, True a rich
+        line, or a reporter ``report(replica, row)`` called with each stage-table row
+        (:mod:`bubblecal.inference.tmcmc.progress`). The draws do not depend on it.
 
     Raises
     ------
@@ -141,6 +146,7 @@ class TMCMC(TMCMCResults):
         space: str | None = None,
         min_delta: float = 1e-9,
         compiled: bool = False,
+        progress: bool | StageReporter = False,
     ):
         if not callable(model):
             raise ValueError(f"model must be a callable NumPyro model, got {model!r}")
@@ -165,6 +171,9 @@ class TMCMC(TMCMCResults):
         self.space = space
         self.preset = preset
         self.compiled = bool(compiled)
+        if not (isinstance(progress, bool) or callable(progress)):
+            raise ValueError(f"progress must be True, False or a callable report(replica, row), got {progress!r}")
+        self.progress = progress
         if preset == "korali":
             if num_mcmc_steps not in (None, 1):
                 raise ValueError(
@@ -273,6 +282,8 @@ class TMCMC(TMCMCResults):
 
             def step_fn(key, st):
                 return _split_stage(stages, evaluate, move, cfg, key, st)
+
+            run_fn = None
         else:
             fused = _fused_programs(flat, move, cfg, self.max_stages)
 
@@ -286,6 +297,15 @@ class TMCMC(TMCMCResults):
                 return fused.step(key, st, data)
 
         self._results = []
+        report, close_report = stage_reporter(self.progress, f"TMCMC {flat.label}", self.num_replicas)
+        try:
+            self._run_replicas(rng_key, flat, n, init_fn, step_fn, run_fn, report)
+        finally:
+            close_report()
+        return self
+
+    def _run_replicas(self, rng_key, flat, n, init_fn, step_fn, run_fn, report):
+        """Run the replicas (host-driven stages, or ``run_fn`` when compiled), reporting each stage row."""
         for r, key in enumerate(jax.random.split(rng_key, self.num_replicas)):
             k_draw, k_run = jax.random.split(key)
             t0 = time.perf_counter()
@@ -299,6 +319,7 @@ class TMCMC(TMCMCResults):
                     "support and any numpyro.factor terms"
                 )
             rows = [self._initial_row(state, t_init)]
+            report(r, rows[0])
             if self.compiled:
                 t0 = time.perf_counter()
                 state, infos, status = run_fn(k_run, state)
@@ -310,6 +331,7 @@ class TMCMC(TMCMCResults):
                     rows.append(
                         self._row(i + 1, jax.tree_util.tree_map(lambda a, i=i: a[i], infos), seconds / k)
                     )
+                    report(r, rows[-1])
             else:
                 status = STATUS_RUNNING
                 key_loop = k_run
@@ -319,6 +341,7 @@ class TMCMC(TMCMCResults):
                     state, info = step_fn(sub, state)
                     info = jax.device_get(info)
                     rows.append(self._row(len(rows), info, time.perf_counter() - t0))
+                    report(r, rows[-1])
                     status = int(info.status)
                     if status != STATUS_RUNNING:
                         break
@@ -334,7 +357,7 @@ class TMCMC(TMCMCResults):
                     f"(max_stages={self.max_stages}, last delta={last['delta']:.3g}, min_delta={self.min_delta:g}); "
                     "partial results are kept (log evidence covers only beta reached)",
                     RuntimeWarning,
-                    stacklevel=2,
+                    stacklevel=3,
                 )
             self._results.append(
                 {
@@ -345,5 +368,4 @@ class TMCMC(TMCMCResults):
                     "seconds": float(sum(row["seconds"] for row in rows)),
                 }
             )
-        return self
 

@@ -184,16 +184,16 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
     if progress and checkpoints is not None and len(jobs) < len(archs):
         print(f"sweep: {len(archs) - len(jobs)} of {len(archs)} architectures reused from {checkpoints}")
     if config.jobs > 1 and len(jobs) > 1:
-        from tqdm.auto import tqdm
+        from bubblecal._progress import ProgressLine
 
         # the largest networks first, so that no long job starts last
         jobs.sort(key=lambda j: -_n_params([u.shape[1], *j[1][2], 1]))
         ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=config.jobs, mp_context=ctx) as pool:
-            done = tqdm(pool.map(_train_job, [j[1] for j in jobs]), total=len(jobs), desc="sweep",
-                        disable=not progress)
-            for (i, _), m in zip(jobs, done, strict=True):
+        with ProcessPoolExecutor(max_workers=config.jobs, mp_context=ctx) as pool, \
+                ProgressLine("sweep", total=len(jobs), enabled=progress) as bar:
+            for (i, _), m in zip(jobs, pool.map(_train_job, [j[1] for j in jobs]), strict=True):
                 models[i] = m
+                bar.update(advance=1)
     else:
         for i, job in jobs:
             models[i] = _train_job(job)

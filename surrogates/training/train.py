@@ -279,7 +279,7 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
     ValueError
         For mismatched shapes, fewer than 10 points, or an input column or target of zero variance.
     """
-    from tqdm.auto import tqdm
+    from bubblecal._progress import ProgressLine
 
     config = config or TrainConfig()
     u = np.asarray(u, dtype=float)
@@ -332,38 +332,37 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
         reductions = 0
         stop_reason = "max_epochs"
         hist_train, hist_val, hist_lr = [], [], []
-        bar = tqdm(range(config.max_epochs), desc=desc, disable=not progress, leave=False, mininterval=0.5)
-        epoch = 0
-        for epoch in bar:
-            model.train()
-            # the batch order comes from the CPU generator on every device (same order as a CPU run)
-            order = torch.randperm(n_tr, generator=gen)
-            hist_train.append(stepper.epoch(order))
-            model.eval()
-            with torch.no_grad():
-                val = float(loss_fn(model(z_va), t_va))
-            hist_val.append(val)
-            hist_lr.append(lr)
-            if not math.isfinite(val):
-                stop_reason = "non-finite validation loss"
-                break
-            if val < best * (1.0 - config.min_rel_improvement):
-                best = val
-                best_state = {k: v.clone() for k, v in model.state_dict().items()}
-                wait = 0
-            else:
-                wait += 1
-                if wait >= config.patience:
-                    if reductions >= config.max_reductions:
-                        stop_reason = f"plateau after {reductions} lr reductions"
-                        break
-                    reductions += 1
-                    lr *= config.lr_factor
-                    stepper.set_lr(lr)
+        with ProgressLine(desc or "train", total=config.max_epochs, enabled=progress) as bar:
+            epoch = 0
+            for epoch in range(config.max_epochs):
+                model.train()
+                # the batch order comes from the CPU generator on every device (same order as a CPU run)
+                order = torch.randperm(n_tr, generator=gen)
+                hist_train.append(stepper.epoch(order))
+                model.eval()
+                with torch.no_grad():
+                    val = float(loss_fn(model(z_va), t_va))
+                hist_val.append(val)
+                hist_lr.append(lr)
+                if not math.isfinite(val):
+                    stop_reason = "non-finite validation loss"
+                    break
+                if val < best * (1.0 - config.min_rel_improvement):
+                    best = val
+                    best_state = {k: v.clone() for k, v in model.state_dict().items()}
                     wait = 0
-            if progress and epoch % 10 == 0:
-                bar.set_postfix(train=f"{hist_train[-1]:.3g}", val=f"{val:.3g}", lr=f"{lr:.0e}")
-        bar.close()
+                else:
+                    wait += 1
+                    if wait >= config.patience:
+                        if reductions >= config.max_reductions:
+                            stop_reason = f"plateau after {reductions} lr reductions"
+                            break
+                        reductions += 1
+                        lr *= config.lr_factor
+                        stepper.set_lr(lr)
+                        wait = 0
+                info = f"train {hist_train[-1]:.3g} val {val:.3g} lr {lr:.0e}" if epoch % 10 == 0 else None
+                bar.update(advance=1, info=info)
         model.load_state_dict(best_state)
         linears = [m for m in model if isinstance(m, nn.Linear)]
         weights = [m.weight.detach().cpu().numpy().T.copy() for m in linears]

@@ -50,7 +50,7 @@ def test_data_check(tmp_path):
     assert code == 1
     assert "bad.csv" in out and re.search(r"row 2 \(line 3\), column 'displacement_nm'", out)
     code, out = _run("data", "check", str(good), "--kind", "indentation", "--units", "furlongs")
-    assert code == 1 and "unknown units 'furlongs'" in out
+    assert code == 2 and "'furlongs' is not one of 'dpd', 'physical'" in out
 
 
 def test_priors_show_and_check(tmp_path):

@@ -43,7 +43,8 @@ MATRIX = [
     (["data", "check", "{big}", "--kind", "compression"], 1, "plausible range [0, 10000] nN"),
     (["data", "check", "{zero}", "--kind", "compression"], 1, "carries no signal"),
     (["data", "check", "{semi}", "--kind", "compression"], 1, "semicolon-separated"),
-    (["data", "check", "{big}", "--kind", "bogus"], 1, "unknown kind 'bogus'"),
+    (["data", "check", "{big}", "--kind", "bogus"], 2, "'bogus' is not one of 'compression', 'indentation'"),
+    (["data", "check", "{big}", "--kind", "compression", "--units", "si"], 2, "'si' is not one of 'dpd', 'physical'"),
     (["data", "check", "{big}"], 2, "--kind"),
     (["data", "show", "nothing"], 1, "unknown curve 'nothing'"),
     (["priors", "check", "{dir}"], 1, "is a folder"),
@@ -70,6 +71,26 @@ MATRIX = [
     (["calibrate", "--out", "{file}/sub"], 1, "is a file, so the folder cannot be made"),
     (["calibrate", "--data-dir", "{missing}"], 1, "not a directory"),
     (["calibrate", "--no-such-option"], 2, "No such option"),
+    # closed sets of values: a usage error naming the allowed values, before any work
+    (["calibrate", "--agent", "optison"], 2, "'optison' is not one of 'definity', 'sonovue', 'all'"),
+    (["calibrate", "--workflow", "medium"], 2, "'medium' is not one of 'reduced-acoustic', 'reduced', 'full'"),
+    (["calibrate", "--sampler", "hmc"], 2, "'hmc' is not one of 'tmcmc', 'nuts'"),
+    (["calibrate", "--device", "tpu"], 2, "'tpu' is not one of 'cpu', 'gpu'"),
+    (["calibrate", "--phase3", "joint"], 2, "'joint' is not one of 'published', 'exact'"),
+    (["evidence", "--device", "tpu"], 2, "'tpu' is not one of 'cpu', 'gpu'"),
+    (["confirm", "{dir}", "--tier", "fast"], 2, "'fast' is not one of 'explicit', 'implicit', 'quasistatic'"),
+    (["compare", "--data", "{big}", "--kind", "stretch", "--surrogate", str(NPZ)], 2,
+     "'stretch' is not one of 'compression', 'indentation'"),
+    (["sim", "ringdown", "--agent", "optison", "--diameter", "2", "--out", "{dir}"], 2,
+     "'optison' is not one of 'definity', 'sonovue'"),
+    (["sim", "ringdown", "--agent", "definity", "--tier", "quasistatic", "--diameter", "2", "--out", "{dir}"], 2,
+     "'quasistatic' is not one of 'explicit', 'implicit'"),
+    (["surrogates", "train", "{big}", "--setup", "stretch", "--out", "{dir}"], 2,
+     "'stretch' is not one of 'compression', 'indentation'"),
+    (["surrogates", "synthetic", "{dir}/s.csv", "--setup", "stretch"], 2,
+     "'stretch' is not one of 'compression', 'indentation'"),
+    (["surrogates", "acoustic", "{dir}", "--agent", "optison", "--out", "{dir}/a.json"], 2,
+     "'optison' is not one of 'definity', 'sonovue'"),
 ]
 
 
@@ -82,3 +103,30 @@ def test_cli_matrix(files, args, code, needle):
     assert needle in output, output
     assert "Traceback" not in output
     assert result.exception is None or isinstance(result.exception, SystemExit), repr(result.exception)
+
+
+# (command, option, the values its --help must list)
+CHOICES = [
+    (["calibrate"], "--agent", "<definity|sonovue|all>"),
+    (["calibrate"], "--workflow", "<reduced-acoustic|reduced|full>"),
+    (["calibrate"], "--sampler", "<tmcmc|nuts>"),
+    (["calibrate"], "--device", "<cpu|gpu>"),
+    (["calibrate"], "--phase3", "<published|exact>"),
+    (["evidence"], "--agent", "<definity|sonovue|all>"),
+    (["confirm"], "--tier", "<explicit|implicit|quasistatic>"),
+    (["compare"], "--kind", "<compression|indentation>"),
+    (["compare"], "--units", "<dpd|physical>"),
+    (["data", "check"], "--kind", "<compression|indentation>"),
+    (["sim", "ringdown"], "--tier", "<explicit|implicit>"),
+    (["surrogates", "train"], "--setup", "<compression|indentation>"),
+    (["surrogates", "acoustic"], "--form", "<scale-free|gas|gas-coupled|gas-bending|gas-coupled-bending|"
+                                           "liquid-inertia>"),
+]
+
+
+@pytest.mark.parametrize(("command", "option", "values"), CHOICES, ids=[f"{' '.join(c)} {o}" for c, o, _ in CHOICES])
+def test_help_lists_the_allowed_values(command, option, values):
+    result = runner.invoke(app, [*command, "--help"], env={"COLUMNS": "250"})
+    assert result.exit_code == 0, result.output
+    line = next(ln for ln in result.output.splitlines() if ln.strip("│ *").startswith(f"{option} "))
+    assert values in line, line

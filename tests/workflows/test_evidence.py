@@ -23,8 +23,9 @@ def test_kass_raftery(ln_b, se, expected):
 
 def test_bad_inputs(tmp_path, synthetic_bundle):
     runner = CliRunner()
-    r = runner.invoke(app, ["evidence", "--agent", "optison", "--bundle", str(synthetic_bundle)])
-    assert r.exit_code == 1 and "--agent" in r.output
+    r = runner.invoke(app, ["evidence", "--agent", "optison", "--bundle", str(synthetic_bundle)],
+                      env={"COLUMNS": "250"})
+    assert r.exit_code == 2 and "'optison' is not one of 'definity', 'sonovue', 'all'" in r.output
     r = runner.invoke(app, ["evidence", "--replicas", "1", "--bundle", str(synthetic_bundle)])
     assert r.exit_code == 1 and "--replicas" in r.output
     r = runner.invoke(app, ["evidence", "--bundle", str(tmp_path)])

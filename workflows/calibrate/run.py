@@ -15,7 +15,7 @@ import functools
 import math
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -139,7 +139,8 @@ def _dataset_objects(ap: AgentPlan, pad: bool = False):
 
 
 def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | None = None,
-              inject: Callable[[str], None] | None = None) -> AgentResult:
+              inject: Callable[[str], None] | None = None,
+              stages: Callable[[int, Mapping], None] | None = None) -> AgentResult:
     """Run one agent (staged TMCMC or joint NUTS), then its summaries; writes ``manifest.json`` throughout.
 
     Parameters
@@ -152,6 +153,9 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
         Receives one-line progress messages.
     inject : callable or None
         Called with the phase name before each phase runs (tests inject crashes through it).
+    stages : callable or None
+        ``stages(replica, row)``: each TMCMC stage of each phase (the ``progress`` reporter of
+        :class:`~bubblecal.inference.TMCMC`; row = stage, beta, ess, acceptance, log_evidence, ...).
 
     Returns
     -------
@@ -200,6 +204,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
             return result
 
         o1, o23 = phase_tmcmc_options(config)
+        if stages is not None:  # after the phase hashes: a display is no setting of the run
+            o1, o23 = {**o1, "progress": stages}, {**o23, "progress": stages}
         with on_device(config.device), warnings.catch_warnings():
             warnings.simplefilter("ignore", category=FutureWarning)
             reweight = None
