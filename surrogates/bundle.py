@@ -1,18 +1,24 @@
 """Surrogate bundles: a directory of surrogate files with a ``manifest.json``; the shipped default bundle.
 
 Format ``bubblecal-surrogate-bundle``, version 1 (docs/data-formats.md): a directory holding the mechanical
-``.npz`` files (:mod:`bubblecal.surrogates.surrogate_file`), acoustic JSON files
-(:mod:`bubblecal.surrogates.acoustic`) and ``manifest.json``::
+``.npz`` files (:mod:`bubblecal.surrogates.surrogate_file`), acoustic JSON files (per-diameter quadratics,
+:mod:`bubblecal.surrogates.acoustic`, or laws continuous in the diameter, :mod:`bubblecal.surrogates.acoustic_law`;
+each file's ``format_version`` says which) and ``manifest.json``::
 
     {"format": "bubblecal-surrogate-bundle", "format_version": 1, "created_utc": "...",
      "surrogates": [{"file": "compression_2.1um.npz", "setup": "compression",
                      "diameter_um": 2.1, "data_hash": "...", "holdout_score": 0.004},
                     {"file": "compression_1.5-8um.npz", "setup": "compression",
                      "diameter_range_um": [1.5, 8.0], "data_hash": "...", ...}, ...],
-     "acoustic": [{"file": "acoustic_definity.json", "name": "definity"}, ...],
+     "acoustic": [{"file": "acoustic_definity.json", "name": "definity"},
+                  {"file": "acoustic_definity_1.5-11.2um.json", "name": "definity",
+                   "diameter_range_um": [1.5, 11.2]}, ...],
      "notes": "free text"}
 
-The package ships a default bundle (package data ``bubblecal/surrogates/bundle/``, :func:`default_bundle_path`).
+A name has at most one file of each kind. Mechanical and acoustic lookups prefer the per-diameter files
+(:meth:`Bundle.get`, :meth:`Bundle.acoustic_for`): the networks and laws over the diameter answer the other
+diameters of their range. The package ships a default bundle (package data ``bubblecal/surrogates/bundle/``,
+:func:`default_bundle_path`).
 Nothing here imports torch or onnx.
 """
 
@@ -25,8 +31,11 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from bubblecal.data import code_version
-from bubblecal.surrogates.acoustic import AcousticFormatError, AcousticSurrogate
+from bubblecal.surrogates.acoustic import AcousticFormatError, AcousticRangeError, AcousticSurrogate
+from bubblecal.surrogates.acoustic_law import AcousticLawSurrogate
 from bubblecal.surrogates.fileio import atomic_write_bytes, read_versioned_json, utc_now
 from bubblecal.surrogates.surrogate import Surrogate
 from bubblecal.surrogates.surrogate_file import SurrogateFormatError, load
@@ -56,9 +65,11 @@ class Bundle:
     surrogates : dict of (str, float) to Surrogate
         Per-diameter mechanical surrogates keyed by (loading protocol, data diameter [um]).
     acoustic : dict of str to AcousticSurrogate
-        Acoustic surrogates keyed by name (e.g. ``'definity'``).
+        Per-diameter acoustic quadratics (file version 1) keyed by name (e.g. ``'definity'``).
     over_diameter : dict of str to Surrogate
         Mechanical networks over the diameter keyed by loading protocol (at most one each).
+    acoustic_law : dict of str to AcousticLawSurrogate
+        Acoustic laws continuous in the diameter (file version 2) keyed by name (at most one each).
     """
 
     path: Path
@@ -66,6 +77,7 @@ class Bundle:
     surrogates: dict[tuple[str, float], Surrogate] = field(default_factory=dict)
     acoustic: dict[str, object] = field(default_factory=dict)
     over_diameter: dict[str, Surrogate] = field(default_factory=dict)
+    acoustic_law: dict[str, AcousticLawSurrogate] = field(default_factory=dict)
 
     def get(self, setup: str, diameter_um: float, atol: float = DIAMETER_ATOL_UM,
             prefer: str = "per-diameter") -> Surrogate:
@@ -125,6 +137,54 @@ class Bundle:
     def keys(self):
         """Sorted (setup, diameter_um) keys of the mechanical surrogates."""
         return sorted(self.surrogates)
+
+    def acoustic_for(self, name: str, diameter_um, prefer: str = "per-diameter") -> AcousticSurrogate:
+        """The acoustic surrogate of ``name`` for a set of diameters: the per-diameter quadratics, or the law.
+
+        The per-diameter quadratics answer when they were fitted at every requested diameter; otherwise (or
+        with ``prefer='over-diameter'``) the law continuous in the diameter answers when its range holds every
+        requested diameter. One surrogate serves all the diameters (a dataset is never split between the two).
+
+        Parameters
+        ----------
+        name : str
+            Agent or label (e.g. ``'definity'``).
+        diameter_um : float or array_like
+            Bubble diameter(s) [um].
+        prefer : {'per-diameter', 'over-diameter'}
+            Which kind answers when both cover the diameters.
+
+        Returns
+        -------
+        AcousticSurrogate
+            The per-diameter quadratics or an :class:`~bubblecal.surrogates.AcousticLawSurrogate`.
+
+        Raises
+        ------
+        AcousticRangeError
+            When neither covers every diameter, or the bundle has no acoustic surrogate ``name`` (the message
+            names the diameters outside and what the bundle has).
+        ValueError
+            For an unknown ``prefer``.
+        """
+        if prefer not in ("per-diameter", "over-diameter"):
+            raise ValueError(f"prefer must be 'per-diameter' or 'over-diameter', got {prefer!r}")
+        d = np.atleast_1d(np.asarray(diameter_um, dtype=float)).ravel()
+        per, law = self.acoustic.get(name), self.acoustic_law.get(name)
+        per_ok = per is not None and all(np.any(np.abs(np.asarray(per.diameters) - v) <= 1e-6) for v in d)
+        lo, hi = law.diameter_range if law is not None else (math.nan, math.nan)
+        law_ok = law is not None and bool(np.all((d >= lo - 1e-9) & (d <= hi + 1e-9)))
+        if per_ok and not (law_ok and prefer == "over-diameter"):
+            return per
+        if law_ok:
+            return law
+        have = ([f"quadratics at {', '.join(f'{x:g}' for x in per.diameters)} um"] if per is not None else [])
+        have += [f"a law over {lo:g}-{hi:g} um"] if law is not None else []
+        outside = [f"{v:g}" for v in np.unique(d) if not (lo - 1e-9 <= v <= hi + 1e-9)] if law is not None else []
+        raise AcousticRangeError(
+            f"bundle {self.path}: no acoustic surrogate {name!r} covers the diameter(s) "
+            f"{', '.join(outside or [f'{v:g}' for v in np.unique(d)])} um (has: {'; '.join(have) or 'none'}; "
+            f"acoustic names: {', '.join(sorted(set(self.acoustic) | set(self.acoustic_law))) or 'none'})")
 
 
 def load_bundle(path: str | Path) -> Bundle:
@@ -196,7 +256,18 @@ def _load_bundle(path: str | Path) -> Bundle:
         for key in ("file", "name"):
             if key not in entry:
                 raise SurrogateFormatError(f"{mpath}: acoustic[{i}] lacks field '{key}'")
-        bundle.acoustic[entry["name"]] = AcousticSurrogate.load(path / entry["file"])
+        ac = AcousticSurrogate.load(path / entry["file"])  # the file's format_version picks the class
+        kind = bundle.acoustic_law if isinstance(ac, AcousticLawSurrogate) else bundle.acoustic
+        if entry["name"] in kind:
+            raise SurrogateFormatError(f"{mpath}: acoustic[{i}]: a second "
+                                       f"{'law' if kind is bundle.acoustic_law else 'per-diameter file'} "
+                                       f"named {entry['name']!r}")
+        if "diameter_range_um" in entry and not (kind is bundle.acoustic_law and all(
+                math.isclose(a, float(b), abs_tol=1e-9)
+                for a, b in zip(ac.diameter_range, entry["diameter_range_um"], strict=True))):
+            raise SurrogateFormatError(f"{mpath}: acoustic[{i}] field 'diameter_range_um' "
+                                       f"{entry['diameter_range_um']!r} disagrees with {entry['file']}")
+        kind[entry["name"]] = ac
     return bundle
 
 
@@ -212,8 +283,9 @@ def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
         The bundle directory (created when missing).
     surrogate_files : iterable of str or Path
         Mechanical surrogate files.
-    acoustic_files : Mapping of str to str or Path, optional
-        Acoustic surrogate files keyed by name (e.g. ``'definity'``).
+    acoustic_files : Mapping of str to (str or Path or sequence of them), optional
+        Acoustic surrogate files keyed by name (e.g. ``'definity'``): per-diameter quadratics, a law over the
+        diameter, or one of each.
     notes : str
         Free text stored in the manifest.
 
@@ -241,13 +313,15 @@ def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
         entries.append({"file": f.name, "setup": sur.setup, **size, "data_hash": sur.data_hash,
                         "holdout_score": sur.holdout_score, "architecture": sur.architecture})
     acoustic_entries = []
-    for name, f in (acoustic_files or {}).items():
-        f = Path(f)
-        AcousticSurrogate.load(f)  # validate
-        dest = path / f.name
-        if f.resolve() != dest.resolve():
-            shutil.copyfile(f, dest)
-        acoustic_entries.append({"file": f.name, "name": name})
+    for name, files in (acoustic_files or {}).items():
+        for f in [files] if isinstance(files, (str, Path)) else files:
+            f = Path(f)
+            ac = AcousticSurrogate.load(f)  # validate
+            dest = path / f.name
+            if f.resolve() != dest.resolve():
+                shutil.copyfile(f, dest)
+            wide = {"diameter_range_um": list(ac.diameter_range)} if isinstance(ac, AcousticLawSurrogate) else {}
+            acoustic_entries.append({"file": f.name, "name": name, **wide})
     manifest = {"format": BUNDLE_FORMAT, "format_version": BUNDLE_FORMAT_VERSION, "created_utc": utc_now(),
                 "code_version": code_version(), "surrogates": entries, "acoustic": acoustic_entries,
                 "notes": notes}

@@ -211,7 +211,7 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic su
                 typer.echo(f"  trained on {md.get('source', '?')}: {md.get('n_curves_train', '?')} curves "
                            f"({md.get('n_prefix_curves_train', 0)} failure-truncated prefixes), "
                            f"held-out median relative L2 {sur.holdout_score:.3g}{ldo}")
-            for name, ac in b.acoustic.items():
+            for name, ac in list(b.acoustic.items()) + list(b.acoustic_law.items()):
                 typer.echo(f"acoustic {name}: " + (_acoustic_law_text(ac) if hasattr(ac, "law") else
                                                    f"diameters {', '.join(f'{d:g}' for d in ac.diameters)} um"))
         else:
@@ -335,20 +335,21 @@ def bundle(
     out: Path = typer.Argument(..., help="Bundle directory to write (created; manifest.json + copies)."),
     surrogate: list[Path] = typer.Option(None, "--surrogate", help="A mechanical surrogate .npz (repeatable)."),
     acoustic: list[str] = typer.Option(None, "--acoustic", help="NAME=FILE.json of an acoustic surrogate "
-                                                                "(repeatable; NAME definity or sonovue)."),
+                                                                "(repeatable; NAME definity or sonovue; per "
+                                                                "name one per-diameter file and one law)."),
     notes: str = typer.Option("", "--notes", help="Free text stored in the manifest (provenance)."),
 ) -> None:
     """Assemble surrogates into a bundle directory (what `bubblecal calibrate --bundle DIR` reads)."""
     from bubblecal.surrogates import SurrogateFormatError, load_bundle, write_bundle
     from bubblecal.workflows.console import fail
 
-    ac: dict[str, Path] = {}
+    ac: dict[str, list[Path]] = {}
     for item in acoustic or []:
         name, sep, file = item.partition("=")
         if not sep or name not in AGENTS:
             raise fail(f"--acoustic {item!r}: expected definity=FILE or sonovue=FILE")
-        ac[name] = Path(file)
-    missing = [str(p) for p in [*(surrogate or []), *ac.values()] if not Path(p).is_file()]
+        ac.setdefault(name, []).append(Path(file))  # a name may have quadratics and a law
+    missing = [str(p) for p in [*(surrogate or []), *(f for fs in ac.values() for f in fs)] if not Path(p).is_file()]
     if missing:
         raise fail(f"no such file: {', '.join(missing)}")
     if not surrogate and not ac:
@@ -362,4 +363,6 @@ def bundle(
         typer.echo(f"{setup} {d:g} um: {s.architecture}, holdout {s.holdout_score}")
     for name, a in b.acoustic.items():
         typer.echo(f"acoustic {name}: {len(a.diameters)} diameters")
+    for name, a in b.acoustic_law.items():
+        typer.echo(f"acoustic {name}: law over {a.diameter_range[0]:g}-{a.diameter_range[1]:g} um")
     typer.echo(f"wrote {out / 'manifest.json'}")

@@ -11,6 +11,8 @@ from bubblecal.data import CampaignStore
 
 TRAINING = Path(__file__).resolve().parents[2] / "data" / "training"
 SETS = sorted(TRAINING.glob("*.jsonl.gz"))
+#: Sets over the diameter (33,000 records, ~10 MB each): reading one takes a minute on two shared cores.
+LARGE = 5_000_000
 
 
 def test_training_folder_documents_every_set():
@@ -20,7 +22,8 @@ def test_training_folder_documents_every_set():
         assert path.name in readme
 
 
-@pytest.mark.parametrize("path", SETS, ids=[p.name for p in SETS])
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stat().st_size > LARGE else p
+                                  for p in SETS], ids=[p.name for p in SETS])
 def test_shipped_set_matches_its_campaign_config(path):
     from bubblecal.campaigns import load_campaign_file
     from bubblecal.surrogates.training import filter_curves, read_dataset
@@ -37,7 +40,18 @@ def test_shipped_set_matches_its_campaign_config(path):
     # monotone responses, except a few shells crushed to ~70 % of their diameter at 5.8 um whose last point falls
     # back by 6 % (kept: below filter_curves' 10 % drop threshold; 2 of 5,743 curves)
     falls = np.diff(ts.y, axis=1) < -1e-9
-    assert falls.any(axis=1).sum() <= 0.001 * ts.n_curves
-    assert not falls[:, :-1].any(), "a response falls before its last point"
+    if cfg.diameter_range_um is not None and cfg.protocol == "compression":
+        # over the diameter, shells of 3-8 um buckle under the deeper plate travel: 20 % of the curves fall back
+        # after the 5th load point (median 0.7 %, at most the filter's 10 % of the curve's maximum); never before
+        assert not falls[:, :4].any(), "a compression response falls in its first load points"
+    else:  # over the diameter, 2 of 32,364 indentation curves fall back by 4-6 % over their last two points
+        assert falls.any(axis=1).sum() <= 0.001 * ts.n_curves
+        last = -2 if cfg.diameter_range_um is not None else -1
+        assert not falls[:, :last].any(), "a response falls before its last points"
     assert ts.setup == cfg.protocol
-    assert ts.diameter_um == pytest.approx(cfg.diameter_um, abs=0.025)
+    if cfg.diameter_range_um is None:
+        assert ts.diameter_um == pytest.approx(cfg.diameter_um, abs=0.025)
+    else:  # a design over the diameter: its levels fill the range
+        lo, hi = cfg.diameter_range_um
+        d = ts.diameters_um
+        assert d.min() == pytest.approx(lo, abs=0.025) and d.max() == pytest.approx(hi, abs=0.025)

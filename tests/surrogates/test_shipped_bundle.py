@@ -6,11 +6,13 @@ points at the shipped training sets and their campaign configs, and sensible pre
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from bubblecal.data import acoustic_observations, reference_curves
-from bubblecal.surrogates import default_bundle_path, is_synthetic_bundle, load_bundle
+from bubblecal.surrogates import AcousticRangeError, default_bundle_path, is_synthetic_bundle, load_bundle
 
 PATH = default_bundle_path()
 pytestmark = pytest.mark.skipif(not (PATH / "manifest.json").is_file(), reason="no shipped bundle in this checkout")
@@ -91,6 +93,107 @@ def test_info_prints_the_provenance():
     assert r.exit_code == 0, r.output
     for name in ("definity_compression_2.1um", "definity_compression_2.9um", "definity_compression_3.0um",
                  "sonovue_indentation_3.2um_mirheo", "sonovue_indentation_3.4um_mirheo",
-                 "sonovue_indentation_5.8um_mirheo"):
+                 "sonovue_indentation_5.8um_mirheo", *WIDE.values()):
         assert f"trained on data/training/{name}.jsonl.gz" in r.output
     assert "acoustic definity" in r.output and "acoustic sonovue" in r.output
+    assert "Surrogate(compression, 1.5-8 um" in r.output and "Surrogate(indentation, 1.5-8 um" in r.output
+    assert "law 'definity'" in r.output and "diameter 1.5-11.2 um" in r.output and "law 'sonovue'" in r.output
+
+
+# -------------------------------------------------------------------------------------------------
+# over the diameter: the two mechanical networks and the two acoustic laws
+# -------------------------------------------------------------------------------------------------
+#: The network over the diameter of each loading protocol and the shipped set it was trained on.
+WIDE = {"compression": "definity_compression_1.5-8um", "indentation": "sonovue_indentation_1.5-8um_mirheo"}
+#: The workflows whose prior boxes each network must cover.
+WIDE_WORKFLOWS = {"compression": ("definity_full", "definity_reduced", "definity_reduced_acoustic"),
+                  "indentation": ("sonovue_full", "sonovue_reduced", "sonovue_reduced_acoustic")}
+TRAINING = Path(__file__).resolve().parents[2] / "data" / "training"
+
+
+@pytest.mark.parametrize("setup", sorted(WIDE))
+def test_network_over_the_diameter_provenance_sweep_and_box(bundle, setup):
+    from bubblecal.campaigns import load_campaign_file
+    from bubblecal.priors import load_priors
+
+    sur, name = bundle.over_diameter[setup], WIDE[setup]
+    md = sur.metadata
+    assert not md.get("synthetic", False)
+    assert md["source"] == f"data/training/{name}.jsonl.gz" and (TRAINING / f"{name}.jsonl.gz").is_file()
+    assert md["n_curves_train"] >= 20_000
+    # the full 12-architecture sweep; the selection takes the worse of the held-out and leave-diameters-out medians
+    sweep = md["training"]["sweep"]
+    assert {(r["width"], r["depth"]) for r in sweep} == {(w, d) for w in (32, 64, 128, 256) for d in (2, 3, 4)}
+    best = min(sweep, key=lambda r: max(r["holdout_median"], r["ldo_median"]))
+    assert list(sur.architecture["hidden"]) == [best["width"]] * best["depth"]
+    assert sur.holdout_score == pytest.approx(best["holdout_median"])
+    assert md["ldo_score"] == pytest.approx(best["ldo_median"]) and md["ldo_bands_um"]
+    assert 0.0 < sur.holdout_score < 0.02 and 0.0 < md["ldo_score"] < 0.02  # measured 0.09-0.62 %
+    assert sur.diameter_range_um[0] <= 1.5 and sur.diameter_range_um[1] >= 8.0
+    assert (bundle.path / "sweeps" / f"{name}.md").is_file()
+    for wf in WIDE_WORKFLOWS[setup]:  # every workflow prior box inside the training box (1 % slack)
+        pri = load_priors(wf)
+        for p in ("ka", "kb"):
+            lo, hi = pri.parameters[p].prior.lo, pri.parameters[p].prior.hi
+            tlo, thi = sur.param_ranges[p]
+            assert tlo <= lo + 0.01 * (hi - lo) and thi >= hi - 0.01 * (hi - lo), (wf, p, (tlo, thi), (lo, hi))
+    # positive and increasing response at the centre of the campaign box, over the loading range of each size
+    cfg = load_campaign_file(name).config
+    mid = np.array([np.sqrt(np.prod(cfg.ranges[k])) if k in ("ka", "kb") else np.mean(cfg.ranges[k])
+                    for k in ("ka", "kb", "b1", "b2", "a3", "a4")])
+    for d in (1.8, 4.5, 7.0):
+        bound = bundle.get(setup, d)
+        assert bound.diameter_um == pytest.approx(d)
+        top = sur.loading_range_per_size[1] * (2 * bound.radius_dpd if setup == "compression" else 1.0)
+        x = np.linspace(0.05, 1.0, 12) * top
+        assert bound.check_domain(mid, x, action="raise").all()
+        y = np.asarray(bound(mid, x))
+        assert np.all(y > 0) and np.all(np.diff(y) > 0), (setup, d, y)
+
+
+def test_get_binds_the_network_over_the_diameter_where_no_per_diameter_one_exists(bundle):
+    # the published curves keep their per-diameter networks ...
+    for curve in reference_curves():
+        assert not bundle.get(curve.kind, curve.diameter_um).over_diameter
+        assert bundle.get(curve.kind, curve.diameter_um, prefer="over-diameter").over_diameter
+    # ... any other diameter of 1.5-8 um gets the network over the diameter, bound to it
+    for setup in WIDE:
+        for d in (1.5, 4.5, 8.0):
+            sur = bundle.get(setup, d)
+            assert sur.over_diameter and sur.diameter_um == pytest.approx(d)
+            assert sur.metadata["source"].endswith(f"{WIDE[setup]}.jsonl.gz")
+        for d in (1.2, 9.0):
+            with pytest.raises(KeyError, match=rf"no {setup} surrogate at {d:g} um .*1\.5-8 um \(over the diameter\)"):
+                bundle.get(setup, d)
+
+
+def test_acoustic_laws_cover_every_published_bubble_and_rise_with_ka(bundle):
+    for agent in ("definity", "sonovue"):
+        law, per = bundle.acoustic_law[agent], bundle.acoustic[agent]
+        obs = acoustic_observations(agent)
+        d = np.array([o.diameter_um for o in obs])
+        lo, hi = law.diameter_range
+        assert lo <= d.min() and d.max() <= hi, (agent, (lo, hi), d)
+        # the published study keeps its per-diameter quadratics; any other diameter of the range gets the law
+        assert bundle.acoustic_for(agent, d) is per
+        assert bundle.acoustic_for(agent, [d[0], 0.5 * (lo + d[0])]) is law
+        for dd in np.concatenate([d, np.linspace(lo, hi, 9)]):
+            k_lo, k_hi = law.ka_ranges(dd)
+            f = np.asarray(law.f_res(np.geomspace(k_lo, k_hi, 9), dd))
+            assert np.all(np.isfinite(f)) and np.all(f > 0) and np.all(np.diff(f) > 0), (agent, dd, f)
+        with pytest.raises(AcousticRangeError, match="no acoustic surrogate"):
+            bundle.acoustic_for(agent, hi + 1.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("setup", sorted(WIDE))
+def test_shipped_set_gives_the_data_hash_the_network_records(bundle, setup):
+    """`bubblecal surrogates train` on the shipped file (default filter) sees the data the network was trained on."""
+    import hashlib
+
+    from bubblecal.surrogates.training import filter_curves, read_dataset
+
+    path = TRAINING / f"{WIDE[setup]}.jsonl.gz"
+    assert hashlib.sha256(path.read_bytes()).hexdigest() in (TRAINING / "README.md").read_text()
+    ts, _ = filter_curves(read_dataset(path, setup=setup), keep_failed_prefix=True)
+    assert ts.data_hash() == bundle.over_diameter[setup].data_hash

@@ -53,7 +53,8 @@ class AgentPlan:
     acoustic : list of bubblecal.data.AcousticDataset
         Acoustic datasets (diameters in um, frequencies in MHz); empty without acoustics.
     f_res : bubblecal.surrogates.AcousticSurrogate or None
-        The agent's acoustic surrogate (f_res² quadratics in k_a per diameter).
+        The agent's acoustic surrogate: the f_res² quadratics in k_a fitted at every bubble's diameter, else
+        the law over the diameter (:meth:`bubblecal.surrogates.Bundle.acoustic_for`).
     out_dir : Path
         ``out/<agent>/<workflow>``.
     domain_warnings : list of str
@@ -350,10 +351,11 @@ def _acoustic_inputs(agent: str, config: CalibrationConfig, bundle, bundle_path:
     acoustic = _load_acoustic(agent, config.data_dir)
     if not acoustic:
         raise CalibrationError(f"no acoustic observations of {agent} (workflow {config.workflow})")
-    if agent not in bundle.acoustic:
-        raise CalibrationError(f"bundle {bundle_path} has no acoustic surrogate {agent!r} (has: "
-                               f"{', '.join(bundle.acoustic) or 'none'}); workflow {config.workflow} needs it")
-    f_res = bundle.acoustic[agent]
+    diameters = np.concatenate([np.atleast_1d(np.asarray(ds.diameter_um, dtype=float)) for ds in acoustic])
+    try:  # the per-diameter quadratics where fitted at every bubble, else the law over the diameter
+        f_res = bundle.acoustic_for(agent, diameters)
+    except AcousticRangeError as exc:
+        raise CalibrationError(f"{exc}; workflow {config.workflow} needs it for the {agent} acoustic data") from None
     lo, hi = spec.parameters["ka"].prior.as_tuple()
     for ds in acoustic:
         for d in np.atleast_1d(ds.diameter_um):

@@ -69,7 +69,7 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
     for ds in ap.acoustic:
         hashes[f"phase1_{ds.name}"] = config_hash({**common, "phase": 1,
                                                    "data": array_hash(ds.diameter_um, ds.frequency_MHz),
-                                                   "surrogate": acoustic_hashes.get(f"acoustic_{ap.agent}", ""),
+                                                   "surrogate": _acoustic_hash(ap, acoustic_hashes),
                                                    "options": o1})
     p1 = [hashes[f"phase1_{n}"] for n in ap.dataset_names]
     hashes["phase2"] = config_hash({**common, "phase": 2, "upstream": p1, "options": o23,
@@ -83,11 +83,20 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
 
 
 def bundle_hashes(bundle) -> dict[str, str]:
-    """``acoustic_<name>`` -> config hash of each acoustic surrogate of ``bundle`` (its JSON content)."""
+    """``acoustic_<name>`` (per-diameter quadratics) and ``acoustic_law_<name>`` (law over the diameter) ->
+    config hash of each acoustic surrogate of ``bundle`` (its JSON content)."""
     out = {}
     for name, ac in bundle.acoustic.items():
         out[f"acoustic_{name}"] = config_hash(ac.to_dict())
+    for name, ac in getattr(bundle, "acoustic_law", {}).items():
+        out[f"acoustic_law_{name}"] = config_hash(ac.to_dict())
     return out
+
+
+def _acoustic_hash(ap, acoustic_hashes: Mapping[str, str]) -> str:
+    """The :func:`bundle_hashes` entry of the acoustic surrogate the agent's plan uses (quadratics or law)."""
+    key = "acoustic_law_" if hasattr(ap.f_res, "law") else "acoustic_"
+    return acoustic_hashes.get(f"{key}{ap.agent}", "")
 
 
 class PhaseStore:
