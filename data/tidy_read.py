@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data.curves import KINDS
+from bubblecal.data.errors import DataError
 from bubblecal.data.names import LOADING_PROTOCOLS
 from bubblecal.data.plausibility import plausibility_problems
 from bubblecal.data.readers import MIN_POINTS, read_csv_rows, separator_hint
@@ -65,7 +66,11 @@ def _header_problems(header: list[str], line: int, required, optional) -> list[s
 
 def _read_rows(path: Path, required, optional, what: str):
     """The file's data rows as (data row, line, {column: text}); raise on a header problem."""
-    rows = [(i + 1, r) for i, r in enumerate(read_csv_rows(path)) if any(c.strip() for c in r)]
+    try:
+        cells = read_csv_rows(path)
+    except DataError as exc:
+        raise TidyDataError(path, exc.problems) from exc
+    rows = [(i + 1, r) for i, r in enumerate(cells) if any(c.strip() for c in r)]
     if not rows:
         raise TidyDataError(path, [f"file is empty (a {what} needs a header row with columns {', '.join(required)})"])
     line, header = rows[0]

@@ -15,7 +15,7 @@ __all__ = ["bubble_problems"]
 #: Tests run in order; the first that fires names the column's problem.
 _SNIFFS = (
     ("force_nN", lambda v, d: v.max() < 1e-6, "newtons (N)", "nN = N x 1e9"),
-    ("force_nN", lambda v, d: v.max() > 1e4, "pN", "nN = pN / 1000"),
+    ("force_nN", lambda v, d: np.median(v) > 1e3, "pN", "nN = pN / 1000"),
     ("displacement_nm", lambda v, d: v.max() < 1e-5, "metres (m)", "nm = m x 1e9"),
     ("displacement_nm", lambda v, d: v.max() < 0.05 and d >= 0.1, "um", "nm = um x 1000"),
     ("diameter_um", lambda v, d: v.max() < 1e-4, "metres (m)", "um = m x 1e6"),
