@@ -84,7 +84,8 @@ def _read_rows(path: Path, required, optional, what: str):
     out = []
     for row, (line, cells) in enumerate(rows[1:], start=1):
         if len(cells) != len(header):
-            problems.append(f"row {row} (line {line}): {len(cells)} cells, expected {len(header)} ({', '.join(header)})")
+            problems.append(f"row {row} (line {line}): {len(cells)} cells, expected {len(header)} "
+                            f"({', '.join(header)})")
             continue
         out.append((row, line, {h: c.strip() for h, c in zip(header, cells, strict=True)}))
     if not out and not problems:

@@ -19,8 +19,8 @@ from bubblecal.priors.loading import (
     prior_path,
     workflow_file_name,
 )
-from bubblecal.priors.template import priors_template
 from bubblecal.priors.spec import Bounds, NoisePrior, ParameterPrior, PriorSpec
+from bubblecal.priors.template import priors_template
 
 __all__ = [
     "Bounds", "ParameterPrior", "NoisePrior",

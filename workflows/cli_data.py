@@ -199,7 +199,8 @@ def check(
         _check_tidy(file, detected, resonance)
         return
     if resonance is not None:
-        raise typer.BadParameter("--resonance goes with a tidy curve file (a 'bubble' column)", param_hint="--resonance")
+        raise typer.BadParameter("--resonance goes with a tidy curve file (a 'bubble' column)",
+                                 param_hint="--resonance")
     if kind is None:
         if _is_acoustic_table(file):
             try:

@@ -117,7 +117,8 @@ def test_unit_sniffing_names_the_probable_unit(tmp_path, column, values, message
 
 
 def test_header_problems_with_near_miss_hint(tmp_path):
-    path = _write(tmp_path, "bubble,agent,protocol,diameter_um,displacement_nm,force_nn,colour\nb,a,compression,3,1,1,x\n")
+    path = _write(tmp_path, "bubble,agent,protocol,diameter_um,displacement_nm,force_nn,colour\n"
+                            "b,a,compression,3,1,1,x\n")
     joined = "\n".join(_problems(path))
     assert "unknown column 'force_nn' (did you mean 'force_nN'?)" in joined
     assert "unknown column 'colour'" in joined and "missing column 'force_nN'" in joined
