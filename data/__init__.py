@@ -8,6 +8,8 @@ Every public object of the layer is imported from here, e.g.::
 * names defined once (:mod:`~bubblecal.data.names`): parameters, agents, protocols, statuses, code version;
 * loading curves: the types (:mod:`~bubblecal.data.curves`), the CSV reader (:mod:`~bubblecal.data.readers`)
   and the shipped reference curves (:mod:`~bubblecal.data.reference`);
+* the tidy format for measured bubbles (:mod:`~bubblecal.data.tidy`, :mod:`~bubblecal.data.tidy_read`,
+  :mod:`~bubblecal.data.tidy_units`) and the published study in it (:mod:`~bubblecal.data.tidy_published`);
 * acoustic resonance observations (:mod:`~bubblecal.data.acoustic`);
 * physical plausibility bounds of every measured quantity (:mod:`~bubblecal.data.plausibility`);
 * the append-only campaign store (:mod:`~bubblecal.data.records`, :mod:`~bubblecal.data.store`);
@@ -36,6 +38,7 @@ from bubblecal.data.names import (
     PARAMETER_UNITS,
     POSITIVE_PARAMETERS,
     PROTOCOLS,
+    PUBLISHED_AGENT_OF_PROTOCOL,
     RECORD_STATUSES,
     RETRY_STATUSES,
     SHELL_PARAMETERS,
@@ -53,6 +56,23 @@ from bubblecal.data.reference import (
     resolve_reference_name,
 )
 from bubblecal.data.store import STORE_FORMAT, STORE_FORMAT_VERSION, CampaignStore, export_compressed
+from bubblecal.data.tidy import (
+    CURVE_COLUMNS,
+    CURVE_OPTIONAL,
+    RESONANCE_COLUMNS,
+    RESONANCE_OPTIONAL,
+    BubbleCurve,
+    BubbleCurveSet,
+    ResonanceSet,
+    TidyDataError,
+)
+from bubblecal.data.tidy_published import (
+    PUBLISHED_CURVES_FILE,
+    PUBLISHED_RESONANCE_FILE,
+    published_tidy_paths,
+    write_published_tidy,
+)
+from bubblecal.data.tidy_read import check_consistency, read_bubble_curves, read_resonance, tidy_kind
 from bubblecal.data.units import DEFAULT_UNITS, K_BOLTZMANN, UnitSystem, radius_dpd_from_diameter_um
 
 __all__ = [
@@ -60,8 +80,8 @@ __all__ = [
     "DEFAULT_UNITS", "K_BOLTZMANN", "UnitSystem", "radius_dpd_from_diameter_um",
     # names
     "SHELL_PARAMETERS", "NONLINEAR_PARAMETERS", "MODEL_PARAMETERS", "NOISE_PARAMETERS", "PARAMETER_UNITS",
-    "POSITIVE_PARAMETERS", "AGENTS", "LOADING_PROTOCOLS", "PROTOCOLS", "STATUSES", "RECORD_STATUSES",
-    "RETRY_STATUSES", "code_version",
+    "POSITIVE_PARAMETERS", "AGENTS", "LOADING_PROTOCOLS", "PROTOCOLS", "PUBLISHED_AGENT_OF_PROTOCOL", "STATUSES",
+    "RECORD_STATUSES", "RETRY_STATUSES", "code_version",
     # errors
     "DataError", "StoreError",
     # loading curves
@@ -69,6 +89,10 @@ __all__ = [
     "load_curve", "read_csv_rows", "separator_hint", "REFERENCE_CURVES", "reference_names", "resolve_reference_name",
     "load_reference",
     "reference_curves",
+    # the tidy format for measured bubbles
+    "CURVE_COLUMNS", "CURVE_OPTIONAL", "RESONANCE_COLUMNS", "RESONANCE_OPTIONAL", "TidyDataError", "BubbleCurve",
+    "BubbleCurveSet", "ResonanceSet", "read_bubble_curves", "read_resonance", "check_consistency", "tidy_kind",
+    "PUBLISHED_CURVES_FILE", "PUBLISHED_RESONANCE_FILE", "published_tidy_paths", "write_published_tidy",
     # plausibility bounds of measured quantities
     "PLAUSIBLE_RANGES", "PlausibleRange", "plausibility_problems",
     # acoustic observations

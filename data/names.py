@@ -20,6 +20,7 @@ __all__ = [
     "AGENTS",
     "LOADING_PROTOCOLS",
     "PROTOCOLS",
+    "PUBLISHED_AGENT_OF_PROTOCOL",
     "STATUSES",
     "RECORD_STATUSES",
     "RETRY_STATUSES",
@@ -49,6 +50,9 @@ AGENTS: tuple[str, ...] = ("definity", "sonovue")
 #: Mechanical loading protocols: compression (x = imposed displacement, y = force) and indentation
 #: (x = applied pole force, y = pole-to-pole displacement).
 LOADING_PROTOCOLS: tuple[str, ...] = ("compression", "indentation")
+#: The published agent measured with each loading protocol: its shipped priors, surrogates and laws are the
+#: starting point for a user's agent measured the same way.
+PUBLISHED_AGENT_OF_PROTOCOL: dict[str, str] = {"compression": "definity", "indentation": "sonovue"}
 #: Every simulated protocol: the loading protocols and the radial ringdown (x = time, y = R(t)).
 PROTOCOLS: tuple[str, ...] = LOADING_PROTOCOLS + ("ringdown",)
 

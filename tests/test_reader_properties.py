@@ -19,12 +19,22 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bubblecal.data import PLAUSIBLE_RANGES, DataError, load_acoustic_table, load_curve
+from bubblecal.data import (
+    PLAUSIBLE_RANGES,
+    DataError,
+    TidyDataError,
+    load_acoustic_table,
+    load_curve,
+    published_tidy_paths,
+    read_bubble_curves,
+    read_resonance,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 CURVE = ROOT / "data" / "reference" / "definity_compression_2.1um_dpd.csv"
 PHYSICAL = ROOT / "data" / "reference" / "sonovue_indentation_3.2um_source_physical.csv"
 ACOUSTIC = ROOT / "data" / "reference" / "acoustic_observations_published.csv"
+TIDY_CURVES, TIDY_RESONANCE = published_tidy_paths()
 PRIORS = ROOT / "priors" / "definity_reduced_acoustic.toml"
 CAMPAIGN = ROOT / "tests" / "campaigns" / "tiny_campaign.toml"
 BUNDLE = ROOT / "surrogates" / "bundle"
@@ -133,6 +143,43 @@ def test_acoustic_table(text):
         return
     assert _plausible([r.diameter_um for r in rows], "diameter")
     assert _plausible([r.frequency_MHz for r in rows], "resonance_frequency")
+
+
+@PROFILE
+@given(damaged_text(TIDY_CURVES.read_text()))
+def test_tidy_curves(text):
+    path = _write(text, "curves.csv")
+    try:
+        curves = read_bubble_curves(path)
+    except TidyDataError as exc:
+        assert str(path) in str(exc)
+        return
+    for b in curves:
+        assert b.n_retained >= 3 and np.all(np.diff(b.x) > 0)
+        assert _plausible(b.loading_curve().force_nN, "force") and _plausible([b.diameter_um], "diameter")
+
+
+@PROFILE
+@given(st.one_of(damaged_bytes(TIDY_CURVES.read_bytes()[:3000]), damaged_bytes(TIDY_RESONANCE.read_bytes())))
+def test_tidy_bytes(data):
+    path = _write(data, "tidy.csv")
+    for reader in (read_bubble_curves, read_resonance):
+        try:
+            reader(path)
+        except TidyDataError as exc:
+            assert str(path) in str(exc)
+
+
+@PROFILE
+@given(damaged_text(TIDY_RESONANCE.read_text()))
+def test_tidy_resonance(text):
+    path = _write(text, "resonance.csv")
+    try:
+        res = read_resonance(path)
+    except TidyDataError as exc:
+        assert str(path) in str(exc)
+        return
+    assert _plausible(res.diameter_um, "diameter") and _plausible(res.frequency_MHz, "resonance_frequency")
 
 
 # -------------------------------------------------------------------------------------------------

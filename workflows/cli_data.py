@@ -1,4 +1,4 @@
-"""``bubblecal data``: show the shipped reference data and validate a user's curve file."""
+"""``bubblecal data``: show the shipped reference data or a tidy file, and validate a user's data file."""
 
 from __future__ import annotations
 
@@ -11,9 +11,14 @@ from bubblecal.data import (
     DEFAULT_UNITS,
     DataError,
     acoustic_observations,
+    check_consistency,
+    load_acoustic_table,
     load_curve,
+    read_bubble_curves,
+    read_resonance,
     reference_curves,
     resolve_reference_name,
+    tidy_kind,
 )
 from bubblecal.workflows.choices import LoadingProtocol, Units, choice_value
 from bubblecal.workflows.console import console, fail, make_table
@@ -57,10 +62,74 @@ def _curve_table(curve, title: str) -> Table:
     return table
 
 
+def tidy_curves_table(curves) -> Table:
+    """Per agent: bubbles, protocols, diameters, points and retained points of a tidy curve file.
+
+    Parameters
+    ----------
+    curves : bubblecal.data.BubbleCurveSet
+
+    Returns
+    -------
+    rich.table.Table
+        One row per agent, then a total row.
+    """
+    table = make_table(f"{curves.path}: {len(curves)} bubbles of {len(curves.agents)} agents",
+                       ("agent", "bubbles", "protocols", "D [µm] min–max", "points", "retained points"))
+    for agent, bubbles in curves.by_agent().items():
+        diameters = [b.diameter_um for b in bubbles]
+        table.add_row(agent, ", ".join(b.bubble for b in bubbles), ", ".join(sorted({b.protocol for b in bubbles})),
+                      f"{min(diameters):g}–{max(diameters):g}", str(sum(b.n_points for b in bubbles)),
+                      str(sum(b.n_retained for b in bubbles)))
+    counts = curves.counts().values()
+    table.add_row("total", str(len(curves)), "", "", str(sum(c["points"] for c in counts)),
+                  str(sum(c["retained"] for c in counts)))
+    return table
+
+
+def tidy_resonance_table(resonance) -> Table:
+    """Per agent: rows, diameters and frequencies of a tidy resonance file.
+
+    Parameters
+    ----------
+    resonance : bubblecal.data.ResonanceSet
+
+    Returns
+    -------
+    rich.table.Table
+        One row per agent.
+    """
+    table = make_table(f"{resonance.path}: {len(resonance)} resonance rows",
+                       ("agent", "bubbles", "D [µm] min–max", "f_res [MHz] min–max"))
+    for agent in resonance.agents:
+        d, f = resonance.for_agent(agent)
+        table.add_row(agent, str(d.size), f"{d.min():g}–{d.max():g}", f"{f.min():g}–{f.max():g}")
+    return table
+
+
+def _show_file(path: Path) -> None:
+    """Print the summary of a tidy curve or resonance file."""
+    try:
+        kind = tidy_kind(path)
+        if kind == "curves":
+            console.print(tidy_curves_table(read_bubble_curves(path)))
+        elif kind == "resonance":
+            console.print(tidy_resonance_table(read_resonance(path)))
+        else:
+            raise fail(f"{path}: not a tidy curve file (a 'bubble' column) or resonance file (a 'frequency_MHz' "
+                       "column); check a single-curve file with: bubblecal data check FILE --kind KIND")
+    except DataError as exc:
+        raise fail(str(exc)) from None
+
+
 @app.command("show")
-def show(name: str = typer.Argument(None, help="Curve name (e.g. definity-2.1, sonovue_indentation_5.8um) or "
-                                               "'acoustic'; omit for the overview.")) -> None:
-    """Print the reference data: an overview, one curve point by point, or the acoustic table."""
+def show(name: str = typer.Argument(None, help="Curve name (e.g. definity-2.1, sonovue_indentation_5.8um), "
+                                               "'acoustic', or a tidy curve / resonance file; omit for the "
+                                               "overview.")) -> None:
+    """Print the reference data (an overview, one curve point by point, the acoustic table) or a tidy file."""
+    if name is not None and Path(name).is_file():
+        _show_file(Path(name))
+        return
     if name is None:
         console.print(_summary_table())
         console.print(_acoustic_table())
@@ -77,13 +146,71 @@ def show(name: str = typer.Argument(None, help="Curve name (e.g. definity-2.1, s
     console.print(_curve_table(curve, title))
 
 
+def _check_tidy(file: Path, kind: str, resonance: Path | None) -> None:
+    """Validate a tidy curve or resonance file (and a resonance file against the curves); print the summary."""
+    try:
+        if kind == "resonance":
+            res = read_resonance(file)
+            console.print(f"[green]ok[/]: {file} is a valid tidy resonance file ({len(res)} rows, "
+                          f"{len(res.agents)} agents)")
+            console.print(tidy_resonance_table(res))
+            return
+        problems = []
+        curves = res = None
+        try:
+            curves = read_bubble_curves(file)
+        except DataError as exc:
+            problems.append(str(exc))
+        if resonance is not None:
+            try:
+                res = read_resonance(resonance)
+                if curves is not None:
+                    check_consistency(curves, res)
+            except DataError as exc:
+                problems.append(str(exc))
+        if problems:
+            raise fail("\n".join(problems))
+    except DataError as exc:
+        raise fail(str(exc)) from None
+    counts = curves.counts().values()
+    console.print(f"[green]ok[/]: {file} is a valid tidy curve file ({len(curves)} bubbles, {len(curves.agents)} "
+                  f"agents, {sum(c['points'] for c in counts)} points, {sum(c['retained'] for c in counts)} retained)"
+                  + (f"; {resonance} adds {len(res)} resonance rows" if res is not None else ""))
+    console.print(tidy_curves_table(curves))
+    if res is not None:
+        console.print(tidy_resonance_table(res))
+
+
 @app.command("check")
 def check(
-    file: Path = typer.Argument(..., help="CSV file with a header row."),
-    kind: LoadingProtocol = typer.Option(..., "--kind", help="Loading protocol."),
-    units: Units = typer.Option("dpd", "--units", help="Units of the file."),
+    file: Path = typer.Argument(..., help="CSV file with a header row: a tidy curve or resonance file, the "
+                                          "acoustic table, or one curve (then --kind)."),
+    kind: LoadingProtocol = typer.Option(None, "--kind", help="Loading protocol of a single-curve file."),
+    units: Units = typer.Option("dpd", "--units", help="Units of a single-curve file."),
+    resonance: Path = typer.Option(None, "--resonance", help="Tidy resonance file to check with a tidy curve file "
+                                                             "(every agent in it needs curves)."),
 ) -> None:
-    """Validate a loading-curve CSV; exit status 1 with every problem listed if it is invalid."""
+    """Validate a data file (kind judged by its header); exit status 1 with every problem listed if it is invalid."""
+    try:
+        detected = tidy_kind(file)
+    except DataError as exc:
+        raise fail(str(exc)) from None
+    if detected is not None:
+        _check_tidy(file, detected, resonance)
+        return
+    if resonance is not None:
+        raise typer.BadParameter("--resonance goes with a tidy curve file (a 'bubble' column)",
+                                 param_hint="--resonance")
+    if kind is None:
+        if _is_acoustic_table(file):
+            try:
+                n = len(load_acoustic_table(file))
+            except DataError as exc:
+                raise fail(str(exc)) from None
+            console.print(f"[green]ok[/]: {file} is a valid acoustic table with {n} rows")
+            return
+        raise typer.BadParameter(f"{file} is not a tidy file (no 'bubble' or 'frequency_MHz' column): a single-curve "
+                                 "file needs --kind compression|indentation", param_hint="--kind")
     kind, units = choice_value(kind), choice_value(units)
     try:
         curve = load_curve(file, kind, units)
@@ -91,3 +218,12 @@ def check(
         raise fail(str(exc)) from None
     console.print(f"[green]ok[/]: {file} is a valid {kind} curve in {units} units with {curve.n_points} points")
     console.print(_curve_table(curve, f"{file}: {kind}, {curve.n_points} points (DPD and physical units)"))
+
+
+def _is_acoustic_table(file: Path) -> bool:
+    """Whether the file's first line names the published acoustic table's frequency column."""
+    try:
+        with open(file, encoding="utf-8-sig") as handle:
+            return "resonance_frequency_MHz" in handle.readline()
+    except (OSError, UnicodeDecodeError):
+        return False

@@ -1,4 +1,4 @@
-"""``bubblecal priors``: show and check the prior/hyperprior TOML files."""
+"""``bubblecal priors``: show and check the prior/hyperprior TOML files; write a template for a user's agent."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from bubblecal.data import DEFAULT_UNITS, PARAMETER_UNITS
-from bubblecal.priors import PriorError, available_priors, load_priors
+from bubblecal.data import DEFAULT_UNITS, PARAMETER_UNITS, atomic_write
+from bubblecal.priors import PriorError, available_priors, load_priors, priors_template
+from bubblecal.workflows.choices import LoadingProtocol, Workflow, choice_value
 from bubblecal.workflows.console import console, fail, make_table
 
 app = typer.Typer(help="Prior and hyperprior ranges (user-editable TOML files).", no_args_is_help=True)
@@ -88,3 +89,28 @@ def check(file: Path = typer.Argument(..., help="Priors TOML file to validate.")
     console.print(f"[green]ok[/]: {file} is valid ({len(spec.parameters)} free, {len(spec.fixed)} fixed, "
                   f"{len(spec.noise)} noise parameters)")
     console.print(priors_table(spec))
+
+
+@app.command("template")
+def template(
+    agent: str = typer.Option(..., "--agent", help="Your agent's label (as in the tidy curve file)."),
+    protocol: LoadingProtocol = typer.Option(..., "--protocol", help="How the agent's bubbles were measured: picks "
+                                                                     "the published agent whose priors are copied."),
+    workflow: Workflow = typer.Option("reduced", "--workflow", help="Workflow whose shipped priors are copied."),
+    out: Path = typer.Option(..., "--out", help="TOML file to write."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing file."),
+) -> None:
+    """Write an editable priors TOML for an agent, starting from the shipped priors of its protocol."""
+    if out.exists() and not force:
+        raise fail(f"{out} exists; pass --force to overwrite it")
+    try:
+        text = priors_template(agent, choice_value(protocol), choice_value(workflow))
+    except PriorError as exc:
+        raise fail(str(exc)) from None
+    try:
+        atomic_write(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    except OSError as exc:
+        raise fail(f"{out}: cannot write: {exc.strerror or exc}") from None
+    spec = load_priors(out)
+    console.print(f"[green]wrote[/] {out}: priors for agent {agent!r} ({choice_value(protocol)}), from the shipped "
+                  f"{spec.agent} {choice_value(workflow)} priors; edit it, then: bubblecal priors check {out}")
