@@ -36,7 +36,8 @@ def test_compare_runs_both_samplers_and_writes_report(tiny_compression_surrogate
     assert isinstance(report["comparison"]["passed"], bool)
     tm = az.from_netcdf(out / "definity_compression_2.1um_tmcmc.nc")
     nuts = az.from_netcdf(out / "definity_compression_2.1um_nuts.nc")
-    assert tm.posterior["ka"].shape == (1, 300)
+    assert tm.posterior["ka"].shape == (2, 300)  # one chain per TMCMC replica
+    assert "log_likelihood" in tm.groups() and "lp" in tm.sample_stats
     assert nuts.posterior["ka"].shape == (2, 100)
 
 
