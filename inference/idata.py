@@ -172,6 +172,23 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
     return out
 
 
+def _likelihood_groups(model: Callable, samples: Mapping[str, np.ndarray], args: tuple, kwargs: Mapping | None,
+                       log_likelihood, info: ExportInfo | None, chunk_size: int) -> tuple[dict | None, dict | None]:
+    """The log_likelihood and observed_data groups of a sampler's export, (chain, draw, ...) draws.
+
+    ``log_likelihood`` True with a model: the pointwise log likelihood and the observed values (padding dropped by
+    ``info.keep``); a mapping: those arrays as given and no observed values; anything else: neither.
+    """
+    if log_likelihood is True and model is not None:
+        keep = dict(info.keep) if info is not None else None
+        pointwise = pointwise_log_likelihood(model, samples, args, kwargs, batch_ndims=2, chunk_size=chunk_size,
+                                             keep=keep)
+        observed = observed_sites(model, samples, args, kwargs, batch_ndims=2)
+        return pointwise, {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
+                           for k, v in observed.items()}
+    return (dict(log_likelihood) if isinstance(log_likelihood, Mapping) else None), None
+
+
 def _dims(name: str, value: np.ndarray, info: ExportInfo, lead: int) -> list[str] | None:
     """Dimension names of a variable after its ``lead`` axes (None: ArviZ's defaults)."""
     dims = info.dims.get(name)

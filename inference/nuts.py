@@ -7,7 +7,7 @@ key, which continues the same chains, so a seed gives the same draws with progre
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import jax
@@ -74,24 +74,16 @@ class NUTSResult:
             posterior (chain, draw, ...); sample_stats 'lp' (−potential energy) and 'diverging' per draw;
             log_likelihood and observed_data; r_hat, ESS and divergences in the attrs.
         """
-        from bubblecal.inference.idata import build_inference_data, observed_sites, pointwise_log_likelihood
+        from bubblecal.inference.idata import _likelihood_groups, build_inference_data
 
         stats = {}
         if self.potential_energy is not None:
             stats["lp"] = -np.asarray(self.potential_energy)
         if self.diverging is not None:
             stats["diverging"] = np.asarray(self.diverging, dtype=bool)
-        observed = None
-        if log_likelihood is True and self.model_call is not None:
-            model, args, kwargs = self.model_call
-            keep = dict(info.keep) if info is not None else None
-            pointwise = pointwise_log_likelihood(model, self.samples_by_chain, args, kwargs, batch_ndims=2,
-                                                 chunk_size=chunk_size, keep=keep)
-            observed = observed_sites(model, self.samples_by_chain, args, kwargs, batch_ndims=2)
-            observed = {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
-                        for k, v in observed.items()}
-        else:
-            pointwise = dict(log_likelihood) if isinstance(log_likelihood, Mapping) else None
+        model, args, kwargs = self.model_call or (None, (), None)
+        pointwise, observed = _likelihood_groups(model, self.samples_by_chain, args, kwargs, log_likelihood, info,
+                                                 chunk_size)
         attrs = {"inference_library": "numpyro.infer.NUTS", "max_r_hat": self.max_r_hat,
                  "min_n_eff": self.min_n_eff, "num_divergences": self.num_divergences}
         return build_inference_data(self.samples_by_chain, sample_stats=stats or None, log_likelihood=pointwise,

@@ -224,7 +224,7 @@ class TMCMCResults:
             only); log_likelihood and observed_data; the evidence, status, settings and library versions
             in the attrs of every group.
         """
-        from bubblecal.inference.idata import build_inference_data, observed_sites, pointwise_log_likelihood
+        from bubblecal.inference.idata import _likelihood_groups, build_inference_data
 
         self._need_run()
         replicas = [self.get_samples(r) for r in range(self.num_replicas)]
@@ -256,17 +256,9 @@ class TMCMCResults:
             for r, t in enumerate(tables):
                 values[r, :len(t)] = t[c].to_numpy(dtype=float)
             stages[f"stage_{c}"] = (("chain", "stage"), values)
-        observed = None
-        if log_likelihood is True:
-            args, kwargs = self._model_args
-            keep = dict(info.keep) if info is not None else None
-            pointwise = pointwise_log_likelihood(self.model, posterior, args, kwargs, batch_ndims=2,
-                                                 chunk_size=chunk_size, keep=keep)
-            observed = observed_sites(self.model, posterior, args, kwargs, batch_ndims=2)
-            observed = {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
-                        for k, v in observed.items()}
-        else:
-            pointwise = dict(log_likelihood) if log_likelihood else None
+        args, kwargs = self._model_args
+        pointwise, observed = _likelihood_groups(self.model, posterior, args, kwargs, log_likelihood, info,
+                                                 chunk_size)
         idata = build_inference_data(posterior, sample_stats={"lp": lprior + ll, "loglik": ll, "log_prior": lprior},
                                      log_likelihood=pointwise, observed_data=observed, info=info,
                                      extra_stats=stages, attrs=attrs)
