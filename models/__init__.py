@@ -11,8 +11,6 @@
   (:class:`TruncatedNormalPopulation`) every model uses;
 - :mod:`bubblecal.models.likelihood` — the pure-JAX observation model (mechanical prediction,
   relative noise with its floor);
-- :mod:`bubblecal.models.preflight` — :func:`prior_draw_log_likelihoods`, the log likelihood at a few
-  prior draws (checked before sampling);
 - :mod:`bubblecal.models.population` — pure-JAX population densities (truncated-normal population
   prior, the staged-hierarchy importance sums, population-predictive draws).
 
@@ -53,7 +51,6 @@ from bubblecal.models.population import (
     staged_log_likelihood,
     truncnorm_icdf,
 )
-from bubblecal.models.preflight import prior_draw_log_likelihoods
 from bubblecal.models.staged import (
     PHASE2_FACTOR,
     dataset_log_likelihood,
@@ -77,5 +74,4 @@ __all__ = [
     "log_truncnorm", "truncnorm_icdf", "population_log_prob", "population_predictive_log_density",
     "staged_log_likelihood", "importance_log_weights", "importance_ess", "sample_population_predictive",
     # preflight
-    "prior_draw_log_likelihoods",
 ]
