@@ -28,8 +28,6 @@ LAYERS = ("data", "priors", "models", "surrogates", "sim", "campaigns", "inferen
 #: SALib behind inference.sensitivity); workflows may use any.
 LAYER_EXTRAS = {"data": set(), "priors": set(), "models": set(), "surrogates": {"train"}, "sim": {"sim"},
                 "campaigns": {"sim", "cluster"}, "inference": {"sensitivity"}, "workflows": set(EXTRAS)}
-#: Imported by package code without being a direct dependency, each with the core dependency that requires it.
-THROUGH_CORE = {"tqdm": "numpyro"}
 #: Every optional library, by import name: absent in the subprocess below.
 OPTIONAL = sorted({m for mods in EXTRAS.values() for m in mods} | {"onnx_ir", "rtree"})
 
@@ -273,9 +271,7 @@ def test_every_third_party_import_is_core_or_in_its_extra():
             where = f"{rel}:{line}: {top}"
             dist = _distribution(top)
             if extra is None:
-                through = THROUGH_CORE.get(top)
-                if dist not in core and not (through in core and _name(dist) in
-                                             {_name(r) for r in metadata.requires(through) or ()}):
+                if dist not in core:
                     problems.append(f"{where} is not a core dependency: import it with require({top!r}, EXTRA)")
             elif dist not in optional.get(extra, set()):
                 problems.append(f"{where}: pyproject's [{extra}] extra does not list {dist}")
