@@ -61,7 +61,8 @@ class _PhaseProgress:
 
 def calibrate(
     agent: AgentOrAll = typer.Option(ALL_AGENTS, "--agent", case_sensitive=False, help="Contrast agent(s)."),
-    workflow: Workflow = typer.Option(_D.workflow, "--workflow", help="Priors set and data."),
+    workflow: Workflow = typer.Option(None, "--workflow", help=f"Priors set and data (default {_D.workflow}; with "
+                                      "--data: reduced-acoustic with --acoustic, else reduced).", show_default=False),
     sampler: Sampler = typer.Option(_D.sampler, "--sampler", help="tmcmc (staged phases 1-2-3) | nuts (joint "
                                     "model)."),
     population: int = typer.Option(_D.population, "--population", help="TMCMC particles per phase (default "
@@ -73,7 +74,14 @@ def calibrate(
     bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
     force: bool = typer.Option(_D.force, "--force", help="Rerun finished phases instead of reusing them."),
     seed: int = typer.Option(_D.seed, "--seed"),
-    priors: Path = typer.Option(None, "--priors", help="Your priors TOML instead of the workflow's (one agent only)."),
+    priors: list[str] = typer.Option(None, "--priors", help="Your priors TOML instead of the shipped ones: FILE (one "
+                                     "--agent, or every agent of --data) or LABEL=FILE for one agent of --data "
+                                     "(repeatable)."),
+    data: Path = typer.Option(None, "--data", help="Tidy curves CSV of your bubbles (bubble, agent, protocol, "
+                              "diameter_um, displacement_nm, force_nN[, retained]): one hierarchy per agent label "
+                              "instead of the published study (check it first: bubblecal data check FILE)."),
+    acoustic: Path = typer.Option(None, "--acoustic", help="Tidy resonance CSV for the agents of --data (agent, "
+                                  "diameter_um, frequency_MHz[, source])."),
     data_dir: Path = typer.Option(_D.data_dir, "--data-dir", help="Folder of curve CSVs (DPD units) named like the "
                                   "shipped ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
                                   "acoustic_observations_published.csv, replacing them."),
@@ -94,23 +102,23 @@ def calibrate(
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
                                "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
 ) -> None:
-    """Calibrate the shell parameters of Definity and/or SonoVue: staged hierarchical TMCMC (or joint NUTS)
-    on the shipped curves, acoustic data, priors and surrogates; writes NetCDF per phase, summary.csv,
-    figures and report.md under OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
+    """Calibrate the shell parameters of your bubbles (--data CURVES.csv [--acoustic FREQS.csv], one hierarchy per
+    agent label) or of the published study (Definity and/or SonoVue on the shipped curves): staged hierarchical
+    TMCMC (or joint NUTS); writes NetCDF per phase, summary.csv, figures and report.md under
+    OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
     agent, workflow, sampler, device, phase3 = (choice_value(o) for o in (agent, workflow, sampler, device, phase3))
+    if workflow is None:
+        workflow = _D.workflow if data is None or acoustic is not None else "reduced"
     _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
-    priors_map = {}
-    if priors is not None:
-        if len(agents) != 1:
-            raise fail("--priors FILE needs a single --agent (definity or sonovue)")
-        priors_map[agents[0]] = str(priors)
+    priors_map = _priors_map(list(priors or ()), agents, data)
     try:
         config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
                                    paper=paper, out=out, device=device, bundle=bundle, force=force, seed=seed,
-                                   priors=priors_map, data_dir=data_dir, curves=tuple(curve or ()),
+                                   priors=priors_map, data_dir=data_dir, data=data, acoustic_data=acoustic,
+                                   curves=tuple(curve or ()),
                                    phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
                                    nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
                                    netcdf=netcdf, figures=figures, phase3=phase3)
@@ -121,10 +129,15 @@ def calibrate(
         console.print(f"[bold yellow]warning:[/] {plan.bundle_path} is a SYNTHETIC bundle (closed-form laws, not DPD): "
                       "the posteriors are not physical results", highlight=False)
     for ap in plan.agents:
+        for note in ap.notes:
+            console.print(f"[cyan]note:[/] {escape(ap.agent)}: {escape(note)}", highlight=False)
         for msg in ap.domain_warnings[:5]:
             console.print(f"[yellow]warning:[/] {ap.agent}: prior box exceeds a surrogate's training box: "
                           f"{escape(msg)}", highlight=False)
-    console.print(f"calibrate: agents {', '.join(agents)}, workflow {workflow}, sampler {sampler}, "
+    names = [ap.agent for ap in plan.agents]
+    what = (f"{sum(len(ap.curves) for ap in plan.agents)} bubbles of {data}, agents {', '.join(names)}"
+            if data is not None else f"agents {', '.join(names)}")
+    console.print(f"calibrate: {what}, workflow {workflow}, sampler {sampler}, "
                   f"N = {config.num_particles} per phase, device {device}, bundle {plan.bundle_path}, out {out}",
                   highlight=False)
     t_all = time.perf_counter()
@@ -136,6 +149,31 @@ def calibrate(
             raise fail(str(exc)) from None
         _run_agents(plan, sampler, figures)
     console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
+
+
+def _priors_map(entries: list[str], agents: tuple[str, ...], data: Path | None) -> dict[str, str]:
+    """``--priors`` values -> {agent: file}: ``FILE`` for the single ``--agent`` (or every agent of ``--data``),
+    ``LABEL=FILE`` for one agent of ``--data``."""
+    from bubblecal.workflows.calibrate import PRIORS_FOR_ALL
+
+    out: dict[str, str] = {}
+    for entry in entries:
+        label, sep, path = entry.partition("=")
+        if sep and data is None:
+            raise fail(f"--priors {entry}: LABEL=FILE names an agent of --data CURVES.csv; without --data give "
+                       "--priors FILE with one --agent")
+        if not sep:
+            label, path = (PRIORS_FOR_ALL if data is not None else None), entry
+            if label is None and len(agents) != 1:
+                raise fail("--priors FILE needs a single --agent (definity or sonovue)")
+            label = label or agents[0]
+        if not label or not path:
+            raise fail(f"--priors {entry!r}: give FILE or LABEL=FILE")
+        if label in out:
+            raise fail(f"--priors: two files for {'every agent' if label == PRIORS_FOR_ALL else label} "
+                       f"({out[label]}, {path})")
+        out[label] = path
+    return out
 
 
 def _compilation_cache(on: bool) -> None:

@@ -9,8 +9,13 @@ Pipeline (``docs/inference.md`` sections 4 and 7)::
 Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.plan` (validation and inputs), :mod:`~bubblecal.workflows.calibrate.store`
 (phase files, manifest, config hashes), :mod:`~bubblecal.workflows.calibrate.run` (the samplers),
+:mod:`~bubblecal.workflows.calibrate.published` (the published study's inputs),
+:mod:`~bubblecal.workflows.calibrate.user_data` (measured bubbles from tidy files: ``data=CURVES.csv``),
 :mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one
 run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws).
+
+Measured bubbles: ``CalibrationConfig(data=Path("curves.csv"), acoustic_data=Path("resonance.csv"))`` runs one
+hierarchy per agent label of the file (``out/<label>/<workflow>/``).
 
 Output, under ``out/<agent>/<workflow>/``:
 
@@ -44,6 +49,7 @@ from bubblecal.workflows.calibrate.config import (
     WORKFLOWS,
     CalibrationConfig,
     CalibrationError,
+    agent_seed,
     config_from_agents,
     min_population,
     phase2_samples,
@@ -75,6 +81,7 @@ from bubblecal.workflows.calibrate.store import (
     phase_dependencies,
     phase_hashes,
 )
+from bubblecal.workflows.calibrate.user_data import PRIORS_FOR_ALL, user_agent_plans
 
 __all__ = [
     "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "PAPER_COV",
@@ -85,6 +92,6 @@ __all__ = [
     "PhaseStore", "PhaseFileError", "phase_dependencies",
     "write_phase", "read_phase", "read_pointwise", "phase_format",
     "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
-    "AgentResult", "run_agent", "run_calibration",
+    "AgentResult", "agent_seed", "run_agent", "run_calibration", "PRIORS_FOR_ALL", "user_agent_plans",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
 ]

@@ -16,7 +16,7 @@ from bubblecal.data import AGENTS
 __all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION",
            "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
            "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
-           "min_population"]
+           "min_population", "agent_seed"]
 
 #: Workflows: each names one priors TOML per agent (``priors/<agent>_<workflow>.toml``).
 WORKFLOWS = ("reduced-acoustic", "reduced", "full")
@@ -56,7 +56,7 @@ class CalibrationConfig:
     Parameters
     ----------
     agents : tuple of str
-        Subset of :data:`bubblecal.data.names.AGENTS`.
+        Subset of :data:`bubblecal.data.names.AGENTS` (the published study; ``data`` brings its own agents).
     workflow : str
         One of :data:`WORKFLOWS`; the priors are ``priors/<agent>_<workflow>.toml`` unless ``priors`` maps
         the agent to another TOML.
@@ -78,10 +78,17 @@ class CalibrationConfig:
     seed : int
         Seed of the JAX keys (agent ``definity``: seed, ``sonovue``: seed + 1000).
     priors : Mapping of str to str
-        Agent -> priors name or TOML path replacing the workflow's.
+        Agent -> priors name or TOML path replacing the workflow's; with ``data`` the keys are agent labels of
+        the file, or ``'*'`` for every agent without its own (default: the shipped priors of the published agent
+        of the agent's protocol).
     data_dir : Path or None
         Folder of curve CSVs in DPD units named like the shipped ones (``<agent>_<kind>_<D>um_dpd.csv``)
         and/or ``acoustic_observations_published.csv``, replacing them.
+    data : Path or None
+        A tidy curves file of measured bubbles (nm, nN, any diameter in the bundle's range;
+        docs/data-formats.md, "Tidy bubble files"): one hierarchy per agent label replaces the published study.
+    acoustic_data : Path or None
+        A tidy resonance file (MHz) for the agents of ``data``: one acoustic dataset per row.
     curves : tuple of str
         Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
     phase2_samples : int or None
@@ -120,6 +127,8 @@ class CalibrationConfig:
     seed: int = 0
     priors: Mapping[str, str] = field(default_factory=dict)
     data_dir: Path | None = None
+    data: Path | None = None
+    acoustic_data: Path | None = None
     curves: tuple[str, ...] = ()
     phase2_samples: int | None = None
     num_mcmc_steps: int = 10
@@ -242,3 +251,24 @@ def min_population(n_dims: int) -> int:
         max(:data:`MIN_PARTICLES`, :data:`PARTICLES_PER_DIMENSION` x ``n_dims``).
     """
     return max(MIN_PARTICLES, PARTICLES_PER_DIMENSION * n_dims)
+
+def agent_seed(seed: int, agent: str) -> int:
+    """The seed of one agent's JAX keys: ``seed`` for Definity, ``seed + 1000`` for SonoVue (the published
+    study's), and for any other label ``seed`` plus a stable offset of the label (the same on every machine).
+
+    Parameters
+    ----------
+    seed : int
+        The run's seed (``--seed``).
+    agent : str
+        Agent name or label.
+
+    Returns
+    -------
+    int
+        A seed in [0, 2**32).
+    """
+    import zlib
+
+    offset = {"definity": 0, "sonovue": 1000}.get(agent, 2000 + zlib.crc32(agent.encode("utf-8")) % 1_000_000)
+    return (int(seed) + offset) % 2**32

@@ -7,12 +7,9 @@ raises one :class:`~bubblecal.workflows.calibrate.CalibrationError` naming the f
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import numpy as np
 
 from bubblecal.data import AGENTS
 from bubblecal.workflows.calibrate.config import (
@@ -39,7 +36,7 @@ class AgentPlan:
     Parameters
     ----------
     agent : str
-        'definity' or 'sonovue'.
+        'definity' or 'sonovue'; with measured bubbles (``--data``) the hierarchy's name (the agent label).
     workflow : str
         One of :data:`~bubblecal.workflows.calibrate.WORKFLOWS`.
     spec : bubblecal.priors.PriorSpec
@@ -59,6 +56,10 @@ class AgentPlan:
         ``out/<agent>/<workflow>``.
     domain_warnings : list of str
         Places where the prior box exceeds a surrogate's training box (reported, not fatal).
+    surrogate_agent : str
+        The published agent whose surrogates and acoustic law serve this agent ('' = ``agent`` itself).
+    notes : list of str
+        Choices made for the user that the report states (e.g. which priors a measured agent got).
     """
 
     agent: str
@@ -71,6 +72,13 @@ class AgentPlan:
     f_res: object
     out_dir: Path
     domain_warnings: list[str] = field(default_factory=list)
+    surrogate_agent: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def acoustic_name(self) -> str:
+        """The name of the acoustic surrogate this agent uses (its published agent)."""
+        return self.surrogate_agent or self.agent
 
     @property
     def dataset_names(self) -> list[str]:
@@ -138,52 +146,12 @@ def resolve_bundle(path: Path | None) -> Path:
         raise CalibrationError(str(exc)) from None
 
 
-def _workflow_priors_name(agent: str, workflow: str) -> str:
-    """The shipped priors name of ``agent`` and ``workflow``."""
-    from bubblecal.priors import workflow_file_name
-
-    return workflow_file_name(agent, workflow)
-
-
-def _load_curves(agent: str, data_dir: Path | None) -> list:
-    """The agent's reference curves, each replaced by ``data_dir/<name>_dpd.csv`` where that file exists."""
-    from bubblecal.data import REFERENCE_CURVES, DataError, load_curve, load_reference
-
-    curves = []
-    for name, (ag, kind, nominal, measured, _cite) in REFERENCE_CURVES.items():
-        if ag != agent:
-            continue
-        path = None if data_dir is None else Path(data_dir) / f"{name}_dpd.csv"
-        if path is not None and path.is_file():
-            try:
-                curve = load_curve(path, kind, "dpd", name=name, agent=agent, diameter_um=nominal, source=str(path))
-            except DataError as exc:
-                raise CalibrationError(str(exc)) from None
-            curve = dataclasses.replace(curve, bubble_diameter_um=measured)
-        else:
-            curve = load_reference(agent, nominal)
-        curves.append(curve)
-    return curves
-
-
-def _load_acoustic(agent: str, data_dir: Path | None) -> list:
-    """The agent's acoustic datasets, from ``data_dir/acoustic_observations_published.csv`` where it exists."""
-    from bubblecal.data import DataError, acoustic_datasets, load_acoustic_table
-
-    path = None if data_dir is None else Path(data_dir) / "acoustic_observations_published.csv"
-    if path is not None and path.is_file():
-        try:
-            rows = load_acoustic_table(path)
-        except DataError as exc:
-            raise CalibrationError(str(exc)) from None
-        return acoustic_datasets(agent, rows)
-    return acoustic_datasets(agent)
-
-
 def _check_choices(config: CalibrationConfig) -> None:
     """The settings that need no file: choices and ranges (CalibrationError otherwise)."""
     bad = [a for a in config.agents if a not in AGENTS]
-    if bad or not config.agents:
+    if config.data is not None:
+        _check_data_mode(config)
+    elif bad or not config.agents:
         raise CalibrationError(f"--agent must be one of {', '.join(AGENTS)} or all, got {', '.join(bad) or 'none'}")
     if config.workflow not in WORKFLOWS:
         raise CalibrationError(f"--workflow must be one of {', '.join(WORKFLOWS)}, got {config.workflow!r}")
@@ -194,11 +162,31 @@ def _check_choices(config: CalibrationConfig) -> None:
     if config.device not in DEVICES:
         raise CalibrationError(f"--device must be one of {', '.join(DEVICES)}, got {config.device!r}")
     check_device(config.device)  # the integer settings' ranges: CalibrationConfig, on construction
+    if config.data is not None:
+        return
+    if config.acoustic_data is not None:
+        raise CalibrationError("--acoustic FILE goes with --data CURVES.csv (the published study reads its own "
+                               "acoustic table; --data-dir replaces it)")
     _check_curve_agents(config)
     if config.data_dir is not None and not Path(config.data_dir).is_dir():
         raise CalibrationError(f"--data-dir {config.data_dir}: not a directory")
     if config.data_dir is not None:
         _check_data_dir(Path(config.data_dir))
+
+
+def _check_data_mode(config: CalibrationConfig) -> None:
+    """The options that go with ``--data``: files that exist, none of the published study's selections."""
+    clash = [name for name, on in (("--data-dir", config.data_dir is not None), ("--curve", bool(config.curves)),
+                                   ("--agent", tuple(config.agents) != AGENTS)) if on]
+    if clash:
+        raise CalibrationError(f"{', '.join(clash)}: select(s) the published study's data; with --data CURVES.csv "
+                               "the file says which bubbles and agents to calibrate")
+    for flag, path in (("--data", config.data), ("--acoustic", config.acoustic_data)):
+        if path is not None and not Path(path).is_file():
+            raise CalibrationError(f"{flag} {path}: no such file")
+    if config.acoustic_data is not None and config.workflow in ("reduced", "full"):
+        raise CalibrationError(f"--acoustic {config.acoustic_data}: workflow {config.workflow!r} uses no resonance "
+                               "data; use --workflow reduced-acoustic (the default with --acoustic)")
 
 
 def _check_curve_agents(config: CalibrationConfig) -> None:
@@ -265,7 +253,6 @@ def make_plan(config: CalibrationConfig) -> Plan:
         folder that cannot be made or written, or a dataset whose log likelihood is not finite at a few prior
         draws (:func:`~bubblecal.workflows.calibrate.preflight.preflight`).
     """
-    from bubblecal.priors import PriorError, load_priors
     from bubblecal.surrogates import SurrogateFormatError, load_bundle
     from bubblecal.surrogates.acoustic import AcousticFormatError
     from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
@@ -278,92 +265,30 @@ def make_plan(config: CalibrationConfig) -> Plan:
     except (SurrogateFormatError, AcousticFormatError, FileNotFoundError, KeyError, ValueError) as exc:
         raise CalibrationError(f"surrogate bundle {bundle_path}: {exc}") from None
 
-    agents = []
-    for agent in config.agents:
-        source = config.priors.get(agent, _workflow_priors_name(agent, config.workflow))
-        try:
-            spec = load_priors(source)
-        except PriorError as exc:
-            raise CalibrationError(str(exc)) from None
-        if spec.agent != agent:
-            raise CalibrationError(f"{spec.path}: field workflow.agent is {spec.agent!r}, expected {agent!r}")
-        wants_acoustic = config.workflow == "reduced-acoustic"
-        if spec.acoustic != wants_acoustic:
-            raise CalibrationError(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but "
-                                   f"workflow {config.workflow!r} needs {str(wants_acoustic).lower()}")
-        curves = _select_curves(_load_curves(agent, config.data_dir), config.curves, agent)
-        surrogates, domain = _curve_surrogates(curves, bundle, spec, agent)
-        acoustic, f_res = [], None
-        if spec.acoustic:
-            acoustic, f_res = _acoustic_inputs(agent, config, bundle, bundle_path, spec, domain)
-        ap = AgentPlan(agent=agent, workflow=config.workflow, spec=spec, priors_path=Path(spec.path), curves=curves,
-                       surrogates=surrogates, acoustic=acoustic, f_res=f_res,
-                       out_dir=Path(config.out) / agent / config.workflow, domain_warnings=domain)
-        n = config.num_particles
-        if config.sampler == "tmcmc":
-            for phase, dim in ap.dims().items():
-                need = min_population(dim)
-                if n < need:
-                    raise CalibrationError(f"--population {n} is too small: {agent} {phase} samples {dim} parameters "
-                                           f"and needs N >= {need} ({PARTICLES_PER_DIMENSION} per dimension, at least "
-                                           f"{MIN_PARTICLES})")
-        agents.append(ap)
+    if config.data is not None:
+        from bubblecal.workflows.calibrate.user_data import user_agent_plans
+
+        agents = user_agent_plans(config, bundle, Path(config.out))
+    else:
+        from bubblecal.workflows.calibrate.published import published_agent_plans
+
+        agents = published_agent_plans(config, bundle, bundle_path)
+    for ap in agents:
+        _check_population(config, ap)
     plan = Plan(config=config, bundle=bundle, bundle_path=bundle_path,
                 synthetic_bundle=is_synthetic_bundle(bundle), agents=agents)
     preflight(plan)
     return plan
 
 
-def _select_curves(curves: list, names: tuple[str, ...], agent: str) -> list:
-    """The curves named by ``--curve`` (all when ``names`` is empty)."""
-    if not names:
-        return curves
-    curves = [c for c in curves if c.name in names]
-    if not curves:
-        raise CalibrationError(f"--curve: none of {', '.join(names)} belongs to {agent}")
-    return curves
-
-
-def _curve_surrogates(curves: list, bundle, spec, agent: str) -> tuple[list, list[str]]:
-    """(surrogate per curve, domain warnings of the prior box vs each surrogate's training box)."""
-    from bubblecal.workflows.domain import prior_box_domain_warnings
-
-    surrogates, domain = [], []
-    for curve in curves:
-        try:
-            sur = bundle.get(curve.kind, curve.diameter_um)
-        except KeyError as exc:
-            raise CalibrationError(f"{exc.args[0]}; the {agent} curve {curve.name} needs it") from None
-        if spec.setup != curve.kind:
-            raise CalibrationError(f"{spec.path}: field workflow.setup is {spec.setup!r}, the {agent} curves are "
-                                   f"{curve.kind}")
-        surrogates.append(sur)
-        domain += prior_box_domain_warnings(sur, spec, curve.x)
-    return surrogates, domain
-
-
-def _acoustic_inputs(agent: str, config: CalibrationConfig, bundle, bundle_path: Path, spec,
-                     domain: list[str]) -> tuple[list, object]:
-    """(acoustic datasets, acoustic surrogate); appends a message to ``domain`` where the fitted k_a range
-    of a diameter does not contain the k_a prior."""
-    from bubblecal.surrogates.acoustic import AcousticRangeError
-
-    acoustic = _load_acoustic(agent, config.data_dir)
-    if not acoustic:
-        raise CalibrationError(f"no acoustic observations of {agent} (workflow {config.workflow})")
-    diameters = np.concatenate([np.atleast_1d(np.asarray(ds.diameter_um, dtype=float)) for ds in acoustic])
-    try:  # the per-diameter quadratics where fitted at every bubble, else the law over the diameter
-        f_res = bundle.acoustic_for(agent, diameters)
-    except AcousticRangeError as exc:
-        raise CalibrationError(f"{exc}; workflow {config.workflow} needs it for the {agent} acoustic data") from None
-    lo, hi = spec.parameters["ka"].prior.as_tuple()
-    for ds in acoustic:
-        for d in np.atleast_1d(ds.diameter_um):
-            try:
-                r_lo, r_hi = f_res.ka_ranges(float(d))
-            except AcousticRangeError as exc:
-                raise CalibrationError(f"bundle {bundle_path}: {exc}; acoustic dataset {ds.name} needs it") from None
-            if lo < r_lo * (1 - 1e-9) or hi > r_hi * (1 + 1e-9):
-                domain.append(f"acoustic {agent} {float(d):g} um: fitted ka range [{r_lo:.6g}, {r_hi:.6g}] "
-                              f"does not contain the ka prior [{lo:.6g}, {hi:.6g}]")
-    return acoustic, f_res
+def _check_population(config: CalibrationConfig, ap: AgentPlan) -> None:
+    """TMCMC's N is large enough for every phase of the agent (CalibrationError naming phase and need)."""
+    n = config.num_particles
+    if config.sampler != "tmcmc":
+        return
+    for phase, dim in ap.dims().items():
+        need = min_population(dim)
+        if n < need:
+            raise CalibrationError(f"--population {n} is too small: {ap.agent} {phase} samples {dim} parameters "
+                                   f"and needs N >= {need} ({PARTICLES_PER_DIMENSION} per dimension, at least "
+                                   f"{MIN_PARTICLES})")

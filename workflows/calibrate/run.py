@@ -21,7 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate.config import CalibrationConfig, phase2_samples, phase_tmcmc_options
+from bubblecal.workflows.calibrate.config import (
+    CalibrationConfig,
+    agent_seed,
+    phase2_samples,
+    phase_tmcmc_options,
+)
 from bubblecal.workflows.calibrate.device import on_device
 from bubblecal.workflows.calibrate.export import PHASE2_LOGLIK, phase2_log_likelihood, phase_exports
 from bubblecal.workflows.calibrate.phase_files import write_phase
@@ -29,6 +34,7 @@ from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
 from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes
 
 __all__ = ["AgentResult", "run_agent", "run_calibration"]
+
 
 
 @dataclass
@@ -184,7 +190,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     seconds: dict[str, float] = {}
     t_start = time.perf_counter()
     staged = joint = None
-    key = jax.random.PRNGKey(config.seed + (0 if ap.agent == "definity" else 1000))
+    key = jax.random.PRNGKey(agent_seed(config.seed, ap.agent))
 
     if config.sampler == "tmcmc":
         phase2_model_factory, phase3_factory, datasets = _phase_models(ap, config)

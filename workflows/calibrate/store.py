@@ -64,8 +64,10 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
               "datasets": ap.dataset_names}
     hashes = {}
     for curve, sur in zip(ap.curves, ap.surrogates, strict=True):
-        hashes[f"phase1_{curve.name}"] = config_hash({**common, "phase": 1, "data": array_hash(curve.x, curve.y),
-                                                      "surrogate": sur.data_hash, "options": o1})
+        h1 = {**common, "phase": 1, "data": array_hash(curve.x, curve.y), "surrogate": sur.data_hash, "options": o1}
+        if getattr(sur, "over_diameter", False):  # one network serves every size: the bound diameter is an input
+            h1["diameter_um"] = float(sur.diameter_um)
+        hashes[f"phase1_{curve.name}"] = config_hash(h1)
     for ds in ap.acoustic:
         hashes[f"phase1_{ds.name}"] = config_hash({**common, "phase": 1,
                                                    "data": array_hash(ds.diameter_um, ds.frequency_MHz),
@@ -96,7 +98,7 @@ def bundle_hashes(bundle) -> dict[str, str]:
 def _acoustic_hash(ap, acoustic_hashes: Mapping[str, str]) -> str:
     """The :func:`bundle_hashes` entry of the acoustic surrogate the agent's plan uses (quadratics or law)."""
     key = "acoustic_law_" if hasattr(ap.f_res, "law") else "acoustic_"
-    return acoustic_hashes.get(f"{key}{ap.agent}", "")
+    return acoustic_hashes.get(f"{key}{ap.acoustic_name}", "")
 
 
 class PhaseStore:
