@@ -13,6 +13,7 @@ Pure functions of the truth (``truth.json`` of ``generate``) and the rows of a c
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 from scipy.stats import binom
@@ -175,3 +176,16 @@ def evaluate(truth: dict, rows: list[dict]) -> dict:
     reported = {"m_kb": hyper_check(truth, rows, "m_kb"), "tau_kb": hyper_check(truth, rows, "tau_kb"),
                 "coverage_kb": coverage_check(truth, rows, "kb")}
     return {"checks": checks, "reported": reported, "pass": all(c["pass"] for c in checks.values())}
+
+
+def print_evaluation(result: dict) -> None:
+    """Print the checks of :func:`evaluate` as a table and one JSON line."""
+    print(f"{'check':14s} {'true':>10s} {'q05':>10s} {'q95':>10s} {'result':>14s} verdict")
+    for name, c in {**result["checks"], **result["reported"]}.items():
+        if "hits" in c:
+            print(f"{name:14s} {'':>10s} {'':>10s} {'':>10s} {c['hits']:>3d}/{c['n']:<3d}[{c['lo']},{c['hi']}] "
+                  f"{'pass' if c['pass'] else 'FAIL'}")
+        else:
+            print(f"{name:14s} {c['true']:10.4g} {c['q05']:10.4g} {c['q95']:10.4g} {'':>14s} "
+                  f"{'pass' if c['pass'] else 'FAIL'}")
+    print(json.dumps({"benchmark": "synthetic_population", "command": "evaluate", **result}))

@@ -135,6 +135,16 @@ def test_check_tidy_catches_a_file_that_differs(sp, checks, tmp_path):
         sp.check_tidy(path, bubbles, "lab-x")
 
 
+def test_a_file_that_fails_its_check_never_replaces_the_last_good_one(sp, checks, tmp_path):
+    bubbles = _bubbles()
+    path = sp.write_tidy(tmp_path / "curves.csv", sp.tidy_rows(bubbles, "lab-x"))
+    good = path.read_text()
+    changed = [dict(b, y=b["y"] * 2.0) for b in bubbles]
+    with pytest.raises(checks.StudyError, match="syn-001"):
+        sp.write_tidy(path, sp.tidy_rows(changed, "lab-x"), lambda tmp: sp.check_tidy(tmp, bubbles, "lab-x"))
+    assert path.read_text() == good and [p.name for p in tmp_path.iterdir()] == ["curves.csv"]
+
+
 def test_binomial_range_is_the_central_95_percent(checks):
     for n in (10, 40, 100):
         lo, hi = checks.binomial_range(n)
