@@ -181,11 +181,11 @@ def evaluate(truth: dict, rows: list[dict]) -> dict:
 def print_evaluation(result: dict) -> None:
     """Print the checks of :func:`evaluate` as a table and one JSON line."""
     print(f"{'check':14s} {'true':>10s} {'q05':>10s} {'q95':>10s} {'result':>14s} verdict")
-    for name, c in {**result["checks"], **result["reported"]}.items():
+    verdicts = [(n, c, "pass" if c["pass"] else "FAIL") for n, c in result["checks"].items()]
+    verdicts += [(n, c, f"{'in' if c['pass'] else 'out'} (reported)") for n, c in result["reported"].items()]
+    for name, c, verdict in verdicts:
         if "hits" in c:
-            print(f"{name:14s} {'':>10s} {'':>10s} {'':>10s} {c['hits']:>3d}/{c['n']:<3d}[{c['lo']},{c['hi']}] "
-                  f"{'pass' if c['pass'] else 'FAIL'}")
+            print(f"{name:14s} {'':>10s} {'':>10s} {'':>10s} {c['hits']:>3d}/{c['n']:<3d}[{c['lo']},{c['hi']}] {verdict}")
         else:
-            print(f"{name:14s} {c['true']:10.4g} {c['q05']:10.4g} {c['q95']:10.4g} {'':>14s} "
-                  f"{'pass' if c['pass'] else 'FAIL'}")
+            print(f"{name:14s} {c['true']:10.4g} {c['q05']:10.4g} {c['q95']:10.4g} {'':>14s} {verdict}")
     print(json.dumps({"benchmark": "synthetic_population", "command": "evaluate", **result}))
