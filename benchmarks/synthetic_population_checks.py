@@ -185,7 +185,8 @@ def print_evaluation(result: dict) -> None:
     verdicts += [(n, c, f"{'in' if c['pass'] else 'out'} (reported)") for n, c in result["reported"].items()]
     for name, c, verdict in verdicts:
         if "hits" in c:
-            print(f"{name:14s} {'':>10s} {'':>10s} {'':>10s} {c['hits']:>3d}/{c['n']:<3d}[{c['lo']},{c['hi']}] {verdict}")
+            counts = f"{c['hits']:>3d}/{c['n']:<3d}[{c['lo']},{c['hi']}]"
+            print(f"{name:14s} {'':>10s} {'':>10s} {'':>10s} {counts:>14s} {verdict}")
         else:
             print(f"{name:14s} {c['true']:10.4g} {c['q05']:10.4g} {c['q95']:10.4g} {'':>14s} {verdict}")
     print(json.dumps({"benchmark": "synthetic_population", "command": "evaluate", **result}))
