@@ -53,8 +53,8 @@ CAMPAIGN = "definity_compression_1.5-8um"
 PRIORS = "definity_reduced"
 #: Diameters of the study [um]: inside the network's 1.5-8 um, where its training data reach (~6.2 um).
 DIAMETER_RANGE_UM = (1.8, 6.0)
-#: Relative noise of every bubble: the published Definity fits give sigma 0.03-0.06 (benchmarks/RESULTS.md),
-#: whereas the inner half of the U(0, 1) prior (0.25-0.75) would be noise no AFM curve shows.
+#: Relative noise of every bubble: calibrations of published curves find sigma ~0.03 and the synthetic recovery
+#: tests use 0.06 (benchmarks/RESULTS.md); the inner half of the U(0, 1) prior (0.25-0.75) is noise no AFM curve shows.
 SIGMA = 0.05
 #: A true hyperparameter must lie this fraction of its hyperprior box's width away from either end.
 MARGIN = 0.1
