@@ -85,12 +85,19 @@ def _fmt(v, digits=4) -> str:
     return "–" if v is None or not math.isfinite(v) else f"{v:.{digits}g}"
 
 
+def _plain(v) -> str:
+    """``v`` to 3 significant digits, without an exponent between 0.01 and 10^6 (κ reads 53000, not 5.3e+04)."""
+    if v is None or not math.isfinite(v):
+        return "–"
+    return f"{float(f'{v:.3g}'):.10g}" if 1e-2 <= abs(v) < 1e6 else f"{v:.3g}"
+
+
 def _interval(row, p: str) -> str:
     """'median [q05, q95]' of parameter ``p`` in a :func:`~bubblecal.workflows.summary.bubble_rows` row."""
     key = f"{p}_median"
     if key not in row or not math.isfinite(row[key]):
         return ""
-    return f"{_fmt(row[key], 3)} [{_fmt(row[f'{p}_q05'], 3)}, {_fmt(row[f'{p}_q95'], 3)}]"
+    return f"{_plain(row[key])} [{_plain(row[f'{p}_q05'])}, {_plain(row[f'{p}_q95'])}]"
 
 
 def bubble_lines(result) -> list[str]:
@@ -139,8 +146,8 @@ def population_lines(result) -> list[str]:
              "|---|---|---|---|---|"]
     for k, b in bands.items():
         _u, pname, punit, _c = PHYSICAL.get(k, ("", k, "1", None))
-        cells = [f"{b[f'{w}_median']:.3g} [{b[f'{w}_q05']:.3g}, {b[f'{w}_q95']:.3g}]" if f"{w}_median" in b else "–"
-                 for w in ("m", "tau", "new")]
+        cells = [f"{_plain(b[f'{w}_median'])} [{_plain(b[f'{w}_q05'])}, {_plain(b[f'{w}_q95'])}]"
+                 if f"{w}_median" in b else "–" for w in ("m", "tau", "new")]
         lines.append(f"| {k} ({pname}) | {punit} | " + " | ".join(cells) + " |")
     return lines
 
@@ -170,9 +177,11 @@ def _phase_lines(st, reused) -> list[str]:
         z = [r.log_evidence for r in rs]
         statuses = {s: sum(r.status == s for r in rs) for s in dict.fromkeys(r.status for r in rs)}
         n_reused = sum(r.name in reused for r in rs)
-        status = ", ".join(f"{s} × {c}" for s, c in statuses.items()) + (f" ({n_reused} reused)" if n_reused else "")
+        status = (rs[0].status if len(rs) == 1 else ", ".join(f"{s} × {c}" for s, c in statuses.items())) + (
+            f" ({n_reused} reused)" if n_reused else "")
         logz = _fmt(z[0], 6) if len(rs) == 1 else f"{_fmt(min(z), 6)} … {_fmt(max(z), 6)}"
-        lines.append(f"| {kind} ({len(rs)} runs) | {logz} | {status} | {_fmt(sum(r.seconds for r in rs), 3)} |")
+        label = kind if len(rs) == 1 else f"{kind} ({len(rs)} runs)"
+        lines.append(f"| {label} | {logz} | {status} | {_fmt(sum(r.seconds for r in rs), 3)} |")
     return lines
 
 
