@@ -119,22 +119,21 @@ def test_pages_panels_and_forest_rows_follow_the_bubbles(tmp_path, n):
 
 
 def test_agent_figures_write_every_page_and_remove_stale_ones(tmp_path, monkeypatch):
-    """Pages of 2 panels: 5 bubbles give fit.png, fit_2.png, fit_3.png, forest, diameter and the other figures;
-    a rerun with pages of 3 in the same folder leaves fit.png and fit_2.png only."""
+    """Pages of 1 panel: 3 bubbles give fit.png, fit_2.png, fit_3.png, forest, diameter and the other figures;
+    a rerun with pages of 2 in the same folder leaves fit.png and fit_2.png only."""
     from bubblecal.workflows import figures_fits
     from bubblecal.workflows.figures import agent_figures
 
-    monkeypatch.setattr(figures_fits, "FIT_PANELS_PER_PAGE", 2)
-    result, plan = fake_result(tmp_path / "run", 5)
+    monkeypatch.setattr(figures_fits, "FIT_PANELS_PER_PAGE", 1)
+    result, plan = fake_result(tmp_path / "run", 3)
     paths = agent_figures(result, plan)
     names = [p.name for p in paths]
     assert names[:3] == ["fit.png", "fit_2.png", "fit_3.png"]
     assert set(names[3:]) == {"forest.png", "diameter.png", "ka_kb.png", "population.png"}
     assert all(p.stat().st_size > 10_000 for p in paths)
-    monkeypatch.setattr(figures_fits, "FIT_PANELS_PER_PAGE", 3)
-    result3, plan3 = fake_result(tmp_path / "run", 5)
+    monkeypatch.setattr(figures_fits, "FIT_PANELS_PER_PAGE", 2)
     folder = tmp_path / "run" / "figures"
-    assert [p.name for p in figures_fits.fit_figure(result3, plan3, folder / "fit.png")] == ["fit.png", "fit_2.png"]
+    assert [p.name for p in figures_fits.fit_figure(result, plan, folder / "fit.png")] == ["fit.png", "fit_2.png"]
     assert sorted(p.name for p in folder.glob("fit*.png")) == ["fit.png", "fit_2.png"]
 
 
