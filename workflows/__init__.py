@@ -2,7 +2,9 @@
 
 Pipelines: :mod:`~bubblecal.workflows.calibrate` (the main job: config, plan, phase store, run),
 :mod:`~bubblecal.workflows.summary` (posterior tables, predictive checks), :mod:`~bubblecal.workflows.report`
-(console table, ``report.md``), :mod:`~bubblecal.workflows.figures`, :mod:`~bubblecal.workflows.evidence`
+(console table, ``report.md``), :mod:`~bubblecal.workflows.figures` (with
+:mod:`~bubblecal.workflows.figures_fits` and :mod:`~bubblecal.workflows.figures_population`),
+:mod:`~bubblecal.workflows.evidence`
 (full vs reduced shell), :mod:`~bubblecal.workflows.confirm` (DPD re-simulation at the MAP),
 :mod:`~bubblecal.workflows.sensitivity` (Sobol indices over a prior box),
 :mod:`~bubblecal.workflows.acoustic_sweep` (ringdown sweeps -> acoustic surrogate),

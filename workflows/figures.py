@@ -1,9 +1,13 @@
 """Figures of a calibration run (matplotlib, PNG): physical units, labelled axes, legends.
 
-* ``fit.png`` — every loading curve (one panel each): data, posterior-predictive median and 90 % band
-  (observation noise included) and the MAP model curve; force [nN] against displacement [nm] for both
-  protocols (indentation: the model predicts the depth at each applied force, so its band is horizontal);
-* ``ka_kb.png`` — phase-3 posteriors of (E, kappa) per curve and the population-predictive cloud;
+:func:`agent_figures` is the one entry point; it writes under ``out/<agent>/<workflow>/figures/``
+
+* ``fit.png`` (``fit_2.png``, ... beyond 48 curves) — the grid of small fits, one panel per loading curve
+  ordered by diameter (:mod:`bubblecal.workflows.figures_fits`);
+* ``forest.png`` and ``diameter.png`` — per-bubble medians and 90 % intervals of E and κ against the population
+  bands, by row and against the diameter (:mod:`bubblecal.workflows.figures_population`);
+* ``ka_kb.png`` — phase-3 posteriors of (E, kappa) per curve and the population-predictive cloud (past
+  :data:`_FEW_CLOUDS` curves, each curve's median coloured by diameter over the pooled clouds);
 * ``population.png`` — posterior marginals of the hyperparameters m_k, tau_k (physical units);
 * ``acoustic.png`` (acoustic workflows) — resonance frequency [MHz] against diameter [um]: data with
   error bars sigma_ac x f (posterior mean relative noise) and the f_res(D) band of the population-
@@ -17,79 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS
-from bubblecal.workflows.plotting import new_figure, save_figure, styled
+from bubblecal.workflows.figures_fits import fit_figure
+from bubblecal.workflows.figures_population import diameter_figure, forest_figure
+from bubblecal.workflows.plotting import COLOURS, figure_title, new_figure, save_figure, styled
 
-__all__ = ["agent_figures", "fit_figure", "ka_kb_figure", "population_figure", "acoustic_figure"]
+__all__ = ["agent_figures", "ka_kb_figure", "population_figure", "acoustic_figure"]
 
-#: Colour cycle of the calibration figures.
-COLOURS = ("#1b6ca8", "#d1495b", "#2e8b57", "#edae49", "#6a4c93", "#00798c")
-
-
-def _nm(v):
-    """DPD length -> nm."""
-    return np.asarray(DEFAULT_UNITS.dpd_to_nm(v))
-
-
-def _nN(v):
-    """DPD force -> nN."""
-    return np.asarray(DEFAULT_UNITS.dpd_to_nN(v))
-
-
-def _title(result, plan, what: str) -> str:
-    """Figure title: agent, what, workflow, and a warning line for a synthetic bundle."""
-    t = f"{result.plan.agent.capitalize()} — {what} ({result.plan.workflow})"
-    return t + ("\nSYNTHETIC surrogate bundle: not a physical result" if plan.synthetic_bundle else "")
-
-
-@styled
-def fit_figure(result, plan, path: Path) -> Path:
-    """``fit.png``: every loading curve with its posterior-predictive band, median and MAP model curve.
-
-    Parameters
-    ----------
-    result : bubblecal.workflows.calibrate.AgentResult
-        A summarised run (``result.bands`` set).
-    plan : bubblecal.workflows.calibrate.Plan
-    path : Path
-        PNG to write.
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
-    curves = [c for c in result.plan.curves if c.name in result.bands]
-    fig, axes = new_figure(1, len(curves), figsize=(max(3.4 * len(curves), 5.0), 3.3), squeeze=False)
-    for ax, curve in zip(axes[0], curves, strict=True):
-        b = result.bands[curve.name]
-        if b["kind"] == "compression":
-            gx = _nm(b["grid"])
-            ax.fill_between(gx, _nN(b["grid_lower"]), _nN(b["grid_upper"]), color=COLOURS[0], alpha=0.25, lw=0,
-                            label="90 % predictive band")
-            ax.plot(gx, _nN(b["grid_median"]), color=COLOURS[0], lw=1.5, label="predictive median")
-            if b.get("map_curve") is not None:
-                ax.plot(gx, _nN(b["map_curve"]), color="k", lw=0.9, ls="--", label="MAP model")
-            ax.plot(_nm(b["x"]), _nN(b["y"]), "o", ms=3.5, mfc="white", mec="k", mew=0.9, label="AFM data")
-        else:
-            gf = _nN(b["grid"])
-            ax.fill_betweenx(gf, _nm(b["grid_lower"]), _nm(b["grid_upper"]), color=COLOURS[1], alpha=0.25, lw=0,
-                             label="90 % predictive band")
-            ax.plot(_nm(b["grid_median"]), gf, color=COLOURS[1], lw=1.5, label="predictive median")
-            if b.get("map_curve") is not None:
-                ax.plot(_nm(b["map_curve"]), gf, color="k", lw=0.9, ls="--", label="MAP model")
-            ax.plot(_nm(b["y"]), _nN(b["x"]), "o", ms=3.5, mfc="white", mec="k", mew=0.9, label="AFM data")
-        ax.set_xlim(left=0)
-        ax.set_ylim(bottom=0)
-        proto = "compression" if b["kind"] == "compression" else "indentation"
-        diam = curve.bubble_diameter_um or curve.diameter_um
-        ax.set_title(f"{proto}, D = {diam:g} µm", fontsize=9)
-        ax.set_xlabel("displacement [nm]" if b["kind"] == "compression" else "indentation depth [nm]")
-        ax.set_ylabel("force [nN]")
-        cov = result.summary[result.summary["dataset"] == curve.name]["coverage_90"].iloc[0]
-        ax.text(0.03, 0.97, f"coverage {cov:.2f}", transform=ax.transAxes, va="top", fontsize=8)
-    axes[0][0].legend(loc="lower right", fontsize=7)
-    fig.suptitle(_title(result, plan, "loading curves and posterior predictive"), fontsize=10)
-    return save_figure(fig, path)
+#: Up to this many curves ``ka_kb.png`` draws one coloured cloud (and legend entry) per curve.
+_FEW_CLOUDS = 6
 
 
 def _tick_label(v: float, _pos=None) -> str:
@@ -130,18 +69,24 @@ def ka_kb_figure(result, plan, path: Path) -> Path | None:
     if pop is not None and "ka" in pop and "kb" in pop:
         idx = rng.choice(pop["ka"].size, min(2000, pop["ka"].size), replace=False)
         ax.scatter(E(pop["ka"][idx]), K(pop["kb"][idx]), s=2, c="0.65", alpha=0.4, lw=0, label="population predictive")
-    post = dataset_posteriors(result)
-    i = 0
-    for d in post.values():
-        if d["kind"] == "acoustic":
-            continue
-        s = d["samples"]
-        idx = rng.choice(s["ka"].size, min(1500, s["ka"].size), replace=False)
-        diam = d["obj"].bubble_diameter_um or d["obj"].diameter_um
-        ax.scatter(E(s["ka"][idx]), K(s["kb"][idx]), s=3, alpha=0.35, lw=0, c=COLOURS[i % len(COLOURS)],
-                   label=f"D = {diam:g} µm (phase 3)" if result.staged is not None else f"D = {diam:g} µm")
-        ax.plot(np.median(E(s["ka"])), np.median(K(s["kb"])), "x", c=COLOURS[i % len(COLOURS)], ms=7, mew=1.8)
-        i += 1
+    post = [d for d in dataset_posteriors(result).values() if d["kind"] != "acoustic"]
+    if len(post) <= _FEW_CLOUDS:
+        for i, d in enumerate(post):
+            s = d["samples"]
+            idx = rng.choice(s["ka"].size, min(1500, s["ka"].size), replace=False)
+            diam = d["obj"].bubble_diameter_um or d["obj"].diameter_um
+            ax.scatter(E(s["ka"][idx]), K(s["kb"][idx]), s=3, alpha=0.35, lw=0, c=COLOURS[i % len(COLOURS)],
+                       label=f"D = {diam:g} µm (phase 3)" if result.staged is not None else f"D = {diam:g} µm")
+            ax.plot(np.median(E(s["ka"])), np.median(K(s["kb"])), "x", c=COLOURS[i % len(COLOURS)], ms=7, mew=1.8)
+    else:  # one legend entry per curve is unreadable: medians coloured by diameter, 90 % intervals as thin crosses
+        q = np.array([[np.quantile(E(d["samples"]["ka"]), [0.05, 0.5, 0.95]),
+                       np.quantile(K(d["samples"]["kb"]), [0.05, 0.5, 0.95])] for d in post])
+        diam = np.array([float(d["obj"].bubble_diameter_um or d["obj"].diameter_um) for d in post])
+        ax.hlines(q[:, 1, 1], q[:, 0, 0], q[:, 0, 2], color="0.45", lw=0.4, alpha=0.6)
+        ax.vlines(q[:, 0, 1], q[:, 1, 0], q[:, 1, 2], color="0.45", lw=0.4, alpha=0.6)
+        sc = ax.scatter(q[:, 0, 1], q[:, 1, 1], c=diam, s=10, cmap="viridis", zorder=3,
+                        label=f"{len(post)} bubbles: median, 90 % intervals")
+        fig.colorbar(sc, ax=ax, label="bubble diameter D [µm]")
     lo_e, hi_e = E(np.array(spec.parameters["ka"].prior.as_tuple()))
     lo_k, hi_k = K(np.array(spec.parameters["kb"].prior.as_tuple()))
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
@@ -161,7 +106,7 @@ def ka_kb_figure(result, plan, path: Path) -> Path | None:
     leg = ax.legend(fontsize=7, markerscale=3, loc="best")
     for h in leg.legend_handles:
         h.set_alpha(1)
-    ax.set_title(_title(result, plan, "$k_a$–$k_b$ posteriors"), fontsize=9)
+    ax.set_title(figure_title(result, plan, "$k_a$–$k_b$ posteriors"), fontsize=9)
     return save_figure(fig, path)
 
 
@@ -210,7 +155,7 @@ def population_figure(result, plan, path: Path) -> Path | None:
             ax.set_ylabel("posterior density" if j == 0 else "")
             ax.set_yticks([])
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(result, plan, "population hyperparameters ψ"), fontsize=10)
+    fig.suptitle(figure_title(result, plan, "population hyperparameters ψ"), fontsize=10)
     return save_figure(fig, path)
 
 
@@ -262,7 +207,7 @@ def acoustic_figure(result, plan, path: Path) -> Path | None:
     ax.set_xlim(lo_d, hi_d)
     ax.set_ylim(bottom=0)
     ax.legend(fontsize=7)
-    ax.set_title(_title(result, plan, "acoustic resonance"), fontsize=9)
+    ax.set_title(figure_title(result, plan, "acoustic resonance"), fontsize=9)
     return save_figure(fig, path)
 
 
@@ -278,11 +223,13 @@ def agent_figures(result, plan) -> list[Path]:
     Returns
     -------
     list of Path
-        The written PNG files.
+        The written PNG files: the fit pages, ``forest.png``, ``diameter.png``, ``ka_kb.png``,
+        ``population.png``, ``acoustic.png`` (those that apply to the run).
     """
     folder = result.plan.out_dir / "figures"
     folder.mkdir(parents=True, exist_ok=True)
-    out = [fit_figure(result, plan, folder / "fit.png"), ka_kb_figure(result, plan, folder / "ka_kb.png"),
+    out = [*fit_figure(result, plan, folder / "fit.png"), forest_figure(result, plan, folder / "forest.png"),
+           diameter_figure(result, plan, folder / "diameter.png"), ka_kb_figure(result, plan, folder / "ka_kb.png"),
            population_figure(result, plan, folder / "population.png"),
            acoustic_figure(result, plan, folder / "acoustic.png")]
     return [p for p in out if p is not None]

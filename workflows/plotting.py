@@ -10,11 +10,49 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-__all__ = ["STYLE", "styled", "new_figure", "save_figure"]
+__all__ = ["STYLE", "COLOURS", "styled", "new_figure", "save_figure", "figure_title", "short_label"]
 
 #: rcParams of the calibration figures (applied only while a :func:`styled` function runs).
 STYLE = {"font.size": 9, "axes.spines.top": False, "axes.spines.right": False, "legend.frameon": False,
          "savefig.dpi": 150}
+
+
+#: Colour cycle of the calibration figures.
+COLOURS = ("#1b6ca8", "#d1495b", "#2e8b57", "#edae49", "#6a4c93", "#00798c")
+
+
+def figure_title(result, plan, what: str) -> str:
+    """Figure title: agent, what, workflow, and a warning line for a synthetic bundle.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+    plan : bubblecal.workflows.calibrate.Plan
+    what : str
+        What the figure shows.
+
+    Returns
+    -------
+    str
+    """
+    t = f"{result.plan.agent.capitalize()} — {what} ({result.plan.workflow})"
+    return t + ("\nSYNTHETIC surrogate bundle: not a physical result" if plan.synthetic_bundle else "")
+
+
+def short_label(text: str, width: int = 24) -> str:
+    """``text`` cut to ``width`` characters (an ellipsis marks the cut), so a long bubble id keeps a panel readable.
+
+    Parameters
+    ----------
+    text : str
+    width : int
+        Most characters kept.
+
+    Returns
+    -------
+    str
+    """
+    return text if len(text) <= width else text[: width - 1] + "…"
 
 
 def styled(func):
@@ -30,7 +68,8 @@ def styled(func):
     return wrapper
 
 
-def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], squeeze: bool = True):
+def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], squeeze: bool = True,
+               layout: str | None = None, **subplots_kwargs):
     """A new figure and its subplot grid (the arguments of :meth:`matplotlib.figure.Figure.subplots`).
 
     Parameters
@@ -41,6 +80,11 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], 
         Width and height in inches.
     squeeze : bool
         As in :func:`matplotlib.pyplot.subplots`.
+    layout : str or None
+        None: :func:`save_figure` applies a tight layout; 'constrained': the figure keeps matplotlib's
+        constrained layout (needed for figure-level labels and legends placed "outside").
+    **subplots_kwargs
+        Passed to :meth:`matplotlib.figure.Figure.subplots` (e.g. ``sharey``, ``gridspec_kw``).
 
     Returns
     -------
@@ -49,12 +93,14 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], 
     """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=figsize)
-    return fig, fig.subplots(nrows, ncols, squeeze=squeeze)
+    fig = Figure(figsize=figsize, layout=layout)
+    return fig, fig.subplots(nrows, ncols, squeeze=squeeze, **subplots_kwargs)
 
 
 def save_figure(fig, path: Path, **savefig_kwargs) -> Path:
-    """Tight layout, then write ``path`` (format from the suffix; dpi from ``rcParams`` unless given).
+    """Tight layout (unless the figure has a layout engine of its own), then write ``path``.
+
+    The format follows the suffix; the dpi comes from ``rcParams`` unless given.
 
     Parameters
     ----------
@@ -68,6 +114,7 @@ def save_figure(fig, path: Path, **savefig_kwargs) -> Path:
     Path
         ``path``.
     """
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
     fig.savefig(path, **savefig_kwargs)
     return path

@@ -10,9 +10,14 @@ import math
 from pathlib import Path
 
 from bubblecal.workflows.calibrate import DEFAULT_PHASE2_SAMPLES
-from bubblecal.workflows.summary import PHYSICAL
+from bubblecal.workflows.summary import PHYSICAL, bubble_rows, population_bands
 
-__all__ = ["summary_table", "hyperprior_bound_notes", "write_report"]
+__all__ = ["DETAIL_DATASETS", "summary_table", "hyperprior_bound_notes", "bubble_lines", "population_lines",
+           "write_report"]
+
+#: Up to this many datasets ``report.md`` also shows every parameter per dataset and every phase on its own row;
+#: beyond, those tables are left to ``summary.csv`` and one row per phase kind.
+DETAIL_DATASETS = 8
 
 
 def summary_table(result):
@@ -80,6 +85,106 @@ def _fmt(v, digits=4) -> str:
     return "–" if v is None or not math.isfinite(v) else f"{v:.{digits}g}"
 
 
+def _plain(v) -> str:
+    """``v`` to 3 significant digits, without an exponent between 0.01 and 10^6 (κ reads 53000, not 5.3e+04)."""
+    if v is None or not math.isfinite(v):
+        return "–"
+    return f"{float(f'{v:.3g}'):.10g}" if 1e-2 <= abs(v) < 1e6 else f"{v:.3g}"
+
+
+def _interval(row, p: str) -> str:
+    """'median [q05, q95]' of parameter ``p`` in a :func:`~bubblecal.workflows.summary.bubble_rows` row."""
+    key = f"{p}_median"
+    if key not in row or not math.isfinite(row[key]):
+        return ""
+    return f"{_plain(row[key])} [{_plain(row[f'{p}_q05'])}, {_plain(row[f'{p}_q95'])}]"
+
+
+def bubble_lines(result) -> list[str]:
+    """The per-bubble table of ``report.md``: one markdown row per dataset, loading curves by diameter.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run.
+
+    Returns
+    -------
+    list of str
+        Header, separator and one row per dataset: bubble, D [um], E [MPa] and kappa [k_BT] as median [5 %, 95 %]
+        (the columns of the sampled parameters), coverage of the 90 % band, CRPS with its unit.
+    """
+    rows = bubble_rows(result)
+    params = [p for p in ("ka", "kb") if f"{p}_median" in rows]
+    head = ["bubble", "D [µm]"] + [f"{PHYSICAL[p][1]} [{PHYSICAL[p][2]}] median [90 %]" for p in params]
+    lines = ["| " + " | ".join([*head, "coverage 90 %", "CRPS"]) + " |", "|" + "---|" * (len(head) + 2)]
+    for r in rows.to_dict("records"):
+        crps = f"{r['crps']:.3g} {r['crps_unit']}" if math.isfinite(r["crps"]) else "–"
+        cells = [r["bubble"], _fmt(r["diameter_um"], 3)] + [_interval(r, p) for p in params]
+        lines.append("| " + " | ".join([*cells, _fmt(r["coverage_90"], 2), crps]) + " |")
+    return lines
+
+
+def population_lines(result) -> list[str]:
+    """The population table of ``report.md``: per pooled parameter m, τ and the new-bubble predictive.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run.
+
+    Returns
+    -------
+    list of str
+        Header, separator and one row per pooled parameter in physical units (median [5 %, 95 %]); empty when
+        nothing is pooled.
+    """
+    bands = population_bands(result)
+    if not bands:
+        return []
+    lines = ["| parameter | unit | population mean m | population spread τ | new bubble (predictive) |",
+             "|---|---|---|---|---|"]
+    for k, b in bands.items():
+        _u, pname, punit, _c = PHYSICAL.get(k, ("", k, "1", None))
+        cells = [f"{_plain(b[f'{w}_median'])} [{_plain(b[f'{w}_q05'])}, {_plain(b[f'{w}_q95'])}]"
+                 if f"{w}_median" in b else "–" for w in ("m", "tau", "new")]
+        lines.append(f"| {k} ({pname}) | {punit} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _data_line(ap) -> str:
+    """The datasets of a run: their names, or past :data:`DETAIL_DATASETS` their count, protocols and diameters."""
+    if len(ap.curves) <= DETAIL_DATASETS:
+        text = ", ".join(c.name for c in ap.curves)
+    else:
+        kinds = {k: sum(c.kind == k for c in ap.curves) for k in dict.fromkeys(c.kind for c in ap.curves)}
+        d = [float(c.bubble_diameter_um or c.diameter_um) for c in ap.curves]
+        text = (f"{len(ap.curves)} loading curves (" + ", ".join(f"{k} × {n}" for k, n in kinds.items())
+                + f"), diameters {min(d):.3g}–{max(d):.3g} µm")
+    return text + (f"; acoustic: {', '.join(d.name for d in ap.acoustic)}" if ap.acoustic else "")
+
+
+def _phase_lines(st, reused) -> list[str]:
+    """Rows of the phase table: every phase, or past :data:`DETAIL_DATASETS` datasets one row per phase kind."""
+    groups = {"phase1": st.phase1, "phase2": [st.phase2], "phase3": st.phase3}
+    if len(st.phase1) <= DETAIL_DATASETS:
+        return [f"| {r.name} | {_fmt(r.log_evidence, 6)} | {r.status}{' (reused)' if r.name in reused else ''} | "
+                f"{_fmt(r.seconds, 3)} |" for rs in groups.values() for r in rs]
+    lines = []
+    for kind, rs in groups.items():
+        if not rs:
+            continue
+        z = [r.log_evidence for r in rs]
+        statuses = {s: sum(r.status == s for r in rs) for s in dict.fromkeys(r.status for r in rs)}
+        n_reused = sum(r.name in reused for r in rs)
+        status = (rs[0].status if len(rs) == 1 else ", ".join(f"{s} × {c}" for s, c in statuses.items())) + (
+            f" ({n_reused} reused)" if n_reused else "")
+        logz = _fmt(z[0], 6) if len(rs) == 1 else f"{_fmt(min(z), 6)} … {_fmt(max(z), 6)}"
+        label = kind if len(rs) == 1 else f"{kind} ({len(rs)} runs)"
+        lines.append(f"| {label} | {logz} | {status} | {_fmt(sum(r.seconds for r in rs), 3)} |")
+    return lines
+
+
 def hyperprior_bound_notes(hyp, spec, frac: float = 0.02) -> list[str]:
     """One line per hyperparameter whose 5 % or 95 % posterior quantile lies at a hyperprior bound.
 
@@ -145,8 +250,7 @@ def write_report(result, plan) -> Path:
         "## Inputs", "",
         f"- surrogate bundle: `{plan.bundle_path}` — {plan.bundle.manifest.get('notes', '')[:200]}",
         f"- priors: `{ap.priors_path}`",
-        f"- data: {', '.join(c.name for c in ap.curves)}" + (f"; acoustic: {', '.join(d.name for d in ap.acoustic)}"
-                                                            if ap.acoustic else ""),
+        f"- data: {_data_line(ap)}",
         f"- sampler: {o_sampler}; N = {config.num_particles} particles per phase, target CoV "
         f"{config.target_cov[0]} (phase 1) / {config.target_cov[1]} (phases 2, 3), covariance scaling "
         f"{config.cov_scale}, {config.num_mcmc_steps} MH steps per stage; phase 2 uses {n_phase2} "
@@ -156,22 +260,27 @@ def write_report(result, plan) -> Path:
     if ap.domain_warnings:
         lines += ["**Surrogate domain warnings** (prior box vs training box):", ""]
         lines += [f"- {w}" for w in ap.domain_warnings[:10]] + [""]
-    lines += ["## Posterior summary", "",
-              "Mean [5 %, 95 %] (MAP) per dataset; DPD units, physical units below (E from k_a at ν = 1/2, "
-              "κ = continuum bending modulus from k_b). Full table: [summary.csv](summary.csv).", ""]
     df = result.summary
-    params = [p for p in ("ka", "kb", "d0", ap.spec.mechanical_noise_name, "sigma_ac") if p in set(df["parameter"])]
-    head = ["dataset"] + [f"{p} ({PHYSICAL[p][1]} [{PHYSICAL[p][2]}])" if PHYSICAL[p][2] != "1" else p
-                          for p in params] + ["coverage 90 %", "CRPS"]
-    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for cells in _summary_cells(df, params, None, "<br>"):
-        lines.append("| " + " | ".join(cells) + " |")
-    lines.append("")
+    lines += ["## Posterior summary", "",
+              "Per bubble (loading curves by diameter, then acoustic datasets): posterior median [5 %, 95 %] of E "
+              "(from k_a at ν = 1/2) and κ (continuum bending modulus from k_b), coverage of the 90 % predictive "
+              "band and CRPS. Every parameter in DPD and physical units: [summary.csv](summary.csv).", ""]
+    lines += bubble_lines(result) + [""]
+    if df["dataset"].nunique() <= DETAIL_DATASETS + 2:  # + the population and hyperparameter rows
+        lines += ["Every parameter: mean [5 %, 95 %] (MAP) per dataset; DPD units, physical units below.", ""]
+        params = [p for p in ("ka", "kb", "d0", ap.spec.mechanical_noise_name, "sigma_ac") if p in set(df["parameter"])]
+        head = ["dataset"] + [f"{p} ({PHYSICAL[p][1]} [{PHYSICAL[p][2]}])" if PHYSICAL[p][2] != "1" else p
+                              for p in params] + ["coverage 90 %", "CRPS"]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for cells in _summary_cells(df, params, None, "<br>"):
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    pop = population_lines(result)
+    if pop:
+        lines += ["### Population", "", "Median [5 %, 95 %] in physical units: the population mean m and spread τ "
+                  "(posterior of ψ) and the parameter of a new bubble drawn from the population.", ""] + pop + [""]
     hyp = df[df["dataset"] == "hyperparameters"]
     if not hyp.empty:
-        lines += ["Population hyperparameters ψ (posterior mean [5 %, 95 %], physical units): "
-                  + "; ".join(f"{r.parameter} = {r.mean_phys:.3g} [{r.q05_phys:.3g}, {r.q95_phys:.3g}] "
-                              f"{r.physical_unit}" for r in hyp.itertuples()), ""]
         notes = hyperprior_bound_notes(hyp, ap.spec)
         if notes:
             lines += ["**Hyperparameters at a hyperprior bound** (the posterior there is set by the priors file, "
@@ -180,9 +289,7 @@ def write_report(result, plan) -> Path:
         st = result.staged
         lines += ["## Evidence and importance sampling", "",
                   "| phase | log Z | status | wall time [s] |", "|---|---|---|---|"]
-        for r in [*st.phase1, st.phase2, *st.phase3]:
-            reused = " (reused)" if r.name in result.reused else ""
-            lines.append(f"| {r.name} | {_fmt(r.log_evidence, 6)} | {r.status}{reused} | {_fmt(r.seconds, 3)} |")
+        lines += _phase_lines(st, set(result.reused))
         lines += ["", "Phase-2 importance-sampling ESS per dataset (a collapse towards 1 means phase 1 did not cover "
                   "what ψ proposes): [ess.csv](ess.csv)", "",
                   "| dataset | ESS min | ESS 5 % | ESS median | median / N | Pareto k (leave-one-out weights) |",

@@ -25,7 +25,8 @@ import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS, NOISE_PARAMETERS, NONLINEAR_PARAMETERS
 
-__all__ = ["PHYSICAL", "POPULATION_ROW", "dataset_posteriors", "psi_samples", "summarise_agent"]
+__all__ = ["PHYSICAL", "POPULATION_ROW", "BUBBLE_PARAMETERS", "dataset_posteriors", "psi_samples", "bubble_rows",
+           "population_bands", "summarise_agent"]
 
 #: Dataset name of the population-predictive rows of ``summary.csv``.
 POPULATION_ROW = "population (new bubble)"
@@ -112,6 +113,83 @@ def psi_samples(result) -> tuple[dict, dict]:
     return m, tau
 
 
+#: Parameters shown per bubble in the forest plot, the diameter plot and the report's per-bubble table.
+BUBBLE_PARAMETERS = ("ka", "kb")
+
+
+def bubble_rows(result):
+    """One row per dataset of a summarised run: loading curves sorted by diameter, then acoustic datasets.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run (``result.summary`` set).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``dataset``, ``bubble`` (the name without the ``<agent>_`` prefix), ``label`` ("bubble (D µm)"),
+        ``kind``, ``diameter_um`` [um] (the measured diameter of a curve, NaN for an acoustic dataset),
+        ``coverage_90``, ``crps``, ``crps_unit`` and, for each sampled parameter of :data:`BUBBLE_PARAMETERS`,
+        ``<p>_q05``, ``<p>_median``, ``<p>_q95`` in physical units (E [MPa], kappa [k_BT]).
+    """
+    import pandas as pd
+
+    df = result.summary
+    agent = result.plan.agent
+    diam = {c.name: float(c.bubble_diameter_um or c.diameter_um) for c in result.plan.curves}
+    rows = []
+    for name, sub in df.groupby("dataset", sort=False):
+        if name in diam or sub["kind"].iloc[0] == "acoustic":
+            bubble = name.removeprefix(f"{agent}_")
+            d = diam.get(name, math.nan)
+            r0 = sub.iloc[0]
+            row = {"dataset": name, "bubble": bubble, "label": f"{bubble} ({d:g} µm)" if name in diam else bubble,
+                   "kind": r0["kind"], "diameter_um": d, "coverage_90": float(r0["coverage_90"]),
+                   "crps": float(r0["crps"]), "crps_unit": r0["crps_unit"]}
+            for p in BUBBLE_PARAMETERS:
+                r = sub[sub["parameter"] == p]
+                if not r.empty:
+                    row |= {f"{p}_{q}": float(r[f"{q}_phys"].iloc[0]) for q in ("q05", "median", "q95")}
+            rows.append(row)
+    out = pd.DataFrame(rows)
+    if out.empty:
+        return out
+    # acoustic datasets (NaN diameter) last; equal diameters keep the plan's order
+    return out.sort_values("diameter_um", kind="stable", na_position="last").reset_index(drop=True)
+
+
+def population_bands(result) -> dict[str, dict[str, float]]:
+    """Population intervals of every pooled parameter in physical units.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run: the phase-2 (or joint) draws of ψ and ``result.population_predictive``.
+
+    Returns
+    -------
+    dict
+        Pooled parameter -> ``m_q05``, ``m_median``, ``m_q95`` (the population mean m), ``tau_q05``,
+        ``tau_median``, ``tau_q95`` (the spread τ) and ``new_q05``, ``new_median``, ``new_q95`` (the
+        population predictive of a new bubble; absent without ``result.population_predictive``), in the
+        physical unit of :data:`PHYSICAL`; empty when nothing is pooled.
+    """
+    m, tau = psi_samples(result)
+    pop = result.population_predictive or {}
+    out = {}
+    for k in m:
+        conv = PHYSICAL.get(k, (None, k, "", lambda a: np.asarray(a, dtype=float)))[3]
+        entry = {}
+        # the conversions are proportional, so a spread converts with the same factor as a mean
+        for what, v in (("m", m[k]), ("tau", tau.get(k)), ("new", pop.get(k))):
+            if v is not None:
+                q = conv(np.quantile(np.asarray(v, dtype=float), [0.05, 0.5, 0.95]))
+                entry |= {f"{what}_q05": float(q[0]), f"{what}_median": float(q[1]), f"{what}_q95": float(q[2])}
+        out[k] = entry
+    return out
+
+
 def _thin(samples: Mapping[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
     """At most ``n`` evenly spaced draws (deterministic)."""
     size = int(next(iter(samples.values())).shape[0])
@@ -129,12 +207,12 @@ def _param_rows(base: dict, samples: Mapping[str, np.ndarray], names, map_index:
             continue
         v = np.asarray(samples[k], dtype=float)
         unit, pname, punit, conv = PHYSICAL.get(k, ("DPD", k, "DPD", lambda a: np.asarray(a)))
-        q05, q95 = np.quantile(v, [0.05, 0.95])
+        q05, q50, q95 = np.quantile(v, [0.05, 0.5, 0.95])
         mp = float(v[map_index]) if map_index is not None else math.nan
-        rows.append({**base, "parameter": k, "unit": unit, "mean": float(v.mean()), "q05": float(q05),
-                     "q95": float(q95), "map": mp, "physical": pname, "physical_unit": punit,
-                     "mean_phys": float(conv(v).mean()), "q05_phys": float(conv(q05)), "q95_phys": float(conv(q95)),
-                     "map_phys": float(conv(mp)) if map_index is not None else math.nan})
+        rows.append({**base, "parameter": k, "unit": unit, "mean": float(v.mean()), "median": float(q50),
+                     "q05": float(q05), "q95": float(q95), "map": mp, "physical": pname, "physical_unit": punit,
+                     "mean_phys": float(conv(v).mean()), "median_phys": float(conv(q50)), "q05_phys": float(conv(q05)),
+                     "q95_phys": float(conv(q95)), "map_phys": float(conv(mp)) if map_index is not None else math.nan})
     return rows
 
 
@@ -260,12 +338,12 @@ def summarise_agent(result, config) -> None:
         for key, v in hyper.items():
             k = key.split("_", 1)[1]
             unit, pname, punit, conv = PHYSICAL.get(k, ("DPD", k, "DPD", lambda a: np.asarray(a)))
-            q05, q95 = np.quantile(v, [0.05, 0.95])
+            q05, q50, q95 = np.quantile(v, [0.05, 0.5, 0.95])
             rows.append({**base, "dataset": "hyperparameters", "kind": "psi", "parameter": key, "unit": unit,
-                         "mean": float(v.mean()), "q05": float(q05), "q95": float(q95), "map": math.nan,
-                         "physical": f"{key.split('_')[0]}_{pname}", "physical_unit": punit,
-                         "mean_phys": float(conv(v).mean()), "q05_phys": float(conv(q05)),
-                         "q95_phys": float(conv(q95)), "map_phys": math.nan})
+                         "mean": float(v.mean()), "median": float(q50), "q05": float(q05), "q95": float(q95),
+                         "map": math.nan, "physical": f"{key.split('_')[0]}_{pname}", "physical_unit": punit,
+                         "mean_phys": float(conv(v).mean()), "median_phys": float(conv(q50)),
+                         "q05_phys": float(conv(q05)), "q95_phys": float(conv(q95)), "map_phys": math.nan})
     result.summary = pd.DataFrame(rows)
     result.bands = bands
     result.population_predictive = pop
