@@ -151,7 +151,7 @@ def test_tiny_calibration_of_one_measured_bubble_and_resume(tmp_path):
     curves = _curves(tmp_path, {"A1": ("lipidX", "definity-2.1", 2.4)})
     out = tmp_path / "cal"
     config = CalibrationConfig(data=curves, workflow="reduced", population=120, phase2_samples=120,
-                               predictive_samples=100, num_mcmc_steps=2, out=out, figures=False)
+                               predictive_samples=100, num_mcmc_steps=2, out=out)
     (res,) = run_calibration(make_plan(config))
     run_dir = out / "lipidX" / "reduced"
     assert sorted(p.name for p in run_dir.glob("phase*.nc")) == ["phase1_A1.nc", "phase2.nc", "phase3_A1.nc"]
@@ -160,6 +160,9 @@ def test_tiny_calibration_of_one_measured_bubble_and_resume(tmp_path):
     assert summary.loc[summary["dataset"] == "A1", "diameter_um"].iloc[0] == pytest.approx(2.4)
     manifest = json.loads((run_dir / "manifest.json").read_text())
     assert manifest["run"]["config"]["data"] == str(curves)
+    report = (run_dir / "report.md").read_text()
+    assert str(curves) in report and "note: priors: the shipped definity_reduced priors" in report
+    assert (run_dir / "figures" / "forest.png").is_file() and (run_dir / "figures" / "fit.png").is_file()
     (again,) = run_calibration(make_plan(config))
     assert sorted(again.reused) == ["phase1_A1", "phase2", "phase3_A1"]
     # another diameter is another bubble: the network's input changed, so phase 1 reruns
