@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 
 _DONE = re.compile(r"done in ([0-9.]+) s")
+#: JAX_PLATFORMS of the calibrate children (this process draws the curves on the CPU: see main)
+_CHILD_PLATFORMS = os.environ.get("JAX_PLATFORMS")
 AGENT = "scaling"
 
 
@@ -117,6 +119,9 @@ def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: 
     folder = root / f"k{n}"
     curves, res = write_bubbles(folder, n, seed, diameters, resonance)
     env = {**os.environ, "BUBBLECAL_CACHE_DIR": str(folder / "jax_cache"), "COLUMNS": "200"}
+    env.pop("JAX_PLATFORMS", None)
+    if _CHILD_PLATFORMS is not None:
+        env["JAX_PLATFORMS"] = _CHILD_PLATFORMS
     cmd = [sys.executable, "-m", "bubblecal.workflows.cli", "calibrate", "--data", str(curves),
            *(["--acoustic", str(res)] if res is not None else []), *extra, "--out", str(folder / "out")]
     # peak RSS of this child alone: RUSAGE_CHILDREN keeps the maximum over every child so far, so measure it
@@ -164,6 +169,8 @@ def main(argv=None) -> list[dict]:
     if "--out" in extra or "--data" in extra:
         raise SystemExit("--out and --data are set per run")
     counts = [int(k) for k in args.bubbles.split(",")]
+    # JAX on a GPU would reserve most of its memory in this process while the calibrate children run
+    os.environ["JAX_PLATFORMS"] = "cpu"
     diameters = tuple(float(v) for v in args.diameters.split(","))
     root = args.root or Path(tempfile.mkdtemp(prefix="bubblecal_scaling_"))
     rows = []

@@ -78,8 +78,10 @@ def tidy_curves_table(curves) -> Table:
                        ("agent", "bubbles", "protocols", "D [µm] min–max", "points", "retained points"))
     for agent, bubbles in curves.by_agent().items():
         diameters = [b.diameter_um for b in bubbles]
-        table.add_row(agent, ", ".join(b.bubble for b in bubbles), ", ".join(sorted({b.protocol for b in bubbles})),
-                      f"{min(diameters):g}–{max(diameters):g}", str(sum(b.n_points for b in bubbles)),
+        ids = [b.bubble for b in bubbles]  # a long list is shown by its ends: the table stays one row per agent
+        ids_text = ", ".join(ids) if len(ids) <= 6 else f"{ids[0]}, {ids[1]}, ... {ids[-1]} ({len(ids)})"
+        table.add_row(agent, ids_text, ", ".join(sorted({b.protocol for b in bubbles})),
+                      f"{min(diameters):.4g}–{max(diameters):.4g}", str(sum(b.n_points for b in bubbles)),
                       str(sum(b.n_retained for b in bubbles)))
     counts = curves.counts().values()
     table.add_row("total", str(len(curves)), "", "", str(sum(c["points"] for c in counts)),
