@@ -16,9 +16,9 @@ from bubblecal.data import AGENTS, LOADING_PROTOCOLS, UNITS
 from bubblecal.sim.protocols.ringdown.batch import RINGDOWN_TIERS
 from bubblecal.sim.tiers.base import TIER_NAMES
 from bubblecal.surrogates.resonance_law import LAW_FORMS
-from bubblecal.workflows.calibrate.config import DEVICES, PHASE3_TARGETS, SAMPLERS, WORKFLOWS
+from bubblecal.workflows.calibrate.config import DEVICES, NETWORKS, PHASE3_TARGETS, SAMPLERS, WORKFLOWS
 
-__all__ = ["ALL_AGENTS", "Agent", "AgentOrAll", "Workflow", "Sampler", "JaxDevice", "Phase3", "Tier",
+__all__ = ["ALL_AGENTS", "Agent", "AgentOrAll", "Workflow", "Sampler", "JaxDevice", "Phase3", "Networks", "Tier",
            "RingdownTier", "LoadingProtocol", "Units", "LawFormName", "choice_value"]
 
 #: ``--agent`` value selecting every agent.
@@ -42,6 +42,8 @@ Sampler = _choices("Sampler", SAMPLERS)
 JaxDevice = _choices("JaxDevice", DEVICES)
 #: The phase-3 target of the staged calibration.
 Phase3 = _choices("Phase3", PHASE3_TARGETS)
+#: Networks over the diameter (``calibrate --networks``).
+Networks = _choices("Networks", NETWORKS)
 #: A DPD fidelity tier (:data:`bubblecal.sim.TIER_NAMES`).
 Tier = _choices("Tier", TIER_NAMES)
 #: A tier that runs the ringdown protocol.

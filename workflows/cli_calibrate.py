@@ -21,7 +21,17 @@ from bubblecal.workflows.calibrate import (
     PAPER_POPULATION,
     CalibrationConfig,
 )
-from bubblecal.workflows.choices import ALL_AGENTS, AgentOrAll, JaxDevice, Phase3, Sampler, Tier, Workflow, choice_value
+from bubblecal.workflows.choices import (
+    ALL_AGENTS,
+    AgentOrAll,
+    JaxDevice,
+    Networks,
+    Phase3,
+    Sampler,
+    Tier,
+    Workflow,
+    choice_value,
+)
 from bubblecal.workflows.confirm import DEFAULT_TIER
 from bubblecal.workflows.console import console, fail
 from bubblecal.workflows.evidence import DEFAULT_REPLICAS, PARETO_K_LIMIT
@@ -82,6 +92,8 @@ def calibrate(
                               "instead of the published study (check it first: bubblecal data check FILE)."),
     acoustic: Path = typer.Option(None, "--acoustic", help="Tidy resonance CSV for the agents of --data (agent, "
                                   "diameter_um, frequency_MHz[, source])."),
+    networks: Networks = typer.Option(_D.networks, "--networks", help="With --data: the bundle's fast networks over "
+                                      "the diameter (many bubbles on CPU cores) or its accurate ones."),
     data_dir: Path = typer.Option(_D.data_dir, "--data-dir", help="Folder of curve CSVs (DPD units) named like the "
                                   "shipped ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
                                   "acoustic_observations_published.csv, replacing them."),
@@ -108,7 +120,8 @@ def calibrate(
     OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
-    agent, workflow, sampler, device, phase3 = (choice_value(o) for o in (agent, workflow, sampler, device, phase3))
+    agent, workflow, sampler, device, phase3, networks = (choice_value(o) for o in (agent, workflow, sampler, device,
+                                                                                   phase3, networks))
     if workflow is None:
         workflow = _D.workflow if data is None or acoustic is not None else "reduced"
     _compilation_cache(cache)
@@ -118,7 +131,7 @@ def calibrate(
         config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
                                    paper=paper, out=out, device=device, bundle=bundle, force=force, seed=seed,
                                    priors=priors_map, data_dir=data_dir, data=data, acoustic_data=acoustic,
-                                   curves=tuple(curve or ()),
+                                   networks=networks, curves=tuple(curve or ()),
                                    phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
                                    nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
                                    netcdf=netcdf, figures=figures, phase3=phase3)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bubblecal.data import AGENTS
 
-__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION",
+__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "DEFAULT_POPULATION", "PAPER_POPULATION",
            "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
            "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
            "min_population", "agent_seed"]
@@ -26,6 +26,9 @@ SAMPLERS = ("tmcmc", "nuts")
 PHASE3_TARGETS = ("published", "exact")
 #: JAX devices.
 DEVICES = ("cpu", "gpu")
+#: Networks over the diameter a bundle may hold per protocol: 'fast' (smaller, for many bubbles on CPU cores)
+#: and 'accurate' (the sweep's best); docs/decisions.md, "Fast networks over the diameter".
+NETWORKS = ("fast", "accurate")
 #: Default TMCMC particles per phase: small enough for both agents on a few CPU cores (compile-dominated
 #: at this size; measurements in ``benchmarks/RESULTS.md``).
 DEFAULT_POPULATION = 2000
@@ -89,6 +92,10 @@ class CalibrationConfig:
         docs/data-formats.md, "Tidy bubble files"): one hierarchy per agent label replaces the published study.
     acoustic_data : Path or None
         A tidy resonance file (MHz) for the agents of ``data``: one acoustic dataset per row.
+    networks : str
+        Which network over the diameter serves the bubbles of ``data``: 'fast' or 'accurate' (:data:`NETWORKS`;
+        a bundle without a fast network answers with its accurate one). The published study keeps its
+        per-diameter surrogates.
     curves : tuple of str
         Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
     phase2_samples : int or None
@@ -129,6 +136,7 @@ class CalibrationConfig:
     data_dir: Path | None = None
     data: Path | None = None
     acoustic_data: Path | None = None
+    networks: str = "fast"
     curves: tuple[str, ...] = ()
     phase2_samples: int | None = None
     num_mcmc_steps: int = 10

@@ -15,6 +15,7 @@ from bubblecal.data import AGENTS
 from bubblecal.workflows.calibrate.config import (
     DEVICES,
     MIN_PARTICLES,
+    NETWORKS,
     PARTICLES_PER_DIMENSION,
     PHASE3_TARGETS,
     SAMPLERS,
@@ -157,6 +158,8 @@ def _check_choices(config: CalibrationConfig) -> None:
         raise CalibrationError(f"--workflow must be one of {', '.join(WORKFLOWS)}, got {config.workflow!r}")
     if config.sampler not in SAMPLERS:
         raise CalibrationError(f"--sampler must be one of {', '.join(SAMPLERS)}, got {config.sampler!r}")
+    if config.networks not in NETWORKS:
+        raise CalibrationError(f"--networks must be one of {', '.join(NETWORKS)}, got {config.networks!r}")
     if config.phase3 not in PHASE3_TARGETS:
         raise CalibrationError(f"--phase3 must be one of {', '.join(PHASE3_TARGETS)}, got {config.phase3!r}")
     if config.device not in DEVICES:

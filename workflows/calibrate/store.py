@@ -66,7 +66,8 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
     for curve, sur in zip(ap.curves, ap.surrogates, strict=True):
         h1 = {**common, "phase": 1, "data": array_hash(curve.x, curve.y), "surrogate": sur.data_hash, "options": o1}
         if getattr(sur, "over_diameter", False):  # one network serves every size: the bound diameter is an input
-            h1["diameter_um"] = float(sur.diameter_um)
+            # networks of one training set share its data hash: the architecture tells them apart
+            h1.update(diameter_um=float(sur.diameter_um), architecture=dict(sur.architecture))
         hashes[f"phase1_{curve.name}"] = config_hash(h1)
     for ds in ap.acoustic:
         hashes[f"phase1_{ds.name}"] = config_hash({**common, "phase": 1,

@@ -167,15 +167,18 @@ def _loading_box_problems(bubble, surrogate, spec) -> list[str]:
             + "); set retained = 0 on those rows or use a bundle trained further"]
 
 
-def _bubble_surrogates(agent: UserAgent, bundle, spec) -> tuple[list, list[str], list[str]]:
-    """(surrogate per bubble, problems, domain warnings) of one hierarchy."""
+def _bubble_surrogates(agent: UserAgent, bundle, spec, network: str) -> tuple[list, list[str], list[str]]:
+    """(surrogate per bubble, problems, domain warnings) of one hierarchy; ``network`` picks the network over the
+    diameter ('fast' or 'accurate')."""
     from bubblecal.surrogates import OutOfDomainError
     from bubblecal.workflows.domain import prior_box_domain_warnings
 
     surrogates, problems, domain = [], [], []
     for b in agent.bubbles:
         try:
-            sur = bundle.get(agent.protocol, b.diameter_um)
+            # the network over the diameter even at a published diameter: one network for every bubble of a population
+            # (and one compiled likelihood)
+            sur = bundle.get(agent.protocol, b.diameter_um, prefer="over-diameter", network=network)
         except (KeyError, OutOfDomainError) as exc:
             msg = exc.args[0] if exc.args else str(exc)
             problems.append(f"{b.path}: bubble {b.bubble!r} (line {b.lines[0]}, column 'diameter_um'): "
@@ -260,7 +263,7 @@ def user_agent_plans(config: CalibrationConfig, bundle, out: Path) -> list:
             problems.append(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but agent "
                             f"{agent.name} runs workflow {workflow!r}")
             continue
-        surrogates, bad, domain = _bubble_surrogates(agent, bundle, spec)
+        surrogates, bad, domain = _bubble_surrogates(agent, bundle, spec, config.networks)
         problems += bad
         acoustic, f_res = [], None
         if wants_acoustic:
