@@ -7,7 +7,8 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
 - :class:`TMCMC` — transitional MCMC with log evidence (``docs/inference.md`` section 5), its moves
   (:class:`RandomWalk`, :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`) and
   :func:`clear_program_cache`; :class:`TMCMCKernel`, the same algorithm as a ``numpyro.infer.MCMC``
-  kernel (``MCMC(TMCMCKernel(model), ...)`` in place of ``MCMC(NUTS(model), ...)``); the pure core is in
+  kernel (``MCMC(TMCMCKernel(model), ...)`` in place of ``MCMC(NUTS(model), ...)``); :func:`run_batched`, the
+  runs of many datasets of one model structure in one compiled program; the pure core is in
   :mod:`bubblecal.inference.tmcmc`;
 - :func:`run_nuts` — the NUTS cross-check; :func:`compare_posteriors` — agreement of two samplers;
 - :func:`run_staged` and the staged (Korali-style) hierarchy (section 4);
@@ -45,17 +46,20 @@ from bubblecal.inference.predictive import (
 from bubblecal.inference.sensitivity import SobolResult, saltelli_design, sobol_along, sobol_indices
 from bubblecal.inference.tmcmc import (
     TMCMC,
+    BatchStructureError,
     KernelMove,
     RandomWalk,
     TMCMCKernel,
     clear_program_cache,
     hmc_move,
     nuts_move,
+    run_batched,
 )
 
 __all__ = [
     # TMCMC
     "TMCMC", "TMCMCKernel", "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "clear_program_cache",
+    "run_batched", "BatchStructureError",
     # NUTS and sampler comparison
     "run_nuts", "NUTSResult", "compare_posteriors", "Comparison",
     # staged hierarchy

@@ -26,6 +26,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from bubblecal.inference._phase_batch import run_phases
 from bubblecal.inference.compare import compare_posteriors
 from bubblecal.inference.tmcmc import TMCMC
 
@@ -175,13 +176,23 @@ def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key,
     start = time.perf_counter()
     sampler = TMCMC(model, **dict(tmcmc_options))
     sampler.run(rng_key, *args, **dict(kwargs))
-    result = PhaseResult(name=name, samples=sampler.get_samples(), log_evidence=float(sampler.log_evidence),
-                         log_evidence_se=float(sampler.log_evidence_se), status=sampler.status,
-                         seconds=time.perf_counter() - start, sampler=sampler)
-    if result.status != "converged":
-        raise RuntimeError(f"phase {name!r}: TMCMC ended with status {result.status!r} before reaching beta = 1; "
-                           "increase max_stages or the number of particles")
+    result = _phase_result(name, sampler, time.perf_counter() - start)
+    _check_converged(result)
     return result
+
+
+def _phase_result(name: str, sampler: TMCMC, seconds: float) -> PhaseResult:
+    """The :class:`PhaseResult` of a finished sampler."""
+    return PhaseResult(name=name, samples=sampler.get_samples(), log_evidence=float(sampler.log_evidence),
+                       log_evidence_se=float(sampler.log_evidence_se), status=sampler.status, seconds=seconds,
+                       sampler=sampler)
+
+
+def _check_converged(result: PhaseResult) -> None:
+    """RuntimeError for a phase whose TMCMC did not reach β = 1."""
+    if result.status != "converged":
+        raise RuntimeError(f"phase {result.name!r}: TMCMC ended with status {result.status!r} before reaching "
+                           "beta = 1; increase max_stages or the number of particles")
 
 
 def run_staged(
@@ -198,6 +209,8 @@ def run_staged(
     load: Callable[[str], PhaseResult | None] | None = None,
     save: Callable[[PhaseResult], None] | None = None,
     progress: Callable[[str], None] | None = None,
+    batch: bool = False,
+    batch_size: int | None = None,
 ) -> StagedResult:
     """Run phases 1 → 2 → 3 with TMCMC (see the module docstring).
 
@@ -233,6 +246,13 @@ def run_staged(
         ``save(result)``: persists each finished phase.
     progress : callable or None
         ``progress(message)``: reports.
+    batch : bool
+        Run the phase-1 datasets (and the phase-3 datasets) of one model structure (one model function,
+        argument pytrees of equal structure and array shapes: the caller pads) in one compiled program each
+        (:func:`~bubblecal.inference.tmcmc.run_batched`; the fused run, as ``compiled=True``); stored phases
+        are reused, each finished one is saved and reported. Phase 2 is one run over all datasets either way.
+    batch_size : int or None
+        Runs per compiled program with ``batch`` (default: bounded by the particles, see ``run_batched``).
 
     Returns
     -------
@@ -253,11 +273,7 @@ def run_staged(
     say = progress or (lambda _msg: None)
     keys = jax.random.split(rng_key, 2 * len(datasets) + 1)
 
-    def _run(name, model, args, kwargs, key, options):
-        cached = load(name) if load is not None else None
-        if cached is not None:
-            say(f"{name}: reused (log Z = {cached.log_evidence:.3f})")
-            return cached
+    def _fresh(name, model, args, kwargs, key, options):
         say(f"{name}: running TMCMC")
         result = run_phase(name, model, args, kwargs, key, options or {})
         if save is not None:
@@ -265,10 +281,15 @@ def run_staged(
         say(f"{name}: log Z = {result.log_evidence:.3f}, {result.seconds:.1f} s")
         return result
 
-    phase1 = [_run(f"phase1_{d.name}", d.model, d.args, d.kwargs, keys[i], phase1_options)
-              for i, d in enumerate(datasets)]
+    def _run_all(jobs, options, batched=batch):
+        return run_phases(jobs, options, batch=batched, batch_size=batch_size, load=load, run_one=_fresh,
+                          result_of=_phase_result, check=_check_converged, save=save, say=say)
+
+    phase1 = _run_all([(f"phase1_{d.name}", d.model, d.args, d.kwargs, keys[i]) for i, d in enumerate(datasets)],
+                      phase1_options)
     thinned = [_thin(r.samples, phase2_max_samples) for r in phase1]
-    phase2 = _run("phase2", phase2_factory(thinned, names), (), {}, keys[len(datasets)], phase2_options)
+    phase2, = _run_all([("phase2", phase2_factory(thinned, names), (), {}, keys[len(datasets)])], phase2_options,
+                       batched=False)
     m_samples = {k.removeprefix("m_"): v for k, v in phase2.samples.items() if k.startswith("m_")}
     tau_samples = {k.removeprefix("tau_"): v for k, v in phase2.samples.items() if k.startswith("tau_")}
     reweight_ess: dict[str, float] = {}
@@ -286,11 +307,11 @@ def run_staged(
         return ({k: np.asarray(v)[idx] for k, v in m_samples.items()},
                 {k: np.asarray(v)[idx] for k, v in tau_samples.items()})
 
-    phase3 = []
+    jobs3 = []
     for i, d in enumerate(datasets):
         m_i, tau_i = _population(i)
-        phase3.append(_run(f"phase3_{d.name}", phase3_factory(i, m_i, tau_i), (), {},
-                           keys[len(datasets) + 1 + i], phase3_options))
+        jobs3.append((f"phase3_{d.name}", phase3_factory(i, m_i, tau_i), (), {}, keys[len(datasets) + 1 + i]))
+    phase3 = _run_all(jobs3, phase3_options)
     return StagedResult(phase1=phase1, phase2=phase2, phase3=phase3, phase3_ess=reweight_ess)
 
 

@@ -5,6 +5,8 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 
 - :mod:`~bubblecal.inference.tmcmc.sampler`: :class:`TMCMC`, the NumPyro front end (presets, replicas);
 - :mod:`~bubblecal.inference.tmcmc.kernel`: :class:`TMCMCKernel`, TMCMC as a ``numpyro.infer.MCMC`` kernel;
+- :mod:`~bubblecal.inference.tmcmc.batched`: :func:`run_batched`, the runs of K datasets of one model structure
+  in one compiled program (vmap over datasets), :func:`batch_groups`, :class:`BatchStructureError`;
 - :mod:`~bubblecal.inference.tmcmc.results`: :class:`TMCMCResults`, what a run reports;
 - :mod:`~bubblecal.inference.tmcmc.core`: the pure, jittable core on flat particle arrays, BlackJAX-style
   (:func:`init`, :func:`step`, :func:`run`, :func:`tmcmc`);
@@ -20,6 +22,7 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 """
 
 from bubblecal.inference.tmcmc._programs import clear_program_cache
+from bubblecal.inference.tmcmc.batched import BatchStructureError, batch_groups, run_batched, structure_key
 from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
 from bubblecal.inference.tmcmc.evaluator import Evaluator
 from bubblecal.inference.tmcmc.kernel import TMCMCKernel, TMCMCKernelState
@@ -31,7 +34,7 @@ from bubblecal.inference.tmcmc.state import STATUS_NAMES, StageInfo, TMCMCConfig
 
 __all__ = [
     "TMCMC", "TMCMCKernel", "TMCMCKernelState", "PRESETS", "TMCMCResults", "STAGE_COLUMNS", "clear_program_cache",
-    "TMCMCState", "StageInfo",
+    "TMCMCState", "StageInfo", "run_batched", "batch_groups", "structure_key", "BatchStructureError",
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
     "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "StageDisplay", "StageReporter", "stage_text",
 ]

@@ -9,7 +9,9 @@ key and kept here (least recently used entries beyond ``_PROGRAM_CACHE_SIZE`` ar
 - ``("model", FlatModel.signature, chunk_size)``: the model's own programs (:class:`_ModelPrograms`);
   its arrays are traced arguments, so datasets of one structure share them;
 - ``("fused", FlatModel.signature, type(move), move key, config, max_stages)``: init, stage and whole
-  run with a move that needs the model inside (:class:`_FusedPrograms`).
+  run with a move that needs the model inside (:class:`_FusedPrograms`);
+- ``("batched", FlatModel.signature, type(move), move key, config, max_stages, data axes)``: init and whole
+  run vmapped over datasets of one structure (:class:`_BatchedPrograms`, :mod:`bubblecal.inference.tmcmc.batched`).
 
 Under each key, jit keeps one executable per argument shape (N, d, data shapes).
 """
@@ -153,6 +155,35 @@ def _fused_programs(flat: FlatModel, move: Any, config: TMCMCConfig, max_stages:
         )
 
     key = ("fused", flat.signature, type(move), _static_key(move), config, max_stages)
+    return _cached_programs(key, build)
+
+
+class _BatchedPrograms(NamedTuple):
+    """Jitted init and whole run vmapped over B runs; data leaves with axis 0 carry a leading B axis."""
+
+    init: Callable  # (keys (B,), data, num) -> TMCMCState with a leading B axis
+    run: Callable  # (keys (B,), states, data) -> (states, infos, status), each with a leading B axis
+
+
+def _batched_programs(flat: FlatModel, move: Any, config: TMCMCConfig, max_stages: int,
+                      axes: tuple) -> _BatchedPrograms:
+    """The fused init and run of ``flat``'s structure vmapped over runs (``axes``: 0 for a data leaf stacked
+    over the runs, None for one shared by all)."""
+
+    def build():
+        def init_one(key, data, num):
+            return core.init(flat.prior_draws(key, num, data), *_densities(flat, data), move, config.chunk_size)
+
+        def run_one(key, state, data):
+            return core.run(key, state, *_densities(flat, data), move, config, max_stages)
+
+        def init(keys, data, num):
+            return jax.vmap(functools.partial(init_one, num=num), in_axes=(0, axes))(keys, data)
+
+        return _BatchedPrograms(init=jax.jit(init, static_argnums=2),
+                                run=jax.jit(jax.vmap(run_one, in_axes=(0, 0, axes))))
+
+    key = ("batched", flat.signature, type(move), _static_key(move), config, max_stages, axes)
     return _cached_programs(key, build)
 
 

@@ -35,3 +35,39 @@ class ClosedFormSurrogate:
 def closed_form():
     """The class :class:`ClosedFormSurrogate`: ``closed_form(setup, radius_dpd)``."""
     return ClosedFormSurrogate
+
+
+def _assert_same_tempering(a, b, atol: float = 1e-4) -> bool:
+    """Assert that two TMCMC runs (replica by replica) are the same tempering to float32 round-off.
+
+    Two programs that compute the same densities with differently fused arithmetic (a batched and a single run)
+    differ by ~1e-6 in log L, which can flip one accept/reject decision among the thousands of a run; from that
+    stage on (the proposal scale adapts to the acceptance) the runs are different, equally valid draws. So: every
+    stage table row up to and including the first stage whose acceptance differs agrees within ``atol`` (β, Δ, ESS,
+    log Z, scale: the first stage depends on the prior draws alone), and without such a flip the whole run and
+    the final particles agree within ``atol``.  Returns whether every replica ran without a flip.
+    """
+    import numpy as np
+
+    assert a.num_replicas == b.num_replicas
+    strict = True
+    for r in range(a.num_replicas):
+        ta, tb = a.replica_stage_info(r), b.replica_stage_info(r)
+        n = min(len(ta), len(tb))
+        flipped = np.flatnonzero(np.abs(ta["acceptance"].to_numpy()[1:n] - tb["acceptance"].to_numpy()[1:n]) > 1e-6)
+        upto = n if flipped.size == 0 else int(flipped[0]) + 2  # rows 0 .. the first flipped stage
+        for column in ("beta", "delta", "ess", "log_evidence", "scale"):
+            np.testing.assert_allclose(ta[column].to_numpy()[:upto], tb[column].to_numpy()[:upto], atol=atol,
+                                       rtol=1e-5, err_msg=f"replica {r}, column {column}")
+        if flipped.size == 0:
+            assert len(ta) == len(tb)
+            np.testing.assert_allclose(np.asarray(a._results[r]["state"].position),
+                                       np.asarray(b._results[r]["state"].position), atol=atol)
+        strict = strict and flipped.size == 0
+    return strict
+
+
+@pytest.fixture
+def same_tempering():
+    """The check :func:`_assert_same_tempering` ``(run_a, run_b, atol=1e-4) -> bool`` (True: no flip)."""
+    return _assert_same_tempering

@@ -1,0 +1,103 @@
+"""The per-dataset phases of a staged hierarchy run batched: one compiled program per group of one structure.
+
+Private helper of :func:`bubblecal.inference.hierarchical.run_staged` (``batch=True``): the phases already
+stored are reused, the others are grouped by model structure (:func:`bubblecal.inference.tmcmc.batch_groups`)
+and each group of two or more runs through :func:`bubblecal.inference.tmcmc.run_batched`; a lone dataset (or a
+group whose models turn out not to share one program) runs one by one as without ``batch``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+from bubblecal.inference.tmcmc import BatchStructureError, batch_groups, run_batched
+
+
+def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, batch_size: int | None,
+               load: Callable[[str], object | None] | None, run_one: Callable[..., object],
+               result_of: Callable[[str, object, float], object], check: Callable[[object], None],
+               save: Callable[[object], None] | None, say: Callable[[str], None]) -> list:
+    """Run the phase ``jobs`` (``(name, model, args, kwargs, key)``) not stored yet, one by one or batched.
+
+    Parameters
+    ----------
+    jobs : sequence of tuple
+        ``(phase name, model, args, kwargs, PRNG key)`` per dataset.
+    options : mapping or None
+        Keyword arguments of :class:`~bubblecal.inference.tmcmc.TMCMC`.
+    batch : bool
+        Batch the jobs of one model structure (else run each with ``run_one``).
+    batch_size : int or None
+        Runs per compiled program call (see :func:`~bubblecal.inference.tmcmc.run_batched`).
+    load : callable or None
+        ``load(name) -> PhaseResult | None``: a stored result to reuse.
+    run_one : callable
+        ``run_one(name, model, args, kwargs, key, options) -> PhaseResult``: one phase on its own (saved and
+        reported there).
+    result_of : callable
+        ``result_of(name, sampler, seconds) -> PhaseResult`` of a finished sampler.
+    check : callable
+        ``check(result)``: raises RuntimeError for a phase that did not converge.
+    save : callable or None
+        ``save(result)``: persists a finished phase (each as soon as its batch has ended).
+    say : callable
+        Receives the progress messages.
+
+    Returns
+    -------
+    list of PhaseResult
+        In the order of ``jobs``.
+
+    Raises
+    ------
+    RuntimeError
+        If a phase's TMCMC did not reach β = 1 (after its group ran; its converged members are saved).
+    """
+    options = dict(options or {})
+    results: list = []
+    for job in jobs:  # in order, as one by one: a stored phase is reused, the next one runs
+        cached = load(job[0]) if load is not None else None
+        if cached is not None:
+            say(f"{job[0]}: reused (log Z = {cached.log_evidence:.3f})")
+        elif not batch:
+            cached = run_one(*job, options)
+        results.append(cached)
+    pending = [j for j, r in enumerate(results) if r is None]
+    groups = batch_groups([jobs[j][1] for j in pending], [jobs[j][2] for j in pending],
+                          [jobs[j][3] for j in pending])
+    for group in groups:
+        members = [pending[g] for g in group]
+        if len(members) > 1:
+            try:
+                _run_group(jobs, members, options, batch_size, results, result_of, check, save, say)
+                continue
+            except BatchStructureError as exc:
+                say(f"{jobs[members[0]][0]} and {len(members) - 1} more: not batched ({exc}); running TMCMC")
+        for j in members:
+            results[j] = run_one(*jobs[j], options)
+    return results
+
+
+def _run_group(jobs, members, options, batch_size, results, result_of, check, save, say) -> None:
+    """One group of one structure through :func:`run_batched`; fills ``results`` and saves each as it ends."""
+    failed = []
+    for j in members:
+        say(f"{jobs[j][0]}: running TMCMC (batch of {len(members)})")
+
+    def done(i, sampler):
+        j = members[i]
+        name = jobs[j][0]
+        seconds = float(sum(res["seconds"] for res in sampler._results))
+        result = results[j] = result_of(name, sampler, seconds)
+        if result.status != "converged":
+            failed.append(result)
+            return
+        if save is not None:
+            save(result)
+        say(f"{name}: log Z = {result.log_evidence:.3f}, {result.seconds:.1f} s (share of a batch of "
+            f"{len(members)})")
+
+    run_batched([jobs[j][1] for j in members], [jobs[j][2] for j in members], [jobs[j][3] for j in members],
+                [jobs[j][4] for j in members], batch_size=batch_size, callback=done, **options)
+    if failed:
+        check(failed[0])
