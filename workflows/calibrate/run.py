@@ -121,13 +121,6 @@ def _pad_curves(config: CalibrationConfig) -> bool:
     return config.device == "gpu"
 
 
-def _batch_phases(config: CalibrationConfig) -> bool:
-    """Run the phase-1 and phase-3 datasets of one structure as one batched program: on the GPU, where a run is
-    bound by launches and host round trips; on CPU cores the particles' arithmetic dominates and batching gains
-    nothing (docs/inference.md, "Batched runs")."""
-    return config.device == "gpu"
-
-
 def _acoustic_arguments(ap: AgentPlan) -> list[tuple]:
     """Positional arguments of :func:`bubblecal.models.acoustic_model` for every acoustic dataset: the
     surrogate's quadratics at the dataset's diameters as a :class:`~bubblecal.models.acoustic.FrequencyTable`
@@ -232,8 +225,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
 
             staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1, phase2_options=o23,
                                 phase3_options=o23, phase2_max_samples=phase2_samples(config), load=load,
-                                save=store.save, progress=say, phase3_reweight=reweight,
-                                batch=_batch_phases(config))
+                                save=store.save, progress=say, phase3_reweight=reweight)
             if staged.phase3_ess:
                 say("phase 3 leave-one-out importance ESS: "
                     + ", ".join(f"{k} {v:.0f}" for k, v in staged.phase3_ess.items()))
