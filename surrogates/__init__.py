@@ -10,7 +10,9 @@ Calibration-side API (pure JAX/numpy; importing this package never imports torch
 
 Modules: :mod:`~bubblecal.surrogates.mlp` (JAX forward pass), :mod:`~bubblecal.surrogates.surrogate` (the
 loaded :class:`Surrogate`), :mod:`~bubblecal.surrogates.surrogate_file` (the ``.npz`` format),
-:mod:`~bubblecal.surrogates.bundle` (bundles, the shipped default), :mod:`~bubblecal.surrogates.ringdown`
+:mod:`~bubblecal.surrogates.bundle` (bundles, the shipped default; written by
+:mod:`~bubblecal.surrogates.bundle_write`, roles of the networks over the diameter in
+:mod:`~bubblecal.surrogates.bundle_networks`), :mod:`~bubblecal.surrogates.ringdown`
 (ringdown fits), :mod:`~bubblecal.surrogates.resonance` (the f_res^2(k_a) quadratic at one diameter),
 :mod:`~bubblecal.surrogates.acoustic` (the acoustic surrogate over diameters),
 :mod:`~bubblecal.surrogates.resonance_law` and :mod:`~bubblecal.surrogates.law_fit` (a law continuous in the
@@ -40,8 +42,9 @@ from bubblecal.surrogates.bundle import (
     NoDefaultBundleError,
     default_bundle_path,
     load_bundle,
-    write_bundle,
 )
+from bubblecal.surrogates.bundle_networks import DEFAULT_NETWORK, NETWORK_ROLES
+from bubblecal.surrogates.bundle_write import write_bundle
 from bubblecal.surrogates.classical_resonance import classical_f0, diameter_exponent
 from bubblecal.surrogates.features import (
     INPUT_KINDS,
@@ -99,7 +102,7 @@ __all__ = [
     "INPUT_KINDS", "RESPONSE_SCALES", "network_inputs", "response_scale", "x_per_size", "radius_of_diameter",
     # bundles
     "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
-    "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM",
+    "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "NETWORK_ROLES", "DEFAULT_NETWORK",
     # acoustics
     "AcousticSurrogate", "DiameterFit", "fit_quadratic", "AcousticFormatError", "AcousticRangeError",
     "AcousticRangeWarning", "ACOUSTIC_FORMAT", "ACOUSTIC_FORMAT_VERSION", "fit_ringdown", "RingdownFit",

@@ -9,6 +9,8 @@ each file's ``format_version`` says which) and ``manifest.json``::
      "surrogates": [{"file": "compression_2.1um.npz", "setup": "compression",
                      "diameter_um": 2.1, "data_hash": "...", "holdout_score": 0.004},
                     {"file": "compression_1.5-8um.npz", "setup": "compression",
+                     "diameter_range_um": [1.5, 8.0], "data_hash": "...", ...},
+                    {"file": "compression_1.5-8um_fast.npz", "setup": "compression", "network": "fast",
                      "diameter_range_um": [1.5, 8.0], "data_hash": "...", ...}, ...],
      "acoustic": [{"file": "acoustic_definity.json", "name": "definity"},
                   {"file": "acoustic_definity_1.5-11.2um.json", "name": "definity",
@@ -17,30 +19,29 @@ each file's ``format_version`` says which) and ``manifest.json``::
 
 A name has at most one file of each kind. Mechanical and acoustic lookups prefer the per-diameter files
 (:meth:`Bundle.get`, :meth:`Bundle.acoustic_for`): the networks and laws over the diameter answer the other
-diameters of their range. The package ships a default bundle (package data ``bubblecal/surrogates/bundle/``,
-:func:`default_bundle_path`).
-Nothing here imports torch or onnx.
+diameters of their range. A protocol has at most one network over the diameter per role (``network``:
+``'accurate'``, the default when the field is missing, or ``'fast'``; :mod:`bubblecal.surrogates.bundle_networks`).
+The package ships a default bundle (package data ``bubblecal/surrogates/bundle/``, :func:`default_bundle_path`);
+:func:`~bubblecal.surrogates.write_bundle` (:mod:`bubblecal.surrogates.bundle_write`) writes one. Nothing here
+imports torch or onnx.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import shutil
-from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from bubblecal.data import code_version
 from bubblecal.surrogates.acoustic import AcousticFormatError, AcousticRangeError, AcousticSurrogate
 from bubblecal.surrogates.acoustic_law import AcousticLawSurrogate
-from bubblecal.surrogates.fileio import atomic_write_bytes, read_versioned_json, utc_now
+from bubblecal.surrogates.bundle_networks import DEFAULT_NETWORK, NETWORK_ROLES, entry_network, lookup_order
+from bubblecal.surrogates.fileio import read_versioned_json
 from bubblecal.surrogates.surrogate import Surrogate
 from bubblecal.surrogates.surrogate_file import SurrogateFormatError, load
 
-__all__ = ["BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "Bundle", "load_bundle", "write_bundle",
+__all__ = ["BUNDLE_FORMAT", "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "Bundle", "load_bundle",
            "default_bundle_path", "NoDefaultBundleError"]
 
 #: ``format`` of a bundle manifest.
@@ -67,9 +68,12 @@ class Bundle:
     acoustic : dict of str to AcousticSurrogate
         Per-diameter acoustic quadratics (file version 1) keyed by name (e.g. ``'definity'``).
     over_diameter : dict of str to Surrogate
-        Mechanical networks over the diameter keyed by loading protocol (at most one each).
+        The accurate mechanical networks over the diameter keyed by loading protocol (at most one each).
     acoustic_law : dict of str to AcousticLawSurrogate
         Acoustic laws continuous in the diameter (file version 2) keyed by name (at most one each).
+    fast : dict of str to Surrogate
+        The fast mechanical networks over the diameter (manifest ``network = 'fast'``) keyed by loading protocol
+        (at most one each).
     """
 
     path: Path
@@ -78,15 +82,37 @@ class Bundle:
     acoustic: dict[str, object] = field(default_factory=dict)
     over_diameter: dict[str, Surrogate] = field(default_factory=dict)
     acoustic_law: dict[str, AcousticLawSurrogate] = field(default_factory=dict)
+    fast: dict[str, Surrogate] = field(default_factory=dict)
+
+    def _wide(self, role: str) -> dict[str, Surrogate]:
+        """The networks over the diameter of ``role``, keyed by loading protocol."""
+        return self.fast if role == "fast" else self.over_diameter
+
+    def networks(self, setup: str) -> tuple[str, ...]:
+        """Roles of the networks over the diameter the bundle has for ``setup``.
+
+        Parameters
+        ----------
+        setup : {'compression', 'indentation'}
+            Loading protocol.
+
+        Returns
+        -------
+        tuple of str
+            The roles present, in the order of :data:`~bubblecal.surrogates.NETWORK_ROLES` (empty when none).
+        """
+        return tuple(r for r in NETWORK_ROLES if setup in self._wide(r))
 
     def get(self, setup: str, diameter_um: float, atol: float = DIAMETER_ATOL_UM,
-            prefer: str = "per-diameter") -> Surrogate:
+            prefer: str = "per-diameter", network: str = DEFAULT_NETWORK) -> Surrogate:
         """The surrogate for ``setup`` at ``diameter_um``: a per-diameter one, or the network over the diameter.
 
         A per-diameter surrogate matches within ``atol`` of its data or nominal diameter (nominal diameters name
         the data sets: the "3.2 um" SonoVue set has data diameter 3.19 um); a network over the diameter matches
         every diameter of its range and is returned bound to ``diameter_um``
-        (:meth:`~bubblecal.surrogates.Surrogate.at_diameter`).
+        (:meth:`~bubblecal.surrogates.Surrogate.at_diameter`). ``network`` picks which network over the diameter
+        answers: ``'fast'`` falls back to the accurate one, with no error, where the bundle has no fast network
+        covering the diameter (:meth:`networks` tells); per-diameter files have no role and answer by ``prefer``.
 
         Parameters
         ----------
@@ -98,6 +124,8 @@ class Bundle:
             Largest accepted gap to a per-diameter surrogate [um].
         prefer : {'per-diameter', 'over-diameter'}
             Which kind answers when both match.
+        network : {'accurate', 'fast'}
+            Role of the network over the diameter (:mod:`bubblecal.surrogates.bundle_networks`).
 
         Returns
         -------
@@ -109,10 +137,11 @@ class Bundle:
         KeyError
             When none matches (the message lists what the bundle has).
         ValueError
-            For an unknown ``prefer``.
+            For an unknown ``prefer`` or ``network`` (the message names the allowed values).
         """
         if prefer not in ("per-diameter", "over-diameter"):
             raise ValueError(f"prefer must be 'per-diameter' or 'over-diameter', got {prefer!r}")
+        roles = lookup_order(network)
         best, best_gap = None, math.inf
         for (s, d), sur in self.surrogates.items():
             if s != setup:
@@ -122,15 +151,16 @@ class Bundle:
             if gap < best_gap:
                 best, best_gap = sur, gap
         per = best if best is not None and best_gap <= atol else None
-        wide = self.over_diameter.get(setup)
-        if wide is not None and wide.diameter_range_um[0] <= float(diameter_um) <= wide.diameter_range_um[1]:
-            if per is None or prefer == "over-diameter":
-                return wide.at_diameter(float(diameter_um))
+        covering = [w for w in (self._wide(r).get(setup) for r in roles)
+                    if w is not None and w.diameter_range_um[0] <= float(diameter_um) <= w.diameter_range_um[1]]
+        if covering and (per is None or prefer == "over-diameter"):
+            return covering[0].at_diameter(float(diameter_um))
         if per is not None:
             return per
         have = [f"{s} {d:g} um" for s, d in sorted(self.surrogates)]
-        have += [f"{s} {w.diameter_range_um[0]:g}-{w.diameter_range_um[1]:g} um (over the diameter)"
-                 for s, w in sorted(self.over_diameter.items())]
+        have += [f"{s} {w.diameter_range_um[0]:g}-{w.diameter_range_um[1]:g} um (over the diameter"
+                 + (", fast)" if r == "fast" else ")")
+                 for r in NETWORK_ROLES for s, w in sorted(self._wide(r).items())]
         raise KeyError(f"bundle {self.path} has no {setup} surrogate at {diameter_um:g} um "
                        f"(has: {', '.join(have) or 'none'})")
 
@@ -235,15 +265,17 @@ def _load_bundle(path: str | Path) -> Bundle:
         if sur.data_hash != entry["data_hash"]:
             raise SurrogateFormatError(f"{mpath}: surrogates[{i}] field 'data_hash' {entry['data_hash'][:12]}... "
                                        f"does not match {entry['file']} ({sur.data_hash[:12]}...)")
+        role = entry_network(entry, i, mpath, wide)
         if wide:
             if sur.setup != entry["setup"] or not sur.over_diameter or not all(
                     math.isclose(a, float(b), abs_tol=1e-9)
                     for a, b in zip(sur.diameter_range_um, entry["diameter_range_um"], strict=True)):
                 raise SurrogateFormatError(f"{mpath}: surrogates[{i}] setup/diameter_range_um disagree with "
                                            f"{entry['file']}")
-            if sur.setup in bundle.over_diameter:
-                raise SurrogateFormatError(f"{mpath}: two {sur.setup} surrogates over the diameter")
-            bundle.over_diameter[sur.setup] = sur
+            if sur.setup in bundle._wide(role):
+                raise SurrogateFormatError(f"{mpath}: surrogates[{i}] ({entry['file']}): a second {role!r} "
+                                           f"{sur.setup} network over the diameter")
+            bundle._wide(role)[sur.setup] = sur
             continue
         if sur.over_diameter or sur.setup != entry["setup"] or not math.isclose(
                 sur.diameter_um, float(entry["diameter_um"]), abs_tol=1e-9):
@@ -269,65 +301,6 @@ def _load_bundle(path: str | Path) -> Bundle:
                                        f"{entry['diameter_range_um']!r} disagrees with {entry['file']}")
         kind[entry["name"]] = ac
     return bundle
-
-
-def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
-                 acoustic_files: Mapping[str, str | Path] | None = None, notes: str = "") -> Path:
-    """Copy surrogate ``.npz`` files and acoustic JSON files into ``path`` and write ``manifest.json``.
-
-    Every file is loaded (validated) first; files already inside ``path`` are not copied.
-
-    Parameters
-    ----------
-    path : str or Path
-        The bundle directory (created when missing).
-    surrogate_files : iterable of str or Path
-        Mechanical surrogate files.
-    acoustic_files : Mapping of str to (str or Path or sequence of them), optional
-        Acoustic surrogate files keyed by name (e.g. ``'definity'``): per-diameter quadratics, a law over the
-        diameter, or one of each.
-    notes : str
-        Free text stored in the manifest.
-
-    Returns
-    -------
-    Path
-        The manifest path.
-
-    Raises
-    ------
-    FileNotFoundError, SurrogateFormatError, AcousticFormatError
-        When a file is missing or malformed.
-    """
-    path = Path(path)
-    path.mkdir(parents=True, exist_ok=True)
-    entries = []
-    for f in surrogate_files:
-        f = Path(f)
-        sur = load(f)
-        dest = path / f.name
-        if f.resolve() != dest.resolve():
-            shutil.copyfile(f, dest)
-        size = ({"diameter_range_um": list(sur.diameter_range_um), "ldo_score": sur.metadata.get("ldo_score")}
-                if sur.over_diameter else {"diameter_um": sur.diameter_um})
-        entries.append({"file": f.name, "setup": sur.setup, **size, "data_hash": sur.data_hash,
-                        "holdout_score": sur.holdout_score, "architecture": sur.architecture})
-    acoustic_entries = []
-    for name, files in (acoustic_files or {}).items():
-        for f in [files] if isinstance(files, (str, Path)) else files:
-            f = Path(f)
-            ac = AcousticSurrogate.load(f)  # validate
-            dest = path / f.name
-            if f.resolve() != dest.resolve():
-                shutil.copyfile(f, dest)
-            wide = {"diameter_range_um": list(ac.diameter_range)} if isinstance(ac, AcousticLawSurrogate) else {}
-            acoustic_entries.append({"file": f.name, "name": name, **wide})
-    manifest = {"format": BUNDLE_FORMAT, "format_version": BUNDLE_FORMAT_VERSION, "created_utc": utc_now(),
-                "code_version": code_version(), "surrogates": entries, "acoustic": acoustic_entries,
-                "notes": notes}
-    mpath = path / "manifest.json"
-    atomic_write_bytes(mpath, lambda fh: fh.write(json.dumps(manifest, indent=2).encode()))
-    return mpath
 
 
 class NoDefaultBundleError(FileNotFoundError):

@@ -46,7 +46,8 @@ import numpy as np
 from bubblecal.data import DEFAULT_UNITS, REFERENCE_CURVES, SHELL_PARAMETERS, UnitSystem, load_reference
 from bubblecal.surrogates.acoustic import AcousticSurrogate
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
-from bubblecal.surrogates.bundle import default_bundle_path, write_bundle
+from bubblecal.surrogates.bundle import default_bundle_path
+from bubblecal.surrogates.bundle_write import write_bundle
 from bubblecal.surrogates.mlp import mlp_forward, xavier_uniform_weights
 from bubblecal.surrogates.surrogate_file import save_surrogate
 from bubblecal.surrogates.training.dataset import TrainingSet

@@ -203,9 +203,12 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic su
             b = load_bundle(path)
             if b.manifest.get("notes"):
                 typer.echo(f"notes: {b.manifest['notes']}")
-            for sur in [b.surrogates[key] for key in b.keys()] + [b.over_diameter[k] for k in sorted(b.over_diameter)]:
+            listed = [(b.surrogates[key], None) for key in b.keys()]
+            for setup in sorted(b.over_diameter.keys() | b.fast.keys()):  # each network over the diameter, its role
+                listed += [((b.fast if role == "fast" else b.over_diameter)[setup], role) for role in b.networks(setup)]
+            for sur, role in listed:
                 md = sur.metadata
-                typer.echo(repr(sur))
+                typer.echo(repr(sur) + (f" [network: {role}]" if role else ""))
                 # provenance: the training set and how much of it the network saw
                 ldo = f", leave-diameters-out {md['ldo_score']:.3g}" if md.get("ldo_score") is not None else ""
                 typer.echo(f"  trained on {md.get('source', '?')}: {md.get('n_curves_train', '?')} curves "
@@ -334,6 +337,8 @@ def acoustic(
 def bundle(
     out: Path = typer.Argument(..., help="Bundle directory to write (created; manifest.json + copies)."),
     surrogate: list[Path] = typer.Option(None, "--surrogate", help="A mechanical surrogate .npz (repeatable)."),
+    fast: list[Path] = typer.Option(None, "--fast", help="A fast network over the diameter .npz (repeatable; "
+                                    "manifest 'network': 'fast', what Bundle.get(..., network='fast') answers)."),
     acoustic: list[str] = typer.Option(None, "--acoustic", help="NAME=FILE.json of an acoustic surrogate "
                                                                 "(repeatable; NAME definity or sonovue; per "
                                                                 "name one per-diameter file and one law)."),
@@ -349,18 +354,24 @@ def bundle(
         if not sep or name not in AGENTS:
             raise fail(f"--acoustic {item!r}: expected definity=FILE or sonovue=FILE")
         ac.setdefault(name, []).append(Path(file))  # a name may have quadratics and a law
-    missing = [str(p) for p in [*(surrogate or []), *(f for fs in ac.values() for f in fs)] if not Path(p).is_file()]
+    missing = [str(p) for p in [*(surrogate or []), *(fast or []), *(f for fs in ac.values() for f in fs)]
+               if not Path(p).is_file()]
     if missing:
         raise fail(f"no such file: {', '.join(missing)}")
-    if not surrogate and not ac:
-        raise fail("give at least one --surrogate or --acoustic")
+    if not surrogate and not fast and not ac:
+        raise fail("give at least one --surrogate, --fast or --acoustic")
     try:
-        write_bundle(out, surrogate or [], ac, notes=notes)
+        write_bundle(out, surrogate or [], ac, notes=notes, fast_files=fast or [])
         b = load_bundle(out)
     except (SurrogateFormatError, ValueError, OSError) as exc:
         raise fail(str(exc)) from None
     for (setup, d), s in sorted(b.surrogates.items()):
         typer.echo(f"{setup} {d:g} um: {s.architecture}, holdout {s.holdout_score}")
+    for role, nets in (("accurate", b.over_diameter), ("fast", b.fast)):
+        for setup, s in sorted(nets.items()):
+            lo, hi = s.diameter_range_um
+            typer.echo(f"{setup} {lo:g}-{hi:g} um (over the diameter, network: {role}): {s.architecture}, "
+                       f"holdout {s.holdout_score}")
     for name, a in b.acoustic.items():
         typer.echo(f"acoustic {name}: {len(a.diameters)} diameters")
     for name, a in b.acoustic_law.items():
