@@ -72,6 +72,10 @@ def test_plan_one_hierarchy_per_agent_on_networks_over_the_diameter(tmp_path, tw
     # 2.1, 2.9, 3.0 / 3.2, 3.4, 5.8 um)
     assert [s.diameter_um for s in lipid.surrogates] == [2.4, 3.7] and poly.surrogates[0].diameter_um == 4.1
     assert all(s.over_diameter for s in (*lipid.surrogates, *poly.surrogates))
+    # the bundle's fast networks by default, its accurate ones on request
+    fast, accurate = (plan.bundle.get(p, 3.0, prefer="over-diameter", network=n) for p, n in
+                      (("compression", "fast"), ("compression", "accurate")))
+    assert lipid.surrogates[0].architecture == fast.architecture != accurate.architecture
     # curves in DPD units, converted from the file's nm / nN
     first = _published_rows("definity-2.1")
     kept = [r for r in first if r["retained"] == "1"]
