@@ -82,13 +82,13 @@ class AgentResult:
     pointwise: dict = field(default_factory=dict)
 
 
-def _curve_arguments(ap: AgentPlan, pad: bool) -> list[tuple[tuple, dict]]:
+def _curve_arguments(ap: AgentPlan, pad: bool | int) -> list[tuple[tuple, dict]]:
     """(args, kwargs) of :func:`bubblecal.models.mechanical_model` for every curve of the agent.
 
-    The surrogate goes in as a :class:`~bubblecal.models.TracedSurrogate`, so its weights are
-    arguments of the compiled TMCMC programs and curves whose networks have one shape share them. With
-    ``pad`` those curves are also padded (masked) to one length, so they share the programs in fact; it
-    costs the padded points' evaluations, hence only where compiling dominates (the GPU).
+    The surrogate goes in as a :class:`~bubblecal.models.TracedSurrogate`, so its weights are arguments of the
+    compiled TMCMC programs and curves whose networks have one shape share them. ``pad`` True pads (masks) them to
+    the longest one (one program); an integer b to the next multiple of b points (a program per length bucket);
+    False keeps every curve's own length.
     """
     from bubblecal.models import TracedSurrogate, pad_curve
 
@@ -107,18 +107,28 @@ def _curve_arguments(ap: AgentPlan, pad: bool) -> list[tuple[tuple, dict]]:
     out = []
     for curve, sur in zip(ap.curves, surrogates, strict=True):
         x, y = np.asarray(curve.x), np.asarray(curve.y)
-        if pad:  # every curve of a group gets a mask (all True on the longest): one argument structure
+        if pad is True:  # every curve of a group gets a mask (all True on the longest): one argument structure
             x, y, mask = pad_curve(x, y, length[shape_key(sur)])
+            out.append(((x, y, sur, ap.spec), {"mask": mask}))
+        elif pad:
+            x, y, mask = pad_curve(x, y, -(-len(x) // int(pad)) * int(pad))
             out.append(((x, y, sur, ap.spec), {"mask": mask}))
         else:
             out.append(((x, y, sur, ap.spec), {}))
     return out
 
 
-def _pad_curves(config: CalibrationConfig) -> bool:
-    """Pad curves of one network shape to one length (shared compiled programs): on the GPU only, where
-    compiling a phase's programs costs more than the padded points; on CPU cores the particles dominate."""
-    return config.device == "gpu"
+#: Points per length bucket of measured bubbles on CPU cores (``_pad_curves``).
+LENGTH_BUCKET = 8
+
+
+def _pad_curves(config: CalibrationConfig) -> bool | int:
+    """Padding of the curves (``_curve_arguments``): one length on the GPU (compiling costs more than padded points);
+    on CPU cores length buckets for measured bubbles (a few programs, not one per length), none for the published
+    study (the particles dominate)."""
+    if config.device == "gpu":
+        return True
+    return LENGTH_BUCKET if config.data is not None else False
 
 
 def _acoustic_arguments(ap: AgentPlan) -> list[tuple]:

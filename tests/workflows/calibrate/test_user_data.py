@@ -173,3 +173,18 @@ def test_tiny_calibration_of_one_measured_bubble_and_resume(tmp_path):
     other = _curves(tmp_path, {"A1": ("lipidX", "definity-2.1", 2.6)})
     (moved,) = run_calibration(make_plan(CalibrationConfig(**{**config.__dict__, "data": other})))
     assert "phase1_A1" not in moved.reused
+
+
+def test_measured_bubbles_on_cpu_cores_pad_to_length_buckets():
+    from types import SimpleNamespace
+
+    from bubblecal.workflows.calibrate.run import LENGTH_BUCKET, _curve_arguments, _pad_curves
+
+    curves = [SimpleNamespace(x=np.arange(n, dtype=float) + 1, y=np.ones(n)) for n in (5, 8, 13, 17)]
+    ap = SimpleNamespace(curves=curves, surrogates=[lambda p, x: x] * 4, spec=None)
+    args = _curve_arguments(ap, LENGTH_BUCKET)
+    assert [len(a[0]) for a, _ in args] == [8, 8, 16, 24]
+    assert [int(k["mask"].sum()) for _, k in args] == [5, 8, 13, 17]
+    assert all(np.array_equal(a[0][:len(c.x)], c.x) for (a, _), c in zip(args, curves, strict=True))
+    assert _pad_curves(CalibrationConfig(data=Path("c.csv"))) == LENGTH_BUCKET
+    assert _pad_curves(CalibrationConfig()) is False and _pad_curves(CalibrationConfig(device="gpu")) is True
