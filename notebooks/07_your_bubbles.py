@@ -207,8 +207,8 @@ print(summary.loc[summary["parameter"].isin(["ka", "kb"]), show].to_string(index
 
 # %% [markdown]
 # Calibrated against known: each bubble's k_a (and E) next to the value its curve was generated at, and whether the
-# 90 % interval holds it (with 5 % noise, about 9 bubbles in 10 at a full population; the small run's intervals
-# are rougher). A measured agent has no known column: its check is the fit and the predictive coverage.
+# 90 % interval holds it (a 90 % interval may miss now and then; the small run's intervals are rougher). A measured
+# agent has no known column: its checks are the fits and the coverage of the predictive bands.
 
 # %%
 ka_rows = summary[summary["parameter"] == "ka"].set_index("dataset")
