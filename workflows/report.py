@@ -10,7 +10,7 @@ import math
 from pathlib import Path
 
 from bubblecal.workflows.calibrate import DEFAULT_PHASE2_SAMPLES
-from bubblecal.workflows.summary import PHYSICAL, bubble_rows, population_bands
+from bubblecal.workflows.summary import PHYSICAL, POPULATION_ROW, bubble_rows, population_bands
 
 __all__ = ["DETAIL_DATASETS", "summary_table", "hyperprior_bound_notes", "bubble_lines", "population_lines",
            "write_report"]
@@ -18,6 +18,10 @@ __all__ = ["DETAIL_DATASETS", "summary_table", "hyperprior_bound_notes", "bubble
 #: Up to this many datasets ``report.md`` also shows every parameter per dataset and every phase on its own row;
 #: beyond, those tables are left to ``summary.csv`` and one row per phase kind.
 DETAIL_DATASETS = 8
+
+
+#: Most datasets the console summary lists one by one (more: the population row only).
+CONSOLE_ROWS = 12
 
 
 def summary_table(result):
@@ -45,9 +49,13 @@ def summary_table(result):
             _u, pname, punit, _c = PHYSICAL[k]
             heads.append(f"{k} / {pname} [{punit}]" if punit != "1" else k)
     heads += ["coverage 90%", "CRPS"]
-    table = make_table(f"{result.plan.agent} ({result.plan.workflow}): posterior mean [90% interval] (MAP), "
-                       "DPD / physical", heads)
-    for cells in _summary_cells(df, [k for k in params if k in df["parameter"].values], result.plan.agent, "\n"):
+    rows = _summary_cells(df, [k for k in params if k in df["parameter"].values], result.plan.agent, "\n")
+    title = f"{result.plan.agent} ({result.plan.workflow}): posterior mean [90% interval] (MAP), DPD / physical"
+    if len(rows) > CONSOLE_ROWS:  # many bubbles: the console keeps the population, the files keep every bubble
+        title += f"; {len(rows) - 1} datasets in summary.csv and report.md, the population here"
+        rows = [r for r in rows if r[0] == POPULATION_ROW]
+    table = make_table(title, heads)
+    for cells in rows:
         table.add_row(*cells)
     return table
 

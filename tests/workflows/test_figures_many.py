@@ -168,3 +168,14 @@ def test_report_one_line_per_bubble_and_population_in_physical_units(tmp_path, n
     assert ("ka (E [MPa])" in text) == (n <= 8)  # the full table
     assert (f"| phase1 ({n} runs) |" in text) == (n > 8)
     assert len(text.splitlines()) < 2 * n + 80
+
+
+@pytest.mark.parametrize("n", [3, 50])
+def test_console_summary_lists_few_bubbles_and_keeps_the_population_for_many(tmp_path, n):
+    from bubblecal.workflows.report import CONSOLE_ROWS, summary_table
+
+    table = summary_table(fake_result(tmp_path, n)[0])
+    names = list(table.columns[0].cells)
+    assert "population (new bubble)" in names
+    assert len(names) == (n + 1 if n + 1 <= CONSOLE_ROWS else 1)
+    assert (f"{n} datasets in summary.csv" in table.title) == (n + 1 > CONSOLE_ROWS)
