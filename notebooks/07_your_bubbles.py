@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -48,8 +50,10 @@ from bubblecal.workflows.calibrate import CalibrationConfig, make_plan, run_cali
 from bubblecal.workflows.summary import POPULATION_ROW
 
 SMALL = os.environ.get("BUBBLECAL_NOTEBOOK_SMALL") == "1"
-POPULATION = 300 if SMALL else None  # None: the default population of `bubblecal calibrate`
-MCMC_STEPS = 3 if SMALL else 10       # 10: the default of CalibrationConfig.num_mcmc_steps
+POPULATION = 200 if SMALL else None  # None: the default population of `bubblecal calibrate`
+MCMC_STEPS = 2 if SMALL else 10       # 10: the default of CalibrationConfig.num_mcmc_steps
+# the small run also thins the summaries' predictive draws (default 5000)
+SMALL_SUMMARIES = {"predictive_samples": 500, "phase2_samples": 200} if SMALL else {}
 work = Path("my_bubbles")
 work.mkdir(exist_ok=True)
 
@@ -175,7 +179,8 @@ for name, p in spec.parameters.items():
 
 # %%
 config = CalibrationConfig(data=curves_csv, acoustic_data=resonance_csv, priors={"mylipid": str(priors_toml)},
-                           population=POPULATION, num_mcmc_steps=MCMC_STEPS, out=work / "calibration")
+                           population=POPULATION, num_mcmc_steps=MCMC_STEPS, out=work / "calibration",
+                           **SMALL_SUMMARIES)
 plan = make_plan(config)
 for ap in plan.agents:
     print(f"{ap.agent}: workflow {ap.workflow}, {len(ap.curves)} curves, {len(ap.acoustic)} acoustic datasets, "
