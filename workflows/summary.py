@@ -144,7 +144,11 @@ def bubble_rows(result):
             bubble = name.removeprefix(f"{agent}_")
             d = diam.get(name, math.nan)
             r0 = sub.iloc[0]
-            row = {"dataset": name, "bubble": bubble, "label": f"{bubble} ({d:g} µm)" if name in diam else bubble,
+            # a one-bubble acoustic dataset (a resonance row) names its diameter in the label
+            d_ac = float(r0["diameter_um"]) if name not in diam else math.nan
+            label = (f"{bubble} ({d:g} µm)" if name in diam else
+                     f"{bubble} ({d_ac:g} µm)" if math.isfinite(d_ac) else bubble)
+            row = {"dataset": name, "bubble": bubble, "label": label,
                    "kind": r0["kind"], "diameter_um": d, "coverage_90": float(r0["coverage_90"]),
                    "crps": float(r0["crps"]), "crps_unit": r0["crps_unit"]}
             for p in BUBBLE_PARAMETERS:
