@@ -84,9 +84,9 @@ def calibrate(
     bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
     force: bool = typer.Option(_D.force, "--force", help="Rerun finished phases instead of reusing them."),
     seed: int = typer.Option(_D.seed, "--seed"),
-    priors: list[str] = typer.Option(None, "--priors", help="Your priors TOML instead of the shipped ones: FILE (one "
-                                     "--agent, or every agent of --data) or LABEL=FILE for one agent of --data "
-                                     "(repeatable)."),
+    priors: list[str] = typer.Option(None, "--priors", metavar="[LABEL=]FILE",
+                                     help="Your priors TOML instead of the shipped ones: FILE (one --agent, or every "
+                                     "agent of --data) or LABEL=FILE for one agent of --data (repeatable)."),
     data: Path = typer.Option(None, "--data", help="Tidy curves CSV of your bubbles (bubble, agent, protocol, "
                               "diameter_um, displacement_nm, force_nN[, retained]): one hierarchy per agent label "
                               "instead of the published study (check it first: bubblecal data check FILE)."),
