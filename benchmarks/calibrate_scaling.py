@@ -69,6 +69,7 @@ def write_bubbles(folder: Path, n: int, seed: int, diameters: tuple[float, float
     from bubblecal.priors import load_priors
     from bubblecal.surrogates import load_bundle
     from bubblecal.surrogates.bundle import default_bundle_path
+    from bubblecal.surrogates.features import radius_of_diameter
 
     rng = np.random.default_rng(seed)
     bundle = load_bundle(default_bundle_path(must_exist=True))
@@ -91,7 +92,7 @@ def write_bubbles(folder: Path, n: int, seed: int, diameters: tuple[float, float
                                           np.mean(spec.parameters["kb"].hyper_tau.as_tuple())), kb_lo, kb_hi))
             d0 = float(rng.uniform(0.05, 0.3))
             sur = net.at_diameter(d)
-            x = np.linspace(0.02, 0.9, points) * sur.loading_range_per_size[1] * 2 * _radius(d)
+            x = np.linspace(0.02, 0.9, points) * sur.loading_range_per_size[1] * 2 * float(radius_of_diameter(d))
             y = np.maximum(np.asarray(sur(np.array([ka, kb, 0.0, 0.0, 0.0, 0.0]), x)), 0.0)
             y = np.abs(y * (1.0 + 0.05 * rng.standard_normal(points)))  # the likelihood's relative noise, 5 %
             x = x + d0  # the measured displacement counts from before contact
@@ -105,13 +106,6 @@ def write_bubbles(folder: Path, n: int, seed: int, diameters: tuple[float, float
         res = folder / "resonance.csv"
         res.write_text("agent,diameter_um,frequency_MHz\n" + "".join(f"{AGENT},{d},{f:.6g}\n" for d, f in res_rows))
     return curves, res
-
-
-def _radius(diameter_um: float) -> float:
-    """Bubble radius [DPD length] of a diameter [um]."""
-    from bubblecal.surrogates.features import radius_of_diameter
-
-    return float(radius_of_diameter(diameter_um))
 
 
 def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: list[str]) -> dict:

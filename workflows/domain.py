@@ -9,7 +9,7 @@ import numpy as np
 
 from bubblecal.data import SHELL_PARAMETERS
 
-__all__ = ["PRIOR_BOX_RTOL", "prior_box_domain_warnings"]
+__all__ = ["PRIOR_BOX_RTOL", "prior_box_domain_warnings", "acoustic_ka_domain_warnings"]
 
 #: Slack of the prior-box check, as a fraction of each training range: a Latin hypercube of n points samples the
 #: edge strata only to within width/n of the box edge, and the reduced shell's b1 = b2 = a4 = 0 sits on it.
@@ -51,3 +51,39 @@ def prior_box_domain_warnings(surrogate, spec, x) -> list[str]:
         warnings.simplefilter("always", SurrogateDomainWarning)
         surrogate.check_domain(corners[:, None, :], xs[None, :], rtol=PRIOR_BOX_RTOL)
     return [str(w.message) for w in caught if issubclass(w.category, SurrogateDomainWarning)]
+
+
+def acoustic_ka_domain_warnings(f_res, spec, datasets, label: str) -> list[str]:
+    """Messages for every acoustic diameter whose fitted k_a range does not contain the k_a prior.
+
+    Parameters
+    ----------
+    f_res : bubblecal.surrogates.AcousticSurrogate
+        The acoustic surrogate (per-diameter quadratics or the law over the diameter).
+    spec : bubblecal.priors.PriorSpec
+        The priors (their ``ka`` range, DPD units).
+    datasets : sequence
+        Acoustic datasets (their ``diameter_um`` [um]).
+    label : str
+        The agent named in the messages.
+
+    Returns
+    -------
+    list of str
+        One message per diameter outside; empty when every fitted range holds the prior.
+
+    Raises
+    ------
+    bubblecal.surrogates.acoustic.AcousticRangeError
+        When ``f_res`` has no fit at a diameter.
+    """
+    lo, hi = spec.parameters["ka"].prior.as_tuple()
+    out = []
+    for ds in datasets:
+        for d in np.atleast_1d(ds.diameter_um):
+            r_lo, r_hi = f_res.ka_ranges(float(d))
+            if lo < r_lo * (1 - 1e-9) or hi > r_hi * (1 + 1e-9):
+                out.append(f"acoustic {label} {float(d):g} um: fitted ka range [{r_lo:.6g}, {r_hi:.6g}] "
+                           f"does not contain the ka prior [{lo:.6g}, {hi:.6g}]")
+    return out
+

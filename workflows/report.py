@@ -260,7 +260,7 @@ def write_report(result, plan) -> Path:
         f"- priors: `{ap.priors_path}`",
         f"- data: {_data_line(ap)}" + (f" (from `{config.data}`" + (f" and `{config.acoustic_data}`"
                                         if config.acoustic_data else "") + ")" if config.data else ""),
-        *[f"- note: {n}" for n in getattr(ap, "notes", [])],
+        *[f"- note: {n}" for n in ap.notes],
         f"- sampler: {o_sampler}; N = {config.num_particles} particles per phase, target CoV "
         f"{config.target_cov[0]} (phase 1) / {config.target_cov[1]} (phases 2, 3), covariance scaling "
         f"{config.cov_scale}, {config.num_mcmc_steps} MH steps per stage; phase 2 uses {n_phase2} "

@@ -71,8 +71,8 @@ def test_phase_hash_follows_the_surrogate_in_use(bundle):
 
     hashes = bundle_hashes(bundle)
     assert set(hashes) == {"acoustic_definity", "acoustic_law_definity"}
-    per = SimpleNamespace(agent="definity", f_res=bundle.acoustic["definity"])
-    law = SimpleNamespace(agent="definity", f_res=bundle.acoustic_law["definity"])
+    per = SimpleNamespace(agent="definity", acoustic_name="definity", f_res=bundle.acoustic["definity"])
+    law = SimpleNamespace(agent="definity", acoustic_name="definity", f_res=bundle.acoustic_law["definity"])
     assert _acoustic_hash(per, hashes) == hashes["acoustic_definity"]
     assert _acoustic_hash(law, hashes) == hashes["acoustic_law_definity"] != hashes["acoustic_definity"]
 

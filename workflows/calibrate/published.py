@@ -143,6 +143,7 @@ def _acoustic_inputs(agent: str, config: CalibrationConfig, bundle, bundle_path:
     """(acoustic datasets, acoustic surrogate); appends a message to ``domain`` where the fitted k_a range
     of a diameter does not contain the k_a prior."""
     from bubblecal.surrogates.acoustic import AcousticRangeError
+    from bubblecal.workflows.domain import acoustic_ka_domain_warnings
 
     acoustic = _load_acoustic(agent, config.data_dir)
     if not acoustic:
@@ -152,14 +153,9 @@ def _acoustic_inputs(agent: str, config: CalibrationConfig, bundle, bundle_path:
         f_res = bundle.acoustic_for(agent, diameters)
     except AcousticRangeError as exc:
         raise CalibrationError(f"{exc}; workflow {config.workflow} needs it for the {agent} acoustic data") from None
-    lo, hi = spec.parameters["ka"].prior.as_tuple()
     for ds in acoustic:
-        for d in np.atleast_1d(ds.diameter_um):
-            try:
-                r_lo, r_hi = f_res.ka_ranges(float(d))
-            except AcousticRangeError as exc:
-                raise CalibrationError(f"bundle {bundle_path}: {exc}; acoustic dataset {ds.name} needs it") from None
-            if lo < r_lo * (1 - 1e-9) or hi > r_hi * (1 + 1e-9):
-                domain.append(f"acoustic {agent} {float(d):g} um: fitted ka range [{r_lo:.6g}, {r_hi:.6g}] "
-                              f"does not contain the ka prior [{lo:.6g}, {hi:.6g}]")
+        try:
+            domain += acoustic_ka_domain_warnings(f_res, spec, [ds], agent)
+        except AcousticRangeError as exc:
+            raise CalibrationError(f"bundle {bundle_path}: {exc}; acoustic dataset {ds.name} needs it") from None
     return acoustic, f_res

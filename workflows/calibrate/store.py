@@ -99,7 +99,7 @@ def bundle_hashes(bundle) -> dict[str, str]:
 def _acoustic_hash(ap, acoustic_hashes: Mapping[str, str]) -> str:
     """The :func:`bundle_hashes` entry of the acoustic surrogate the agent's plan uses (quadratics or law)."""
     key = "acoustic_law_" if hasattr(ap.f_res, "law") else "acoustic_"
-    return acoustic_hashes.get(f"{key}{getattr(ap, 'acoustic_name', ap.agent)}", "")
+    return acoustic_hashes.get(f"{key}{ap.acoustic_name}", "")
 
 
 class PhaseStore:

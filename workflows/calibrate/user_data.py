@@ -190,10 +190,12 @@ def _bubble_surrogates(agent: UserAgent, bundle, spec, network: str) -> tuple[li
     return surrogates, problems, domain
 
 
-def _acoustic_datasets(agent: UserAgent, resonance, bundle, spec) -> tuple[list, object, list[str]]:
-    """(one acoustic dataset per resonance row, the acoustic surrogate, problems) of one hierarchy."""
+def _acoustic_datasets(agent: UserAgent, resonance, bundle, spec) -> tuple[list, object, list[str], list[str]]:
+    """(one acoustic dataset per resonance row, the acoustic surrogate, problems, domain warnings) of one
+    hierarchy."""
     from bubblecal.data import AcousticDataset
     from bubblecal.surrogates.acoustic import AcousticRangeError
+    from bubblecal.workflows.domain import acoustic_ka_domain_warnings
 
     rows = agent.resonance_rows
     datasets = [AcousticDataset(name=f"{agent.name}_resonance_{n + 1}", agent=agent.label,
@@ -206,8 +208,8 @@ def _acoustic_datasets(agent: UserAgent, resonance, bundle, spec) -> tuple[list,
         f_res = bundle.acoustic_for(spec.agent, diameters)
     except AcousticRangeError as exc:
         return datasets, None, [f"{resonance.path}: agent {agent.label!r}, lines "
-                                f"{', '.join(str(resonance.lines[k]) for k in rows)}, column 'diameter_um': {exc}"]
-    return datasets, f_res, []
+                                f"{', '.join(str(resonance.lines[k]) for k in rows)}, column 'diameter_um': {exc}"], []
+    return datasets, f_res, [], acoustic_ka_domain_warnings(f_res, spec, datasets, agent.label)
 
 
 def user_agent_plans(config: CalibrationConfig, bundle, out: Path) -> list:
@@ -267,8 +269,9 @@ def user_agent_plans(config: CalibrationConfig, bundle, out: Path) -> list:
         problems += bad
         acoustic, f_res = [], None
         if wants_acoustic:
-            acoustic, f_res, bad = _acoustic_datasets(agent, resonance, bundle, spec)
+            acoustic, f_res, bad, warned = _acoustic_datasets(agent, resonance, bundle, spec)
             problems += bad
+            domain += warned
         plans.append(AgentPlan(agent=agent.name, workflow=workflow, spec=spec, priors_path=Path(spec.path),
                                curves=[b.loading_curve() for b in agent.bubbles], surrogates=surrogates,
                                acoustic=acoustic, f_res=f_res, out_dir=Path(out) / agent.name / workflow,
