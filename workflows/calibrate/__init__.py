@@ -40,6 +40,7 @@ from bubblecal.workflows.calibrate.config import (
     DEFAULT_POPULATION,
     DEVICES,
     MIN_PARTICLES,
+    NETWORKS,
     PAPER_COV,
     PAPER_COV_SCALE,
     PAPER_POPULATION,
@@ -84,7 +85,8 @@ from bubblecal.workflows.calibrate.store import (
 from bubblecal.workflows.calibrate.user_data import PRIORS_FOR_ALL, user_agent_plans
 
 __all__ = [
-    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "DEFAULT_POPULATION", "PAPER_POPULATION", "PAPER_COV",
+    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "DEFAULT_POPULATION", "PAPER_POPULATION",
+    "PAPER_COV",
     "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
     "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
     "min_population", "check_device", "on_device",

@@ -136,6 +136,8 @@ def test_options_of_the_published_study_refused_with_data(tmp_path, two_agents):
             make_plan(CalibrationConfig(data=curves, population=200, out=tmp_path, **kwargs))
     with pytest.raises(CalibrationError, match="reduced-acoustic"):
         make_plan(CalibrationConfig(data=curves, acoustic_data=res, workflow="reduced", population=200, out=tmp_path))
+    with pytest.raises(CalibrationError, match=r"--networks must be one of fast, accurate, got 'tiny'"):
+        make_plan(CalibrationConfig(data=curves, networks="tiny", population=200, out=tmp_path))
     with pytest.raises(CalibrationError, match="goes with --data"):
         make_plan(CalibrationConfig(acoustic_data=res, population=200, out=tmp_path))
     r = _cli("--data", curves, "--priors", "lipidX=a.toml", "--priors", "lipidX=b.toml", "--out", tmp_path)
