@@ -1,8 +1,7 @@
 """Staged (Korali-style) hierarchical inference driven by TMCMC, and its comparison with a joint run.
 
-The method is ``docs/inference.md`` section 4.
-
-Physics-free: the caller supplies NumPyro models (``bubblecal.models`` builds them).
+The method is ``docs/inference.md`` section 4. Physics-free: the caller supplies NumPyro models
+(``bubblecal.models`` builds them).
 
 * Phase 1: every dataset's posterior under its own uniform prior — :class:`Dataset` entries.
 * Phase 2: the hyperparameters ψ, from a model built out of the phase-1 samples
@@ -11,8 +10,7 @@ Physics-free: the caller supplies NumPyro models (``bubblecal.models`` builds th
 * Phase 3: each dataset again, under the learned population prior
   (``phase3_factory(index, m_samples, tau_samples) -> model``).
 
-``load``/``save`` hooks let a pipeline reuse finished phases (resumable runs) and persist each phase as
-soon as it ends, so a crash mid-run leaves the finished phases intact.
+``load``/``save`` hooks reuse finished phases (resumable runs) and persist each phase as it ends.
 """
 
 from __future__ import annotations
@@ -118,12 +116,15 @@ class StagedResult:
         One per dataset.
     phase3_ess : dict of str to float
         Importance ESS of the phase-3 re-weighting per dataset (empty for the published phase 3).
+    phase2_max_samples : int or None
+        Phase-1 draws per dataset phase 2 used at most (None: all).
     """
 
     phase1: list[PhaseResult]
     phase2: PhaseResult
     phase3: list[PhaseResult]
     phase3_ess: dict[str, float] = field(default_factory=dict)
+    phase2_max_samples: int | None = None
 
     @property
     def psi_samples(self) -> dict[str, np.ndarray]:
@@ -131,14 +132,15 @@ class StagedResult:
         return {k: v for k, v in self.phase2.samples.items() if k.startswith(("m_", "tau_"))}
 
     def ess(self):
-        """Per-dataset importance-sampling ESS summary.
+        """Per-dataset importance-sampling ESS summary (fractions of the draws phase 2 used).
 
         Returns
         -------
         pandas.DataFrame
             See :func:`ess_table`.
         """
-        return ess_table(self.phase2.samples, {r.name: _num_draws(r) for r in self.phase1})
+        cap = self.phase2_max_samples or math.inf
+        return ess_table(self.phase2.samples, {r.name: int(min(_num_draws(r), cap)) for r in self.phase1})
 
 
 def _num_draws(result: PhaseResult) -> int:
@@ -312,7 +314,8 @@ def run_staged(
         m_i, tau_i = _population(i)
         jobs3.append((f"phase3_{d.name}", phase3_factory(i, m_i, tau_i), (), {}, keys[len(datasets) + 1 + i]))
     phase3 = _run_all(jobs3, phase3_options)
-    return StagedResult(phase1=phase1, phase2=phase2, phase3=phase3, phase3_ess=reweight_ess)
+    return StagedResult(phase1=phase1, phase2=phase2, phase3=phase3, phase3_ess=reweight_ess,
+                        phase2_max_samples=phase2_max_samples)
 
 
 def _thin(samples: Mapping[str, np.ndarray], max_samples: int | None) -> dict[str, np.ndarray]:

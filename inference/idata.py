@@ -109,7 +109,8 @@ def observed_sites(model: Callable, samples: Mapping[str, np.ndarray], args: tup
 
 def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray], args: tuple = (),
                              kwargs: Mapping | None = None, *, batch_ndims: int = 1, chunk_size: int = 1024,
-                             keep: Mapping[str, Any] | None = None) -> dict[str, np.ndarray]:
+                             keep: Mapping[str, Any] | None = None,
+                             evaluate: Callable | None = None) -> dict[str, np.ndarray]:
     """log p(y_j | θ_s) of every observed (non-factor) site, draw and observation, as float32.
 
     Parameters
@@ -126,6 +127,10 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
         Draws evaluated per vectorised call (memory).
     keep : mapping of str to array_like or None
         Site -> boolean mask over its observations; masked-out entries (padding) are dropped.
+    evaluate : callable or None
+        ``evaluate(chunk) -> {site: log likelihood}`` of ``chunk_size`` draws, e.g. a program compiled once
+        per model structure with the model's arrays as arguments (a sampler's); None: one program per call
+        with the arguments as constants.
 
     Returns
     -------
@@ -152,8 +157,9 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
     flat = {k: v.reshape((total,) + v.shape[batch_ndims:]) for k, v in arrays.items()}
     size = min(chunk_size, total)
     kw = dict(kwargs or {})
-    # one compiled program per call: the model's arguments are constants, the last chunk is padded to size
-    evaluate = jax.jit(lambda chunk: log_likelihood(model, chunk, *args, parallel=True, **kw))
+    if evaluate is None:
+        # one compiled program per call: the model's arguments are constants, the last chunk is padded to size
+        evaluate = jax.jit(lambda chunk: log_likelihood(model, chunk, *args, parallel=True, **kw))
     parts: dict[str, list] = {n: [] for n in names}
     for a in range(0, total, size):
         chunk = {k: v[a:a + size] for k, v in flat.items()}
@@ -173,7 +179,8 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
 
 
 def _likelihood_groups(model: Callable, samples: Mapping[str, np.ndarray], args: tuple, kwargs: Mapping | None,
-                       log_likelihood, info: ExportInfo | None, chunk_size: int) -> tuple[dict | None, dict | None]:
+                       log_likelihood, info: ExportInfo | None, chunk_size: int,
+                       evaluate: Callable | None = None) -> tuple[dict | None, dict | None]:
     """The log_likelihood and observed_data groups of a sampler's export, (chain, draw, ...) draws.
 
     ``log_likelihood`` True with a model: the pointwise log likelihood and the observed values (padding dropped by
@@ -182,7 +189,7 @@ def _likelihood_groups(model: Callable, samples: Mapping[str, np.ndarray], args:
     if log_likelihood is True and model is not None:
         keep = dict(info.keep) if info is not None else None
         pointwise = pointwise_log_likelihood(model, samples, args, kwargs, batch_ndims=2, chunk_size=chunk_size,
-                                             keep=keep)
+                                             keep=keep, evaluate=evaluate)
         observed = observed_sites(model, samples, args, kwargs, batch_ndims=2)
         return pointwise, {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
                            for k, v in observed.items()}

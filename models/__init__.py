@@ -12,7 +12,7 @@
 - :mod:`bubblecal.models.likelihood` — the pure-JAX observation model (mechanical prediction,
   relative noise with its floor);
 - :mod:`bubblecal.models.population` — pure-JAX population densities (truncated-normal population
-  prior, the staged-hierarchy importance sums, population-predictive draws).
+  prior, population-predictive draws); :mod:`bubblecal.models.importance` — phase 2's importance sums.
 
 Surrogates are duck-typed: any JAX callable ``(params[..., 6], x[...]) -> y[...]`` (mechanics, DPD
 units) or ``(ka, diameter_um) -> MHz`` (acoustics). Equations: ``docs/inference.md`` sections 2-4.
@@ -26,6 +26,12 @@ from bubblecal.models.distributions import (
     uniform_prior,
 )
 from bubblecal.models.hierarchical import hierarchical_model
+from bubblecal.models.importance import (
+    grouped_log_weights,
+    importance_ess,
+    importance_log_weights,
+    staged_log_likelihood,
+)
 from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
     noise_sd,
@@ -42,13 +48,10 @@ from bubblecal.models.mechanical import (
 )
 from bubblecal.models.population import (
     TAU_FLOOR_REL,
-    importance_ess,
-    importance_log_weights,
     log_truncnorm,
     population_log_prob,
     population_predictive_log_density,
     sample_population_predictive,
-    staged_log_likelihood,
     truncnorm_icdf,
 )
 from bubblecal.models.staged import (
@@ -72,6 +75,7 @@ __all__ = [
     # log densities
     "SD_FLOOR_REL", "TAU_FLOOR_REL", "sd_floor_for", "noise_sd", "relative_normal_loglik", "predict_mechanical",
     "log_truncnorm", "truncnorm_icdf", "population_log_prob", "population_predictive_log_density",
-    "staged_log_likelihood", "importance_log_weights", "importance_ess", "sample_population_predictive",
+    "staged_log_likelihood", "importance_log_weights", "grouped_log_weights", "importance_ess",
+    "sample_population_predictive",
     # preflight
 ]

@@ -1,8 +1,9 @@
-"""Pure-JAX population densities: the truncated-normal population prior and the staged-hierarchy sums.
+"""Pure-JAX population densities: the truncated-normal population prior and the population predictive.
 
 Plain functions of arrays (jit/vmap/grad-ready, no NumPyro effects) used by the hierarchical model
-(through :class:`~bubblecal.models.distributions.TruncatedNormalPopulation`), the staged phases 2/3
-of the hierarchy (``docs/inference.md`` section 4) and the population-predictive checks.
+(through :class:`~bubblecal.models.distributions.TruncatedNormalPopulation`), phase 3 of the staged
+hierarchy (``docs/inference.md`` section 4; phase 2's sums are :mod:`bubblecal.models.importance`) and the
+population-predictive checks.
 
 Truncated-normal population prior
 ---------------------------------
@@ -28,9 +29,6 @@ __all__ = [
     "truncnorm_icdf",
     "population_log_prob",
     "population_predictive_log_density",
-    "staged_log_likelihood",
-    "importance_log_weights",
-    "importance_ess",
     "sample_population_predictive",
 ]
 
@@ -216,109 +214,6 @@ def population_predictive_log_density(theta: Mapping[str, jax.Array], m_samples:
     if not names:
         raise ValueError("population_predictive_log_density: no pooled parameter in common")
     return logsumexp(lp, axis=0) - math.log(lp.shape[0])
-
-
-def _uniform_log_p0(theta_k, lo, hi):
-    """Log density of Uniform(lo, hi) at ``theta_k``."""
-    inside = (theta_k >= lo) & (theta_k <= hi)
-    return jnp.where(inside, -math.log(hi - lo), -jnp.inf)
-
-
-def importance_log_weights(m: Mapping[str, jax.Array], tau: Mapping[str, jax.Array],
-                           samples: Mapping[str, jax.Array], bounds: Mapping[str, tuple[float, float]],
-                           log_p0=None, names: Sequence[str] | None = None):
-    """Importance log weights log w_k = log p(θ^k | ψ) − log p0(θ^k) of one dataset's phase-1 samples.
-
-    Parameters
-    ----------
-    m, tau : mapping of str to array_like
-        Pooled parameter name -> population mean / spread of batch shape B (scalars for one ψ).
-    samples : mapping of str to array_like
-        Parameter name -> (N,) phase-1 posterior draws (DPD units).
-    bounds : mapping of str to (float, float)
-        Prior range of each pooled parameter.
-    log_p0 : array_like or None
-        (N,) phase-1 prior log density *of the pooled components*; default the uniform prior on
-        ``bounds`` (the non-pooled components of θ — noise, free unpooled parameters — cancel between
-        p(θ | ψ) p0(rest) and p0(θ)).
-    names : sequence of str or None
-        Pooled parameters; default the keys of ``m`` present in ``samples``.
-
-    Returns
-    -------
-    Array
-        Shape B + (N,).
-
-    Raises
-    ------
-    ValueError
-        If the dataset has none of the pooled parameters.
-    """
-    names = [k for k in m if k in samples] if names is None else list(names)
-    if not names:
-        raise ValueError("importance_log_weights: the dataset has none of the pooled parameters")
-    lp = 0.0
-    lp0 = 0.0
-    for k in names:
-        lo, hi = bounds[k]
-        mk = jnp.asarray(m[k])
-        tk = jnp.asarray(tau[k])
-        th = jnp.asarray(samples[k])
-        lp = lp + log_truncnorm(th, mk[..., None], tk[..., None], lo, hi)
-        lp0 = lp0 + _uniform_log_p0(th, lo, hi)
-    if log_p0 is not None:
-        lp0 = jnp.asarray(log_p0)
-    return lp - lp0
-
-
-def staged_log_likelihood(m: Mapping[str, jax.Array], tau: Mapping[str, jax.Array],
-                          datasets: Sequence[Mapping[str, jax.Array]], bounds: Mapping[str, tuple[float, float]],
-                          log_p0: Sequence[jax.Array | None] | None = None):
-    """Phase-2 log likelihood log L(ψ) = Σ_i [logsumexp_k (log p(θ_i^k | ψ) − log p0(θ_i^k)) − log N_i].
-
-    Parameters
-    ----------
-    m, tau : mapping of str to array_like
-        Pooled parameter name -> population mean / spread of batch shape B (scalars for one ψ).
-    datasets : sequence of mapping of str to array_like
-        ``datasets[i]`` maps parameter names to the (N_i,) phase-1 posterior samples of dataset i.
-    bounds : mapping of str to (float, float)
-        Prior range of each pooled parameter.
-    log_p0 : sequence of (array_like or None) or None
-        ``log_p0[i]`` overrides the uniform phase-1 prior of dataset i (see :func:`importance_log_weights`).
-
-    Returns
-    -------
-    Array
-        Shape B.
-    """
-    total = 0.0
-    for i, samples in enumerate(datasets):
-        lw = importance_log_weights(m, tau, samples, bounds, None if log_p0 is None else log_p0[i])
-        total = total + logsumexp(lw, axis=-1) - math.log(lw.shape[-1])
-    return total
-
-
-def importance_ess(log_weights, axis: int = -1):
-    """Importance-sampling effective sample size (Σ w)² / Σ w² from log weights.
-
-    Parameters
-    ----------
-    log_weights : array_like
-        Unnormalised log weights.
-    axis : int
-        Axis of the samples.
-
-    Returns
-    -------
-    Array
-        ESS in draws (0 where every weight is 0).
-    """
-    lw = jnp.asarray(log_weights)
-    a = logsumexp(lw, axis=axis)
-    b = logsumexp(2.0 * lw, axis=axis)
-    ess = jnp.exp(2.0 * a - b)
-    return jnp.where(jnp.isfinite(ess), ess, 0.0)
 
 
 def sample_population_predictive(rng_key, m_samples: Mapping[str, jax.Array], tau_samples: Mapping[str, jax.Array],

@@ -30,7 +30,13 @@ import numpyro
 from jax.scipy.special import logsumexp
 
 from bubblecal.models.distributions import hyperprior_sites
-from bubblecal.models.population import importance_ess, importance_log_weights, staged_log_likelihood
+from bubblecal.models.importance import (
+    dataset_terms,
+    grouped_log_weights,
+    importance_ess,
+    importance_log_weights,
+    sum_dataset_terms,
+)
 from bubblecal.priors import PriorSpec
 
 __all__ = ["phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name", "leave_one_out_log_weights",
@@ -108,8 +114,15 @@ def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: Prio
         if not samples:
             raise ValueError(f"phase-1 samples of {name!r} contain none of the pooled parameters "
                              f"{', '.join(bounds)}")
-        numpyro.deterministic(ess_site_name(name), importance_ess(importance_log_weights(m, tau, samples, bounds)))
-    numpyro.factor(PHASE2_FACTOR, staged_log_likelihood(m, tau, datasets, bounds))
+    # datasets of one shape are one stacked computation: the program's size does not grow with the bubbles
+    groups = grouped_log_weights(m, tau, datasets, bounds)
+    ess = {}
+    for members, lw in groups:
+        group_ess = importance_ess(lw)  # (D,)
+        ess |= {i: group_ess[j] for j, i in enumerate(members)}
+    for i, name in enumerate(names):
+        numpyro.deterministic(ess_site_name(name), ess[i])
+    numpyro.factor(PHASE2_FACTOR, sum_dataset_terms(dataset_terms(groups)))
 
 
 def dataset_log_likelihood(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],

@@ -19,6 +19,7 @@ from bubblecal.workflows.calibrate import (
     DEFAULT_PHASE2_SAMPLES,
     DEFAULT_POPULATION,
     PAPER_POPULATION,
+    PHASE2_DRAW_BUDGET,
     CalibrationConfig,
 )
 from bubblecal.workflows.choices import (
@@ -100,10 +101,11 @@ def calibrate(
     curve: list[str] = typer.Option(None, "--curve", help="Only these curves (repeatable), e.g. "
                                     "definity_compression_2.1um."),
     phase2_samples: int = typer.Option(_D.phase2_samples, "--phase2-samples", help="Phase-1 draws per dataset in "
-                                       f"phase 2 (default min(N, {DEFAULT_PHASE2_SAMPLES}))."),
+                                       f"phase 2 (default min(N, {DEFAULT_PHASE2_SAMPLES}), at most "
+                                       f"{PHASE2_DRAW_BUDGET:,} over all datasets)."),
     mcmc_steps: int = typer.Option(_D.num_mcmc_steps, "--mcmc-steps", help="Random-walk MH steps per TMCMC stage."),
-    chunk_size: int = typer.Option(_D.chunk_size, "--chunk-size", help="TMCMC likelihood evaluations per batch "
-                                   "(memory)."),
+    chunk_size: int = typer.Option(_D.chunk_size, "--chunk-size", help="TMCMC particles evaluated at a time "
+                                   "(default: 512 on a CPU, all at once on a GPU)."),
     nuts_samples: int = typer.Option(_D.nuts_samples, "--nuts-samples", help="NUTS draws per chain (--sampler nuts)."),
     nuts_chains: int = typer.Option(_D.nuts_chains, "--nuts-chains"),
     netcdf: bool = typer.Option(_D.netcdf, "--netcdf/--npz", help="Phase files as ArviZ NetCDF (else .npz)."),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from bubblecal.workflows.calibrate import DEFAULT_PHASE2_SAMPLES
+from bubblecal.workflows.calibrate import phase2_samples
 from bubblecal.workflows.summary import PHYSICAL, POPULATION_ROW, bubble_rows, population_bands
 
 __all__ = ["DETAIL_DATASETS", "summary_table", "hyperprior_bound_notes", "bubble_lines", "population_lines",
@@ -253,7 +253,7 @@ def write_report(result, plan) -> Path:
     o_sampler = (f"staged TMCMC (phases 1 → 2 → 3; {phase3})" if config.sampler == "tmcmc" else
                  f"joint model, NUTS ({config.nuts_chains} chains × {config.nuts_samples} draws, "
                  f"{config.nuts_warmup} warm-up)")
-    n_phase2 = min(config.num_particles, config.phase2_samples or DEFAULT_PHASE2_SAMPLES)
+    n_phase2 = phase2_samples(config, len(ap.dataset_names))
     lines += [
         "## Inputs", "",
         f"- surrogate bundle: `{plan.bundle_path}` — {plan.bundle.manifest.get('notes', '')[:200]}",

@@ -68,6 +68,7 @@ class _ModelPrograms(NamedTuple):
     draws: Callable  # (key, data, num) -> (num, d) exact prior draws in the flat space
     evaluate: Callable  # (position, data) -> (log prior, log L) of (N, d) particles
     sites: Callable  # (position, data) -> {site: (N, ...) constrained values and deterministic sites}
+    pointwise: Callable  # (draws, data) -> {observed site: (n, obs...) log likelihood} of constrained draws
 
 
 class _FusedPrograms(NamedTuple):
@@ -128,10 +129,17 @@ def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
         def sites(position, data):
             return chunked_vmap(functools.partial(flat.sites, data=data), chunk_size)(position)
 
+        def pointwise(draws, data):
+            from numpyro.infer import log_likelihood
+
+            args, kwargs = flat.arguments(data)
+            return log_likelihood(flat.model, draws, *args, parallel=True, **kwargs)
+
         return _ModelPrograms(
             draws=jax.jit(lambda key, data, num: flat.prior_draws(key, num, data), static_argnums=2),
             evaluate=jax.jit(evaluate),
             sites=jax.jit(sites),
+            pointwise=jax.jit(pointwise),
         )
 
     return _cached_programs(("model", flat.signature, chunk_size), build)

@@ -16,7 +16,47 @@ from jax import lax
 
 Array = jax.Array
 
-__all__ = ["Evaluator", "chunked_vmap"]
+__all__ = ["Evaluator", "chunked_vmap", "CPU_CHUNK_SIZE", "resolve_chunk_size"]
+
+#: Particles per evaluation chunk that ``chunk_size='auto'`` uses on a CPU: the chunk's intermediate arrays
+#: (network activations, the phase-3 mixture over ψ draws) then stay in the processor's caches, which makes a
+#: population of thousands 2-3x cheaper to evaluate than one vmap over all of it (benchmarks/RESULTS.md).
+CPU_CHUNK_SIZE = 512
+
+
+def _default_platform() -> str:
+    """Platform of the device JAX places new arrays and programs on (``jax.default_device`` respected)."""
+    device = jax.config.jax_default_device
+    if device is None:
+        return jax.default_backend()
+    return device if isinstance(device, str) else device.platform
+
+
+def resolve_chunk_size(chunk_size: int | str | None, num_particles: int) -> int | None:
+    """The particles per evaluation chunk a run uses.
+
+    Parameters
+    ----------
+    chunk_size : int, 'auto' or None
+        An explicit chunk; None (all particles in one vmap); or 'auto': :data:`CPU_CHUNK_SIZE` when the
+        default device is a CPU and the population is larger, else None (a GPU wants all particles at once).
+    num_particles : int
+        Particles of the population.
+
+    Returns
+    -------
+    int or None
+
+    Raises
+    ------
+    ValueError
+        For a string other than 'auto'.
+    """
+    if isinstance(chunk_size, str):
+        if chunk_size != "auto":
+            raise ValueError(f"chunk_size must be a positive integer, None or 'auto', got {chunk_size!r}")
+        return CPU_CHUNK_SIZE if _default_platform() == "cpu" and num_particles > CPU_CHUNK_SIZE else None
+    return chunk_size
 
 
 @dataclass(frozen=True)

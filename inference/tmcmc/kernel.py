@@ -236,7 +236,7 @@ class TMCMCKernel(MCMCKernel):
         key, k_move, k_order = jax.random.split(state.rng_key, 3)
         n = state.population.shape[0]
         _, cov = weighted_moments(state.population, jnp.full((n,), -math.log(n), state.population.dtype))
-        evaluate = Evaluator(*_densities(self._flat, self._data), self.tmcmc.chunk_size)
+        evaluate = Evaluator(*_densities(self._flat, self._data), self.tmcmc.config.chunk_size)
         res = _frozen(self.tmcmc.move)(
             k_move, state.population, state.log_prior, state.log_likelihood, state.beta, cov,
             state.move_params, evaluate,

@@ -173,7 +173,7 @@ class TMCMCResults:
         if replica == 0 and self._samples_cache is not None:
             return self._samples_cache
         pos = self._results[replica]["state"].position
-        out = _model_programs(self._flat, self.chunk_size).sites(pos, self._data)
+        out = _model_programs(self._flat, self.config.chunk_size).sites(pos, self._data)
         out = {k: np.asarray(v) for k, v in out.items()}
         if replica == 0:
             self._samples_cache = out
@@ -257,8 +257,10 @@ class TMCMCResults:
                 values[r, :len(t)] = t[c].to_numpy(dtype=float)
             stages[f"stage_{c}"] = (("chain", "stage"), values)
         args, kwargs = self._model_args
+        # the pointwise program of the model's structure, its arrays as arguments: compiled once for all datasets
+        programs = _model_programs(self._flat, self.config.chunk_size)
         pointwise, observed = _likelihood_groups(self.model, posterior, args, kwargs, log_likelihood, info,
-                                                 chunk_size)
+                                                 chunk_size, lambda chunk: programs.pointwise(chunk, self._data))
         idata = build_inference_data(posterior, sample_stats={"lp": lprior + ll, "loglik": ll, "log_prior": lprior},
                                      log_likelihood=pointwise, observed_data=observed, info=info,
                                      extra_stats=stages, attrs=attrs)

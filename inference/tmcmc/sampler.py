@@ -48,6 +48,7 @@ from bubblecal.inference.tmcmc._programs import (
     _splittable,
     _stage_programs,
 )
+from bubblecal.inference.tmcmc.evaluator import resolve_chunk_size
 from bubblecal.inference.tmcmc.moves import Move, RandomWalk
 from bubblecal.inference.tmcmc.progress import StageReporter, stage_reporter
 from bubblecal.inference.tmcmc.results import TMCMCResults
@@ -111,8 +112,12 @@ class TMCMC(TMCMCResults):
         samples and stage table are those of the first replica.
     max_stages : int
         Stage cap (status 'max_stages' when hit).
-    chunk_size : int or None
-        Evaluate the likelihood this many particles at a time (memory).
+    chunk_size : int, 'auto' or None
+        Evaluate the densities this many particles at a time (memory, and on a CPU speed); None: all at once;
+        'auto' (default): :data:`~bubblecal.inference.tmcmc.evaluator.CPU_CHUNK_SIZE` particles on a CPU,
+        all at once on a GPU, decided by the default device when the run starts
+        (:func:`~bubblecal.inference.tmcmc.evaluator.resolve_chunk_size`). The draws do not depend on it
+        beyond floating-point round-off.
     space : {'unconstrained', 'constrained'} or None
         Sampling space; None: 'unconstrained' (robust) or 'constrained' (korali).
     min_delta : float
@@ -142,7 +147,7 @@ class TMCMC(TMCMCResults):
         move: Move | None = None,
         num_replicas: int = 1,
         max_stages: int = 200,
-        chunk_size: int | None = None,
+        chunk_size: int | str | None = "auto",
         space: str | None = None,
         min_delta: float = 1e-9,
         compiled: bool = False,
@@ -158,7 +163,7 @@ class TMCMC(TMCMCResults):
         self.cov_scale = _check_positive("cov_scale", cov_scale)
         self.num_replicas = _check_int("num_replicas", num_replicas, 1)
         self.max_stages = _check_int("max_stages", max_stages, 1)
-        if chunk_size is not None:
+        if chunk_size is not None and chunk_size != "auto":
             chunk_size = _check_int("chunk_size", chunk_size, 1)
         self.chunk_size = chunk_size
         if not (isinstance(min_delta, (int, float)) and 0 <= min_delta < 1):
@@ -197,17 +202,17 @@ class TMCMC(TMCMCResults):
                 steps = 10 if num_mcmc_steps is None else _check_int("num_mcmc_steps", num_mcmc_steps, 1)
                 self.move = RandomWalk(num_steps=steps, init_scale2=self.cov_scale, adapt=True)
             self.resampling = "systematic"
-        self.config = TMCMCConfig(
-            target_cov=self.target_cov,
-            resampling=self.resampling,
-            min_delta=self.min_delta,
-            chunk_size=self.chunk_size,
-        )
         self._flat: FlatModel | None = None
         self._data: tuple = ()  # the model's arrays on the device (FlatModel.data)
         self._model_args: tuple = ((), {})
         self._results: list[dict] = []
         self._samples_cache: dict | None = None
+
+    @property
+    def config(self) -> TMCMCConfig:
+        """The core's settings, with ``chunk_size`` resolved for the current default device."""
+        return TMCMCConfig(target_cov=self.target_cov, resampling=self.resampling, min_delta=self.min_delta,
+                           chunk_size=resolve_chunk_size(self.chunk_size, self.num_particles))
 
     def prior_log_likelihood(self, rng_key, *args, **kwargs) -> np.ndarray:
         """Log likelihood of ``num_particles`` exact prior draws, with the compiled programs of :meth:`run`.

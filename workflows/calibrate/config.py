@@ -15,6 +15,7 @@ from bubblecal.data import AGENTS
 
 __all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "DEFAULT_POPULATION", "PAPER_POPULATION",
            "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
+           "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
            "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
            "min_population", "agent_seed"]
 
@@ -42,6 +43,11 @@ PARTICLES_PER_DIMENSION = 20
 MIN_PARTICLES = 100
 #: Cap of the phase-1 draws per dataset that phase 2 uses (and of the ψ draws of the phase-3 prior).
 DEFAULT_PHASE2_SAMPLES = 2000
+#: Phase-1 draws phase 2 uses over all datasets of an agent at most: its cost is N x this many population
+#: densities per evaluation, so past 20 datasets each one gives fewer draws (at least :data:`MIN_PHASE2_SAMPLES`);
+#: the importance ESS per dataset (ess.csv) tells whether they suffice.
+PHASE2_DRAW_BUDGET = 40_000
+MIN_PHASE2_SAMPLES = 250
 
 
 #: Largest TMCMC population (and chunk) a run accepts: its particle arrays then stay within a few GiB.
@@ -100,11 +106,13 @@ class CalibrationConfig:
         Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
     phase2_samples : int or None
         Phase-1 draws per dataset used by the phase-2 importance sums, and phase-2 ψ draws used by the
-        phase-3 population prior (None: min(N, :data:`DEFAULT_PHASE2_SAMPLES`)).
+        phase-3 population prior (None: min(N, :data:`DEFAULT_PHASE2_SAMPLES`), and for phase 2 at most
+        :data:`PHASE2_DRAW_BUDGET` over all datasets; see :func:`phase2_samples`).
     num_mcmc_steps : int
         Random-walk Metropolis steps per TMCMC stage.
     chunk_size : int or None
-        TMCMC evaluates the likelihood this many particles at a time (GPU memory at N = 50,000).
+        TMCMC evaluates the densities this many particles at a time (GPU memory at N = 50,000); None: TMCMC's
+        'auto' (:data:`~bubblecal.inference.tmcmc.evaluator.CPU_CHUNK_SIZE` on a CPU, all at once on a GPU).
     predictive_samples : int
         Posterior draws used by the predictive bands, CRPS and the population predictive.
     crps_replicates : int
@@ -240,9 +248,27 @@ def phase_tmcmc_options(config: CalibrationConfig) -> tuple[dict, dict]:
     return {**base, "target_cov": c1}, {**base, "target_cov": c23}
 
 
-def phase2_samples(config: CalibrationConfig) -> int:
-    """Phase-1 draws per dataset used by phase 2 (and ψ draws kept for the phase-3 prior)."""
-    return int(config.phase2_samples or min(config.num_particles, DEFAULT_PHASE2_SAMPLES))
+def phase2_samples(config: CalibrationConfig, num_datasets: int | None = None) -> int:
+    """Phase-1 draws per dataset used by phase 2, or ψ draws kept for the phase-3 prior.
+
+    Parameters
+    ----------
+    config : CalibrationConfig
+    num_datasets : int or None
+        Datasets of the agent's phase 2: each gives at most :data:`PHASE2_DRAW_BUDGET` / ``num_datasets`` draws
+        (at least :data:`MIN_PHASE2_SAMPLES`). None: the ψ draws of phase 3 (no budget).
+
+    Returns
+    -------
+    int
+        ``config.phase2_samples`` when set, else min(N, :data:`DEFAULT_PHASE2_SAMPLES`) within the budget.
+    """
+    if config.phase2_samples:
+        return int(config.phase2_samples)
+    n = min(config.num_particles, DEFAULT_PHASE2_SAMPLES)
+    if num_datasets:
+        n = min(n, max(MIN_PHASE2_SAMPLES, PHASE2_DRAW_BUDGET // int(num_datasets)))
+    return int(n)
 
 
 def min_population(n_dims: int) -> int:

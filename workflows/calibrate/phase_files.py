@@ -14,11 +14,42 @@ import numpy as np
 
 from bubblecal.data import atomic_write
 
-__all__ = ["PhaseFileError", "write_phase", "read_phase", "read_pointwise", "phase_format"]
+__all__ = ["PhaseFileError", "write_phase", "phase_inference_data", "read_phase", "read_pointwise", "phase_format"]
 
 
 class PhaseFileError(ValueError):
     """A stored phase file cannot be read (truncated, damaged, not a phase file); the message names it."""
+
+
+def phase_inference_data(result, loglik, *, info=None, pointwise=None):
+    """The ArviZ InferenceData of a phase file (without the run's attributes).
+
+    Traces the phase's model (observed values, pointwise log likelihood): call it on the thread that samples,
+    since NumPyro's effect handlers are not thread-safe.
+
+    Parameters
+    ----------
+    result : bubblecal.inference.hierarchical.PhaseResult
+        Draws (DPD units) and, when it ran in this process, its sampler.
+    loglik : array_like or None
+        Log likelihood of every draw.
+    info : bubblecal.inference.idata.ExportInfo or None
+        Dimension names, units and constant data of the groups.
+    pointwise : mapping of str to array_like or None
+        (draw, ...) pointwise log likelihood (else the sampler's model gives it).
+
+    Returns
+    -------
+    arviz.InferenceData
+    """
+    from bubblecal.inference.idata import build_inference_data
+
+    ll = {k: np.asarray(v)[None] for k, v in pointwise.items()} if pointwise is not None else None
+    if result.sampler is not None:
+        return result.sampler.to_inference_data(info, log_likelihood=True if ll is None else ll)
+    stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
+    return build_inference_data({k: np.asarray(v)[None] for k, v in result.samples.items()}, sample_stats=stats,
+                                log_likelihood=ll, info=info)
 
 
 def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointwise=None, idata=None) -> Path:
@@ -50,16 +81,8 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
     meta = {"log_evidence": result.log_evidence, "log_evidence_se": result.log_evidence_se, "status": result.status,
             "seconds": result.seconds, "name": result.name, **attrs}
     if path.suffix == ".nc":
-
-        from bubblecal.inference.idata import build_inference_data
-
-        ll = {k: np.asarray(v)[None] for k, v in pointwise.items()} if pointwise is not None else None
-        if idata is None and result.sampler is not None:
-            idata = result.sampler.to_inference_data(info, log_likelihood=True if ll is None else ll)
-        elif idata is None:
-            stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
-            idata = build_inference_data({k: np.asarray(v)[None] for k, v in result.samples.items()},
-                                         sample_stats=stats, log_likelihood=ll, info=info)
+        if idata is None:
+            idata = phase_inference_data(result, loglik, info=info, pointwise=pointwise)
         idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
                                           ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
                                       for k, v in meta.items()})

@@ -234,8 +234,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
                     return leave_one_out_log_weights(m_samples, tau_samples, phase1_i, bounds)
 
             staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1, phase2_options=o23,
-                                phase3_options=o23, phase2_max_samples=phase2_samples(config), load=load,
-                                save=store.save, progress=say, phase3_reweight=reweight)
+                                phase3_options=o23, phase2_max_samples=phase2_samples(config, len(datasets)),
+                                load=load, save=store.save, progress=say, phase3_reweight=reweight)
             if staged.phase3_ess:
                 say("phase 3 leave-one-out importance ESS: "
                     + ", ".join(f"{k} {v:.0f}" for k, v in staged.phase3_ess.items()))

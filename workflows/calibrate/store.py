@@ -76,7 +76,7 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
                                                    "options": o1})
     p1 = [hashes[f"phase1_{n}"] for n in ap.dataset_names]
     hashes["phase2"] = config_hash({**common, "phase": 2, "upstream": p1, "options": o23,
-                                    "phase2_samples": phase2_samples(config)})
+                                    "phase2_samples": phase2_samples(config, len(ap.dataset_names))})
     for n in ap.dataset_names:
         h3 = {**common, "phase": 3, "self": hashes[f"phase1_{n}"], "upstream": hashes["phase2"], "options": o23}
         if config.phase3 != "published":  # keeps the hashes of runs with the published phase 3 unchanged
