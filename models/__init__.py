@@ -57,6 +57,7 @@ from bubblecal.models.population import (
 from bubblecal.models.staged import (
     PHASE2_FACTOR,
     dataset_log_likelihood,
+    dataset_log_likelihoods,
     ess_site_name,
     leave_one_out_log_weights,
     phase2_model,
@@ -69,7 +70,7 @@ __all__ = [
     "mechanical_model", "mechanical_prediction", "reduced_spec", "nuts_init_values", "population_factor",
     "TracedSurrogate", "pad_curve", "acoustic_model", "acoustic_prediction", "predict_frequency", "FrequencyTable",
     "hierarchical_model", "phase2_model", "pooled_bounds", "leave_one_out_log_weights",
-    "dataset_log_likelihood", "PHASE2_FACTOR", "ess_site_name",
+    "dataset_log_likelihood", "dataset_log_likelihoods", "PHASE2_FACTOR", "ess_site_name",
     # distributions
     "uniform_prior", "hyperprior_sites", "relative_normal", "TruncatedNormalPopulation",
     # log densities

@@ -40,7 +40,7 @@ from bubblecal.models.importance import (
 from bubblecal.priors import PriorSpec
 
 __all__ = ["phase2_model", "pooled_bounds", "PHASE2_FACTOR", "ess_site_name", "leave_one_out_log_weights",
-           "dataset_log_likelihood"]
+           "dataset_log_likelihood", "dataset_log_likelihoods"]
 
 #: Name of the factor site that carries log L(ψ) (TMCMC tempers it as the likelihood).
 PHASE2_FACTOR = "population_likelihood"
@@ -165,6 +165,62 @@ def dataset_log_likelihood(m_samples: Mapping[str, np.ndarray], tau_samples: Map
         tau = {k: jnp.asarray(tau_samples[k][a:a + chunk]) for k in names}
         lw = importance_log_weights(m, tau, th, bounds, names=names)  # (chunk, N_i)
         out[a:a + chunk] = np.asarray(logsumexp(lw, axis=-1)) - math.log(n_i)
+    return out
+
+
+def dataset_log_likelihoods(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
+                            phase1_samples: Sequence[Mapping[str, np.ndarray]],
+                            bounds: Mapping[str, tuple[float, float]], chunk: int = 256) -> np.ndarray:
+    """Every dataset's phase-2 term log L_i(ψ_s) at every phase-2 draw (phase 2's pointwise log likelihood).
+
+    One compiled program over chunks of ψ draws for all datasets (stacked by shape, as phase 2 computes them),
+    so the cost does not grow with one program call per dataset and chunk.
+
+    Parameters
+    ----------
+    m_samples, tau_samples : mapping of str to array_like
+        Pooled parameter name -> (S,) phase-2 draws of the population mean / spread (DPD units).
+    phase1_samples : sequence of mapping of str to array_like
+        Each dataset's (N_i,) phase-1 draws (DPD units), as phase 2 used them.
+    bounds : mapping of str to (float, float)
+        Prior ranges of the pooled parameters.
+    chunk : int
+        ψ draws per evaluation (memory chunk × Σ_i N_i).
+
+    Returns
+    -------
+    numpy.ndarray
+        (S, n_datasets) float64 (dimensionless); −inf or NaN where L_i(ψ_s) is 0 or undefined.
+
+    Raises
+    ------
+    ValueError
+        If a dataset has none of the pooled parameters.
+    """
+    import jax
+
+    names = [k for k in m_samples if k in bounds]
+    sets = [{k: jnp.asarray(v) for k, v in s.items() if k in names} for s in phase1_samples]
+    for i, s in enumerate(sets):
+        if not s:
+            raise ValueError(f"dataset {i} has none of the pooled parameters {', '.join(names)}")
+    m_all = {k: np.asarray(m_samples[k]) for k in names}
+    tau_all = {k: np.asarray(tau_samples[k]) for k in names}
+    size = int(m_all[names[0]].shape[0])
+    step = max(1, min(int(chunk), size))
+
+    @jax.jit
+    def block(m, tau, data):
+        terms = dataset_terms(grouped_log_weights(m, tau, data, bounds))
+        return jnp.stack([terms[i] for i in range(len(data))], axis=-1)
+
+    out = np.empty((size, len(sets)))
+    for a in range(0, size, step):
+        n = min(step, size - a)
+        # the last chunk is padded to the chunk size: one compiled shape
+        pick = np.minimum(np.arange(a, a + step), size - 1)
+        values = block({k: v[pick] for k, v in m_all.items()}, {k: v[pick] for k, v in tau_all.items()}, sets)
+        out[a:a + n] = np.asarray(values)[:n]
     return out
 
 

@@ -97,3 +97,17 @@ def test_phase2_program_does_not_grow_with_the_datasets():
     small, large = equations(3), equations(30)
     # a stack operand, a slice and an add per dataset: one dataset's own densities would be dozens of operations
     assert (large - small) / (2 * 27) < 8
+
+
+def test_all_datasets_log_likelihoods_equal_one_at_a_time():
+    from bubblecal.models import dataset_log_likelihood, dataset_log_likelihoods
+
+    bounds = {"ka": (5e3, 3e4), "kb": (100.0, 1000.0)}
+    sets = _phase1_sets(3, 2)
+    rng = np.random.default_rng(3)
+    m = {"ka": rng.uniform(1.3e4, 1.7e4, 37), "kb": rng.uniform(400, 600, 37)}
+    tau = {"ka": rng.uniform(1e3, 3e3, 37), "kb": rng.uniform(50, 200, 37)}
+    got = dataset_log_likelihoods(m, tau, sets, bounds, chunk=16)  # 37 draws: a padded last chunk
+    assert got.shape == (37, 5)
+    for i, s in enumerate(sets):
+        np.testing.assert_allclose(got[:, i], dataset_log_likelihood(m, tau, s, bounds), rtol=2e-6, atol=1e-5)

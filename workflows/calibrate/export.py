@@ -102,12 +102,12 @@ def phase2_log_likelihood(samples: Mapping[str, np.ndarray], thinned: Sequence[M
     numpy.ndarray
         (S, n_datasets) float64, dimensionless.
     """
-    from bubblecal.models import dataset_log_likelihood, pooled_bounds
+    from bubblecal.models import dataset_log_likelihoods, pooled_bounds
 
     bounds = pooled_bounds(spec)
     m = {k.removeprefix("m_"): np.asarray(v) for k, v in samples.items() if k.startswith("m_")}
     tau = {k.removeprefix("tau_"): np.asarray(v) for k, v in samples.items() if k.startswith("tau_")}
-    return np.stack([dataset_log_likelihood(m, tau, t, bounds) for t in thinned], axis=-1)
+    return dataset_log_likelihoods(m, tau, thinned, bounds)
 
 
 def phase2_pareto_k(loglik) -> np.ndarray:
