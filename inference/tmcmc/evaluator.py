@@ -55,7 +55,7 @@ def resolve_chunk_size(chunk_size: int | str | None, num_particles: int) -> int 
     if isinstance(chunk_size, str):
         if chunk_size != "auto":
             raise ValueError(f"chunk_size must be a positive integer, None or 'auto', got {chunk_size!r}")
-        return CPU_CHUNK_SIZE if _default_platform() == "cpu" and num_particles > CPU_CHUNK_SIZE else None
+        return CPU_CHUNK_SIZE if _default_platform() == "cpu" and num_particles > 2 * CPU_CHUNK_SIZE else None
     return chunk_size
 
 

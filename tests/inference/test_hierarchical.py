@@ -71,6 +71,7 @@ def quadrature_psi():
     return mean_m, sd_m, mean_tau
 
 
+@pytest.mark.slow  # statistical, ~20-30 s on 2 cores; the default suite covers the path more cheaply
 def test_staged_matches_quadrature_and_reuses_phases():
     datasets = [Dataset(f"b{i}", phase1_model, (float(Y[i]), float(S[i]))) for i in range(len(Y))]
     store = {}

@@ -126,6 +126,7 @@ def test_bad_inputs():
         log_density(hierarchical_model, ([c, c], [lambda p, x: x, lambda p, x: x], spec), {}, {})
 
 
+@pytest.mark.slow  # statistical, ~20-30 s on 2 cores; the default suite covers the path more cheaply
 def test_nuts_runs_on_joint_model(make_surrogate):
     """Short NUTS smoke run on two synthetic bubbles: finite draws of every site (compile-dominated)."""
     spec = load_priors("definity_reduced")

@@ -25,6 +25,7 @@ def model_5d(x, y=None):
     numpyro.sample("y", dist.Normal(mu, s), obs=y)
 
 
+@pytest.mark.slow  # statistical, ~20-30 s on 2 cores; the default suite covers the path more cheaply
 def test_tmcmc_agrees_with_nuts_5d():
     nuts = run_nuts(
         model_5d, X, y=Y, rng_key=jax.random.PRNGKey(1), num_warmup=500, num_samples=1000, num_chains=2
