@@ -117,16 +117,11 @@ def grouped_log_weights(m: Mapping[str, jax.Array], tau: Mapping[str, jax.Array]
     out = []
     for (names, _, own), members in groups.items():
         stacked = {k: jnp.stack([jnp.asarray(datasets[i][k]) for i in members]) for k in names}  # (D, N)
-        lp = 0.0
-        lp0 = 0.0
-        for k in names:
-            lo, hi = bounds[k]
-            mk, tk = jnp.asarray(m[k])[..., None, None], jnp.asarray(tau[k])[..., None, None]
-            lp = lp + log_truncnorm(stacked[k], mk, tk, lo, hi)
-            lp0 = lp0 + _uniform_log_p0(stacked[k], lo, hi)
-        if own >= 0:
-            lp0 = jnp.asarray(log_p0[own])[None]
-        out.append((members, lp - lp0))
+        # ψ gains one axis for the datasets; importance_log_weights adds the one of the draws
+        m_d = {k: jnp.asarray(m[k])[..., None] for k in names}
+        tau_d = {k: jnp.asarray(tau[k])[..., None] for k in names}
+        group_p0 = jnp.asarray(log_p0[own])[None] if own >= 0 else None
+        out.append((members, importance_log_weights(m_d, tau_d, stacked, bounds, group_p0, names=names)))
     return out
 
 
