@@ -27,10 +27,12 @@ from bubblecal.models.distributions import (
 )
 from bubblecal.models.hierarchical import hierarchical_model
 from bubblecal.models.importance import (
+    dataset_terms,
     grouped_log_weights,
     importance_ess,
     importance_log_weights,
     staged_log_likelihood,
+    sum_dataset_terms,
 )
 from bubblecal.models.likelihood import (
     SD_FLOOR_REL,
@@ -77,6 +79,7 @@ __all__ = [
     "SD_FLOOR_REL", "TAU_FLOOR_REL", "sd_floor_for", "noise_sd", "relative_normal_loglik", "predict_mechanical",
     "log_truncnorm", "truncnorm_icdf", "population_log_prob", "population_predictive_log_density",
     "staged_log_likelihood", "importance_log_weights", "grouped_log_weights", "importance_ess",
+    "dataset_terms", "sum_dataset_terms",
     "sample_population_predictive",
     # preflight
 ]

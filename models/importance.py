@@ -170,7 +170,18 @@ def dataset_terms(groups: Sequence[tuple[Sequence[int], jax.Array]]) -> dict[int
 
 
 def sum_dataset_terms(terms: Mapping[int, jax.Array]):
-    """Σ_i of the dataset terms in dataset order (the order of the sum fixes its round-off)."""
+    """Σ_i of the dataset terms in dataset order (the order of the sum fixes its round-off).
+
+    Parameters
+    ----------
+    terms : mapping of int to Array
+        Dataset index -> term of batch shape B (:func:`dataset_terms`).
+
+    Returns
+    -------
+    Array
+        log L(ψ) of batch shape B.
+    """
     total = 0.0
     for i in sorted(terms):
         total = total + terms[i]

@@ -16,7 +16,8 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
   :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`;
 - :mod:`~bubblecal.inference.tmcmc.progress`: the per-stage reporter (``TMCMC(..., progress=True)`` or a
   callable ``report(replica, row)``), :class:`StageDisplay` and :func:`stage_text`;
-- :mod:`~bubblecal.inference.tmcmc.evaluator`: :class:`Evaluator`, the densities over a population;
+- :mod:`~bubblecal.inference.tmcmc.evaluator`: :class:`Evaluator`, the densities over a population, and
+  :func:`resolve_chunk_size` / :data:`CPU_CHUNK_SIZE` (how many particles at a time);
 - private: ``_flat_model`` (a NumPyro model as flat prior / likelihood functions) and ``_programs``
   (compiled programs cached per process; :func:`clear_program_cache`).
 """
@@ -24,7 +25,7 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 from bubblecal.inference.tmcmc._programs import clear_program_cache
 from bubblecal.inference.tmcmc.batched import BatchStructureError, batch_groups, run_batched, structure_key
 from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
-from bubblecal.inference.tmcmc.evaluator import Evaluator
+from bubblecal.inference.tmcmc.evaluator import CPU_CHUNK_SIZE, Evaluator, resolve_chunk_size
 from bubblecal.inference.tmcmc.kernel import TMCMCKernel, TMCMCKernelState
 from bubblecal.inference.tmcmc.moves import KernelMove, Move, MoveResult, RandomWalk, hmc_move, nuts_move
 from bubblecal.inference.tmcmc.progress import StageDisplay, StageReporter, stage_text
@@ -36,5 +37,6 @@ __all__ = [
     "TMCMC", "TMCMCKernel", "TMCMCKernelState", "PRESETS", "TMCMCResults", "STAGE_COLUMNS", "clear_program_cache",
     "TMCMCState", "StageInfo", "run_batched", "batch_groups", "structure_key", "BatchStructureError",
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
-    "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "StageDisplay", "StageReporter", "stage_text",
+    "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "CPU_CHUNK_SIZE",
+    "resolve_chunk_size", "StageDisplay", "StageReporter", "stage_text",
 ]

@@ -111,3 +111,15 @@ def test_all_datasets_log_likelihoods_equal_one_at_a_time():
     assert got.shape == (37, 5)
     for i, s in enumerate(sets):
         np.testing.assert_allclose(got[:, i], dataset_log_likelihood(m, tau, s, bounds), rtol=2e-6, atol=1e-5)
+
+
+def test_a_dataset_without_pooled_parameters_is_named():
+    from bubblecal.models import dataset_log_likelihoods, grouped_log_weights
+
+    bounds = {"ka": (5e3, 3e4)}
+    sets = [{"ka": np.full(5, 1.5e4)}, {"kb": np.full(5, 500.0)}]
+    m, tau = {"ka": np.full(3, 1.5e4)}, {"ka": np.full(3, 2e3)}
+    with pytest.raises(ValueError, match="dataset 1 has none of the pooled parameters ka"):
+        grouped_log_weights(m, tau, sets, bounds)
+    with pytest.raises(ValueError, match="dataset 1 has none of the pooled parameters ka"):
+        dataset_log_likelihoods(m, tau, sets, bounds)

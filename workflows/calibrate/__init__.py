@@ -70,6 +70,7 @@ from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.phase_files import (
     PhaseFileError,
     phase_format,
+    phase_inference_data,
     read_phase,
     read_pointwise,
     write_phase,
@@ -95,7 +96,7 @@ __all__ = [
     "min_population", "check_device", "on_device",
     "AgentPlan", "Plan", "make_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
     "PhaseStore", "PhaseFileError", "phase_dependencies",
-    "write_phase", "read_phase", "read_pointwise", "phase_format",
+    "write_phase", "phase_inference_data", "read_phase", "read_pointwise", "phase_format",
     "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
     "AgentResult", "agent_seed", "run_agent", "run_calibration", "PRIORS_FOR_ALL", "user_agent_plans",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
