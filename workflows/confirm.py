@@ -104,7 +104,7 @@ def confirm_run(run_dir: Path, *, tier: str = DEFAULT_TIER, device: str = "cpu",
     subdivisions : int or None
         Icosphere level (None: the tier's).
     bundle : bubblecal.surrogates.Bundle or None
-        A loaded bundle (None: the one recorded in the run manifest).
+        A loaded bundle whose surrogates replace the run's (None: the run's own, as its manifest describes them).
     tier_settings : dict or None
         Keyword arguments of :func:`bubblecal.sim.tiers.get_tier` (e.g. ``scale``).
     progress : callable or None
@@ -115,36 +115,36 @@ def confirm_run(run_dir: Path, *, tier: str = DEFAULT_TIER, device: str = "cpu",
     tuple
         (pointwise DataFrame, summary DataFrame, figure path or None); the CSVs and the PNG are written
         under ``run_dir/confirm/``.
+
+    Raises
+    ------
+    bubblecal.workflows.calibrate.CalibrationError
+        If the run's manifest or an input it names cannot be loaded (:func:`~bubblecal.workflows.calibrate.run_plan`).
     """
     import json
 
     import pandas as pd
 
-    from bubblecal.data import SHELL_PARAMETERS, reference_curves
-    from bubblecal.priors import load_priors
+    from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.tiers import CurveRequest, get_tier
-    from bubblecal.surrogates import load_bundle
+    from bubblecal.workflows.calibrate import run_plan
 
     run_dir = Path(run_dir)
     say = progress or (lambda _m: None)
-    manifest = json.loads((run_dir / "manifest.json").read_text())
-    run = manifest.get("run", {})
-    agent = run.get("agent") or run_dir.parent.name
-    if bundle is None:
-        bundle = load_bundle(run["bundle"])
-    spec = load_priors(run["priors"])
+    ap = run_plan(run_dir)  # the run's own curves and surrogates: published or the user's bubbles
+    agent, spec = ap.agent, ap.spec
+    surrogates = ap.surrogates if bundle is None else [bundle.get(c.kind, c.diameter_um) for c in ap.curves]
     settings = dict(tier_settings or {})
     if subdivisions is not None:
         settings["subdivisions"] = subdivisions
     sim = get_tier(tier, **settings)
     points, summary = [], []
-    for curve in reference_curves(agent):
+    for curve, sur in zip(ap.curves, surrogates, strict=True):
         theta = map_parameters(run_dir, curve.name)
         if theta is None:
             say(f"{curve.name}: no phase-3 result with log likelihoods in {run_dir}; skipped")
             continue
         values = {k: theta.get(k, spec.fixed.get(k, 0.0)) for k in (*SHELL_PARAMETERS, "d0")}
-        sur = bundle.get(curve.kind, curve.diameter_um)
         x, y = np.asarray(curve.x, float), np.asarray(curve.y, float)
         d0 = values["d0"]
         params = np.array([values[k] for k in SHELL_PARAMETERS])

@@ -28,7 +28,6 @@ MAP, simulation at the draws; below, the residuals along the curve.  Prints a ta
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import sys
@@ -69,26 +68,6 @@ def binned(depth_nm, values, width: float = BIN_NM) -> dict[str, float]:
         if m.any():
             out[f"{int(k * width)}"] = round(float(values[m].mean()), 2)
     return out
-
-
-def run_plan(run_dir: Path):
-    """The agent plan of a finished run, rebuilt from its manifest (same curves, surrogates, priors)."""
-    from bubblecal.workflows.calibrate import CalibrationConfig, make_plan
-
-    manifest = json.loads((run_dir / "manifest.json").read_text())
-    raw = manifest["run"]["config"]
-    names = {f.name: f for f in dataclasses.fields(CalibrationConfig)}
-    kw = {k: v for k, v in raw.items() if k in names}
-    for k in ("agents", "curves"):
-        kw[k] = tuple(kw.get(k) or ())
-    for k in ("out", "bundle", "data", "acoustic_data", "data_dir"):
-        if kw.get(k) is not None:
-            kw[k] = Path(kw[k])
-    kw["agents"] = kw["agents"] or (manifest["run"]["agent"],)
-    plan = make_plan(CalibrationConfig(**kw))
-    agent = manifest["run"]["agent"]
-    ap = next(a for a in plan.agents if a.agent == agent and Path(a.out_dir).resolve() == run_dir.resolve())
-    return ap
 
 
 def campaign_settings(surrogate, diameter_um: float) -> tuple[str, dict, tuple]:
@@ -240,6 +219,7 @@ def main(argv=None) -> int:
     args = ap_.parse_args(argv)
 
     from bubblecal.campaigns import parse_tier_settings
+    from bubblecal.workflows.calibrate import run_plan
     from bubblecal.workflows.confirm import find_runs
 
     TIER.update(name=args.tier, device=args.device, extra=parse_tier_settings(args.tier_setting))

@@ -75,7 +75,7 @@ from bubblecal.workflows.calibrate.phase_files import (
     read_pointwise,
     write_phase,
 )
-from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle
+from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle, run_plan
 from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_calibration
 from bubblecal.workflows.calibrate.store import (
     PhaseStore,
@@ -94,7 +94,7 @@ __all__ = [
     "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
     "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
     "min_population", "check_device", "on_device",
-    "AgentPlan", "Plan", "make_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
+    "AgentPlan", "Plan", "make_plan", "run_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
     "PhaseStore", "PhaseFileError", "phase_dependencies",
     "write_phase", "phase_inference_data", "read_phase", "read_pointwise", "phase_format",
     "config_hash", "array_hash", "phase_hashes", "bundle_hashes",

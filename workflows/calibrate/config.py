@@ -208,6 +208,34 @@ class CalibrationConfig:
         d["num_particles"] = self.num_particles
         return d
 
+    @classmethod
+    def from_dict(cls, d: Mapping) -> CalibrationConfig:
+        """The config a manifest's ``run.config`` describes: the inverse of :meth:`as_dict`.
+
+        Parameters
+        ----------
+        d : Mapping
+            A dict written by :meth:`as_dict` (derived keys such as ``num_particles`` are ignored).
+
+        Returns
+        -------
+        CalibrationConfig
+            ``from_dict(c.as_dict()) == c``.
+        """
+        names = {f.name for f in dataclasses.fields(cls)}
+        kw = {k: v for k, v in d.items() if k in names}
+        for k in ("agents", "curves"):
+            kw[k] = tuple(kw.get(k) or ())
+        for k in _PATH_FIELDS:
+            if kw.get(k) is not None:
+                kw[k] = Path(kw[k])
+        kw["priors"] = dict(kw.get("priors") or {})
+        return cls(**kw)
+
+
+#: the fields that hold a path (strings in :meth:`CalibrationConfig.as_dict`)
+_PATH_FIELDS = ("out", "bundle", "data_dir", "data", "acoustic_data")
+
 
 def config_from_agents(agent: str, **kwargs) -> CalibrationConfig:
     """Build a config from the CLI's ``--agent definity|sonovue|all``.

@@ -7,6 +7,7 @@ raises one :class:`~bubblecal.workflows.calibrate.CalibrationError` naming the f
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +28,7 @@ from bubblecal.workflows.calibrate.config import (
 from bubblecal.workflows.calibrate.device import check_device
 from bubblecal.workflows.calibrate.preflight import preflight
 
-__all__ = ["AgentPlan", "Plan", "resolve_bundle", "make_plan"]
+__all__ = ["AgentPlan", "Plan", "resolve_bundle", "make_plan", "run_plan"]
 
 
 @dataclass
@@ -236,12 +237,15 @@ def _check_out(out: Path) -> None:
         raise CalibrationError(f"--out {out}: the folder cannot be made ({exc.strerror})") from None
 
 
-def make_plan(config: CalibrationConfig) -> Plan:
+def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True) -> Plan:
     """Validate the whole configuration and load every input, before any sampling starts.
 
     Parameters
     ----------
     config : CalibrationConfig
+    check_likelihoods : bool
+        Evaluate every dataset's log likelihood at a few prior draws (the preflight); off to only rebuild the
+        inputs of a finished run.
 
     Returns
     -------
@@ -280,8 +284,47 @@ def make_plan(config: CalibrationConfig) -> Plan:
         _check_population(config, ap)
     plan = Plan(config=config, bundle=bundle, bundle_path=bundle_path,
                 synthetic_bundle=is_synthetic_bundle(bundle), agents=agents)
-    preflight(plan)
+    if check_likelihoods:
+        preflight(plan)
     return plan
+
+
+def run_plan(run_dir: Path) -> AgentPlan:
+    """The agent plan of a finished run folder, rebuilt from its ``manifest.json``: the same curves (published or
+    the user's, with their names), surrogates, priors and acoustic data as the run had.
+
+    Parameters
+    ----------
+    run_dir : Path
+        A run folder OUT/<agent>/<workflow> holding ``manifest.json``.
+
+    Returns
+    -------
+    AgentPlan
+        The plan of the run's agent (label) whose output folder is ``run_dir``.
+
+    Raises
+    ------
+    CalibrationError
+        If the manifest is missing or unreadable, an input it names (data, priors, bundle) cannot be loaded any
+        more, or no agent of the rebuilt plan writes to ``run_dir``.
+    """
+    import json
+
+    run_dir = Path(run_dir)
+    path = run_dir / "manifest.json"
+    try:
+        run = json.loads(path.read_text())["run"]
+        config = CalibrationConfig.from_dict(run["config"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise CalibrationError(f"{path}: not a calibration manifest ({type(exc).__name__}: {exc})") from None
+    # the folder may have moved since the run: its layout OUT/<agent>/<workflow> gives the output root
+    plan = make_plan(dataclasses.replace(config, out=run_dir.parent.parent), check_likelihoods=False)
+    for ap in plan.agents:
+        if ap.agent == run.get("agent") and Path(ap.out_dir).resolve() == run_dir.resolve():
+            return ap
+    raise CalibrationError(f"{path}: the run's configuration plans no agent {run.get('agent')!r} with its output "
+                           f"in {run_dir}")
 
 
 def _check_population(config: CalibrationConfig, ap: AgentPlan) -> None:
