@@ -5,7 +5,10 @@ loading grid, tier settings and mesh level) run with the campaign's quasi-static
 tier (the same mesh level and indentation convention, MD protocol scale ``--scale``).  Reported per diameter: the
 median [IQR] relative L2 of quasi-static against explicit over the curves 'ok' in both (the gate: median <= 3 %),
 statuses and wall seconds.  ``--out`` receives ``diameter_gate.json`` (rewritten after every diameter) and
-``curves_<campaign>_<d>um.csv``.
+``curves_<campaign>_<d>um.csv``.  ``--reference implicit`` compares with the solvent-free thermal tier instead
+(to separate the solvent's share of a gap), ``--ref-subdivisions`` gives the reference its own mesh level, and
+``--qs-store`` takes the quasi-static curves from the campaign's finished store (the same design points) instead of
+re-running them.
 
 Usage::
 
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,26 +38,54 @@ from bubblecal.sim.tiers import CurveRequest, get_tier
 SHARED = ("indentation_convention",)
 
 
-def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None) -> dict:
-    """Quasi-static and explicit curves of the first ``n`` design points of one level."""
+def stored_curves(path: str, config, idx: np.ndarray, grid: tuple) -> dict:
+    """The quasi-static curves of design points ``idx`` from a finished campaign store (same design, same grid)."""
+    from bubblecal.data.store import CampaignStore
+
+    want = {f"{config.name}-{i:06d}": k for k, i in enumerate(idx)}
+    y = np.full((len(idx), len(grid)), np.nan)
+    status = ["missing"] * len(idx)
+    for rec in CampaignStore(path).iter_records():
+        k = want.get(rec["sample_id"])
+        if k is not None:
+            if not np.allclose(rec["x"], grid):
+                raise SystemExit(f"{path}: {rec['sample_id']} has another loading grid than the design")
+            y[k], status[k] = np.asarray(rec["y"], dtype=float), rec["status"]
+    return {"y": y, "status": status, "seconds": 0.0}
+
+
+def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None,
+              start: int = 0, reference: str = "explicit", ref_subdivisions: int | None = None,
+              qs_store: str | None = None) -> dict:
+    """Quasi-static and reference-tier curves of design points ``start`` .. ``start + n - 1`` of one level.
+
+    The reference-tier result is stored under the key ``"explicit"`` whichever tier it is (the CSV names it).
+    """
     design = design_points(config)
-    idx = np.nonzero(np.isclose(design["diameter_um"], diameter_um))[0][:n]
+    idx = np.nonzero(np.isclose(design["diameter_um"], diameter_um))[0][start:start + n]
     if len(idx) == 0:
         raise SystemExit(f"{config.name}: no design point at {diameter_um} um")
     sub = subdivisions if subdivisions is not None else config.subdivisions
-    request = CurveRequest(protocol=config.protocol, diameter_um=float(diameter_um),
-                           grid=config.grid_for(float(diameter_um)),
+    ref_sub = ref_subdivisions if ref_subdivisions is not None else sub
+    grid = config.grid_for(float(diameter_um))
+    request = CurveRequest(protocol=config.protocol, diameter_um=float(diameter_um), grid=grid,
                            params={k: np.asarray(design[k][idx]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][idx]), subdivisions=sub)
     qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"}
     md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED}
     out = {"indices": idx.tolist(), "grid": list(request.grid)}
-    for name, tier in (("quasistatic", get_tier("quasistatic", **qs_settings)),
-                       ("explicit", get_tier("explicit", scale=scale, **md_settings))):
+    if qs_store:
+        out["quasistatic"] = stored_curves(qs_store, config, idx, tuple(grid))
+    else:
         t0 = time.perf_counter()
-        batch = tier.run(request, device)
-        out[name] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
-                     "seconds": time.perf_counter() - t0}
+        batch = get_tier("quasistatic", **qs_settings).run(request, device)
+        out["quasistatic"] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
+                              "seconds": time.perf_counter() - t0}
+    t0 = time.perf_counter()
+    ref_request = replace(request, subdivisions=ref_sub)
+    batch = get_tier(reference, scale=scale, **md_settings).run(ref_request, device)
+    out["explicit"] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
+                       "seconds": time.perf_counter() - t0}
     ok = [i for i in range(len(idx)) if out["quasistatic"]["status"][i] == out["explicit"]["status"][i] == "ok"]
     yq, ye = out["quasistatic"]["y"], out["explicit"]["y"]
     rel = np.array([np.linalg.norm(yq[i] - ye[i]) / np.linalg.norm(ye[i]) for i in ok])
@@ -64,7 +96,22 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
     return out
 
 
-def write_curves(path: Path, res: dict, protocol: str) -> None:
+def merge(parts: list[dict]) -> dict:
+    """One level's result from its batches: indices, curves and statuses concatenated, the summary recomputed."""
+    res = {"indices": sum((r["indices"] for r in parts), []), "grid": parts[0]["grid"],
+           "rel_l2": sum((r["rel_l2"] for r in parts), [])}
+    for name in ("quasistatic", "explicit"):
+        res[name] = {"y": np.concatenate([r[name]["y"] for r in parts]),
+                     "status": sum((r[name]["status"] for r in parts), []),
+                     "seconds": sum(r[name]["seconds"] for r in parts)}
+    rel = np.asarray(res["rel_l2"])
+    res["summary"] = {"n_ok": len(rel), "n": len(res["indices"]),
+                      "median": float(np.median(rel)) if len(rel) else None,
+                      "iqr": [float(v) for v in np.quantile(rel, [0.25, 0.75])] if len(rel) else None}
+    return res
+
+
+def write_curves(path: Path, res: dict, protocol: str, reference: str = "explicit") -> None:
     """One CSV row per curve and tier: design index, tier, status, then the curve."""
     unit = "force" if protocol == "compression" else "depth"
     with open(path, "w") as fh:
@@ -72,7 +119,8 @@ def write_curves(path: Path, res: dict, protocol: str) -> None:
         for tier in ("quasistatic", "explicit"):
             for i, row in zip(res["indices"], res[tier]["y"], strict=True):
                 status = res[tier]["status"][res["indices"].index(i)]
-                fh.write(f"{i},{tier},{status}," + ",".join(f"{v:.9g}" for v in row) + "\n")
+                label = reference if tier == "explicit" else tier
+                fh.write(f"{i},{label},{status}," + ",".join(f"{v:.9g}" for v in row) + "\n")
 
 
 def main() -> None:
@@ -80,9 +128,15 @@ def main() -> None:
     ap.add_argument("--campaign", required=True, help="a campaign over the diameter (name or file)")
     ap.add_argument("--diameters", default="1.8,4.5,7.0", help="comma-separated levels [um]")
     ap.add_argument("--n", type=int, default=8, help="design points per diameter")
+    ap.add_argument("--start", type=int, default=0, help="first design point of each level (to split a level)")
+    ap.add_argument("--batch", type=int, default=0,
+                    help="run a level's points in batches of this many, writing the outputs after each (0: one batch)")
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--scale", type=float, default=0.25, help="explicit MD protocol scale")
     ap.add_argument("--subdivisions", type=int, default=None, help="mesh level (default: the campaign's)")
+    ap.add_argument("--reference", default="explicit", choices=("explicit", "implicit"), help="reference tier")
+    ap.add_argument("--ref-subdivisions", type=int, default=None, help="the reference's mesh level (default: QS's)")
+    ap.add_argument("--qs-store", default=None, help="take the quasi-static curves from this finished store")
     ap.add_argument("--out", default="diameter_gate_out")
     args = ap.parse_args()
     config = load_campaign_file(args.campaign).config
@@ -90,9 +144,17 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     print(f"{'campaign':36s} {'D [um]':>6s} {'ok/n':>6s} {'median':>8s} {'IQR':>16s} {'QS s':>7s} {'MD s':>7s}")
+    batch = args.batch if args.batch > 0 else args.n
+    tag = f"_from{args.start}" if args.start else ""
     for d in (float(v) for v in args.diameters.split(",") if v):
-        res = run_level(config, d, args.n, args.device, args.scale, args.subdivisions)
-        write_curves(out / f"curves_{config.name}_{d:g}um.csv", res, config.protocol)
+        parts = []
+        for first in range(args.start, args.start + args.n, batch):
+            parts.append(run_level(config, d, min(batch, args.start + args.n - first), args.device, args.scale,
+                                   args.subdivisions, start=first, reference=args.reference,
+                                   ref_subdivisions=args.ref_subdivisions, qs_store=args.qs_store))
+            res = merge(parts)
+            write_curves(out / f"curves_{config.name}_{d:g}um{tag}.csv", res, config.protocol, args.reference)
+            print(f"  {d:g} um: {len(res['indices'])} of {args.n} points done", flush=True)
         s = res["summary"]
         row = {"diameter_um": d, **s, "seconds_quasistatic": res["quasistatic"]["seconds"],
                "seconds_explicit": res["explicit"]["seconds"], "status_explicit": res["explicit"]["status"],
@@ -103,8 +165,9 @@ def main() -> None:
         print(f"{config.name:36s} {d:6.2f} {s['n_ok']:>2d}/{s['n']:<3d} {med:>8s} {iqr:>16s} "
               f"{row['seconds_quasistatic']:7.1f} {row['seconds_explicit']:7.1f}", flush=True)
         line = {"benchmark": "diameter_gate", "campaign": config.name, "device": args.device, "scale": args.scale,
-                "n": args.n, "rows": rows}
-        (out / "diameter_gate.json").write_text(json.dumps(line, indent=1))
+                "n": args.n, "start": args.start, "reference": args.reference,
+                "ref_subdivisions": args.ref_subdivisions, "qs_store": args.qs_store, "rows": rows}
+        (out / f"diameter_gate{tag}.json").write_text(json.dumps(line, indent=1))
     print(json.dumps(line))
 
 
