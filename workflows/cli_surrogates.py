@@ -53,7 +53,9 @@ def _fail(msg: str, code: int = 1):
 
 @app.command("train")
 def train(
-    dataset: Path = typer.Argument(..., help="Published-layout table (.csv/.dat) or campaign store (dir/.jsonl)."),
+    datasets: list[Path] = typer.Argument(..., metavar="DATASET...", help="Published-layout table (.csv/.dat) or "
+                                           "campaign store (dir/.jsonl[.gz]); several are trained on together "
+                                           "(e.g. a design and a denser slice of its box)."),
     setup: LoadingProtocol = typer.Option(..., "--setup", help="Loading protocol of the data."),
     diameter: float = typer.Option(None, "--diameter", help="Nominal bubble diameter [um] (names the files); must "
                                    "match the data's 2 x 0.25 um x median radius_dpd within 0.025 um. Not with "
@@ -94,7 +96,7 @@ def train(
     onnx: bool = typer.Option(True, "--onnx/--no-onnx", help="Also export ONNX and check onnxruntime parity."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
 ) -> None:
-    """Train (optionally sweep) a surrogate on DATASET and export it with a report.
+    """Train (optionally sweep) a surrogate on DATASET (one or more, trained on together) and export it with a report.
 
     Campaign stores: by default the intact prefix of 'ruptured'/'failed' curves is kept (the last
     finite point before failure dropped; see `filter_curves(keep_failed_prefix=True)`), so that the
@@ -109,6 +111,7 @@ def train(
         DatasetError,
         SweepConfig,
         TrainConfig,
+        concat_training_sets,
         export_onnx,
         export_sweep,
         filter_curves,
@@ -130,9 +133,14 @@ def train(
         raise typer.BadParameter("--ldo-bands needs --over-diameter")
     bands = _bands(ldo_bands)
     try:
-        raw = read_dataset(dataset, setup=setup, n_points="auto" if n_points == "auto" else int(n_points))
-        if raw.setup != setup:
-            _fail(f"{dataset}: holds {raw.setup} data, --setup is {setup}")
+        parts = []
+        for dataset in datasets:
+            part = read_dataset(dataset, setup=setup, n_points="auto" if n_points == "auto" else int(n_points))
+            if part.setup != setup:
+                _fail(f"{dataset}: holds {part.setup} data, --setup is {setup}")
+            parts.append(part)
+        raw = concat_training_sets(parts)
+        dataset = " + ".join(str(d) for d in datasets)
         ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop, keep_failed_prefix=failed_prefix,
                                    min_prefix_points=min_prefix_points)
         typer.echo(str(report))

@@ -30,6 +30,7 @@ from bubblecal.surrogates.training.data_io import (
 from bubblecal.surrogates.training.dataset import (
     DatasetError,
     TrainingSet,
+    concat_training_sets,
     diameter_um_from_radius,
     leading_finite,
 )
@@ -65,7 +66,8 @@ _LAZY = {name: f"{__name__}.{module}" for module, names in _TORCH_SIDE.items() f
 
 __all__ = [
     # training set, data I/O, filtering
-    "TrainingSet", "DatasetError", "leading_finite", "diameter_um_from_radius", "read_dataset", "read_published",
+    "TrainingSet", "DatasetError", "concat_training_sets", "leading_finite", "diameter_um_from_radius",
+    "read_dataset", "read_published",
     "write_published", "read_store_dataset", "N_META", "PUBLISHED_POINTS", "PUBLISHED_META_COLUMNS",
     "FilterReport", "filter_curves", "PREFIX_STATUSES",
     # known-answer data

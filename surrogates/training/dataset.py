@@ -23,7 +23,7 @@ from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.features import UM_PER_RADIUS_DPD, network_inputs, response_scale
 
-__all__ = ["DatasetError", "TrainingSet", "leading_finite", "diameter_um_from_radius"]
+__all__ = ["DatasetError", "TrainingSet", "concat_training_sets", "leading_finite", "diameter_um_from_radius"]
 
 
 class DatasetError(ValueError):
@@ -333,3 +333,47 @@ class TrainingSet:
         if not several_sizes and radii.size > 1:
             raise DatasetError(f"{src}: field 'radius_dpd' holds several radii {radii[:5].tolist()}; train one "
                                "surrogate per diameter, or one over the sizes (inputs 'diameter')")
+
+
+def concat_training_sets(sets: list[TrainingSet]) -> TrainingSet:
+    """One training set of the curves of several (e.g. a design and a denser slice of its box), in order.
+
+    Parameters
+    ----------
+    sets : list of TrainingSet
+        At least one; all of one protocol and with the same number of load points per curve.
+
+    Returns
+    -------
+    TrainingSet
+        Every curve of every set; ``source`` joins the sources with ``" + "``; ``extra`` keeps the keys every set
+        has.  A single set is returned as it is.
+
+    Raises
+    ------
+    DatasetError
+        If ``sets`` is empty, the protocols differ, the point counts differ, or a curve id occurs twice.
+    """
+    if not sets:
+        raise DatasetError("concat_training_sets: no training set given")
+    if len(sets) == 1:
+        return sets[0]
+    first = sets[0]
+    for ts in sets[1:]:
+        if ts.setup != first.setup:
+            raise DatasetError(f"{ts.source}: holds {ts.setup} data, {first.source} holds {first.setup} data")
+        if ts.n_points != first.n_points:
+            raise DatasetError(f"{ts.source}: {ts.n_points} load points per curve, {first.source} has "
+                               f"{first.n_points}; give sets of one loading grid length")
+    ids = np.concatenate([ts.curve_id for ts in sets])
+    uniq, counts = np.unique(ids, return_counts=True)
+    if (counts > 1).any():
+        raise DatasetError(f"{' + '.join(ts.source for ts in sets)}: curve id {str(uniq[counts > 1][0])!r} occurs "
+                           f"{int(counts[counts > 1][0])} times (the same store given twice?)")
+    keys = set(first.extra).intersection(*(ts.extra for ts in sets[1:]))
+    return TrainingSet(setup=first.setup, params=np.concatenate([ts.params for ts in sets]),
+                       radius_dpd=np.concatenate([ts.radius_dpd for ts in sets]),
+                       x=np.concatenate([ts.x for ts in sets]), y=np.concatenate([ts.y for ts in sets]),
+                       curve_id=ids, source=" + ".join(ts.source for ts in sets),
+                       status=np.concatenate([ts.status for ts in sets]),
+                       extra={k: np.concatenate([np.asarray(ts.extra[k]) for ts in sets]) for k in sorted(keys)})
