@@ -23,18 +23,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from functools import partial
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import numpyro
-from jax.scipy.special import logsumexp
 
 from bubblecal.models.distributions import hyperprior_sites
 from bubblecal.models.importance import (
     dataset_terms,
     grouped_log_weights,
     importance_ess,
-    importance_log_weights,
     sum_dataset_terms,
 )
 from bubblecal.priors import PriorSpec
@@ -125,6 +125,13 @@ def phase2_model(phase1_samples: Sequence[Mapping[str, jnp.ndarray]], spec: Prio
     numpyro.factor(PHASE2_FACTOR, sum_dataset_terms(dataset_terms(groups)))
 
 
+@partial(jax.jit, static_argnums=3)
+def _terms_block(m, tau, data, box):
+    """(chunk, n_datasets) phase-2 terms of every dataset at a chunk of ψ draws; ``box`` the bounds as items."""
+    terms = dataset_terms(grouped_log_weights(m, tau, data, dict(box)))
+    return jnp.stack([terms[i] for i in range(len(data))], axis=-1)
+
+
 def dataset_log_likelihood(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
                            phase1_samples: Mapping[str, np.ndarray], bounds: Mapping[str, tuple[float, float]],
                            chunk: int = 256) -> np.ndarray:
@@ -156,16 +163,7 @@ def dataset_log_likelihood(m_samples: Mapping[str, np.ndarray], tau_samples: Map
     names = [k for k in m_samples if k in phase1_samples and k in bounds]
     if not names:
         raise ValueError("the dataset has none of the pooled parameters")
-    S = int(np.asarray(m_samples[names[0]]).shape[0])
-    th = {k: jnp.asarray(phase1_samples[k]) for k in names}
-    n_i = int(th[names[0]].shape[0])
-    out = np.empty(S)
-    for a in range(0, S, chunk):
-        m = {k: jnp.asarray(m_samples[k][a:a + chunk]) for k in names}
-        tau = {k: jnp.asarray(tau_samples[k][a:a + chunk]) for k in names}
-        lw = importance_log_weights(m, tau, th, bounds, names=names)  # (chunk, N_i)
-        out[a:a + chunk] = np.asarray(logsumexp(lw, axis=-1)) - math.log(n_i)
-    return out
+    return dataset_log_likelihoods(m_samples, tau_samples, [phase1_samples], bounds, chunk)[:, 0]
 
 
 def dataset_log_likelihoods(m_samples: Mapping[str, np.ndarray], tau_samples: Mapping[str, np.ndarray],
@@ -197,8 +195,6 @@ def dataset_log_likelihoods(m_samples: Mapping[str, np.ndarray], tau_samples: Ma
     ValueError
         If a dataset has none of the pooled parameters.
     """
-    import jax
-
     names = [k for k in m_samples if k in bounds]
     sets = [{k: jnp.asarray(v) for k, v in s.items() if k in names} for s in phase1_samples]
     for i, s in enumerate(sets):
@@ -208,18 +204,14 @@ def dataset_log_likelihoods(m_samples: Mapping[str, np.ndarray], tau_samples: Ma
     tau_all = {k: np.asarray(tau_samples[k]) for k in names}
     size = int(m_all[names[0]].shape[0])
     step = max(1, min(int(chunk), size))
-
-    @jax.jit
-    def block(m, tau, data):
-        terms = dataset_terms(grouped_log_weights(m, tau, data, bounds))
-        return jnp.stack([terms[i] for i in range(len(data))], axis=-1)
-
+    box = tuple((k, (float(lo), float(hi))) for k, (lo, hi) in bounds.items() if k in names)
     out = np.empty((size, len(sets)))
     for a in range(0, size, step):
         n = min(step, size - a)
         # the last chunk is padded to the chunk size: one compiled shape
         pick = np.minimum(np.arange(a, a + step), size - 1)
-        values = block({k: v[pick] for k, v in m_all.items()}, {k: v[pick] for k, v in tau_all.items()}, sets)
+        values = _terms_block({k: v[pick] for k, v in m_all.items()}, {k: v[pick] for k, v in tau_all.items()}, sets,
+                              box)
         out[a:a + n] = np.asarray(values)[:n]
     return out
 

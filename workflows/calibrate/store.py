@@ -81,6 +81,9 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
         h3 = {**common, "phase": 3, "self": hashes[f"phase1_{n}"], "upstream": hashes["phase2"], "options": o23}
         if config.phase3 != "published":  # keeps the hashes of runs with the published phase 3 unchanged
             h3["phase3"] = config.phase3
+            # the leave-one-out weights come from the stacked phase-2 terms (equal to float round-off to the
+            # per-dataset sum they replaced): files of the earlier computation are not reused
+            h3["loo_weights"] = "stacked"
         hashes[f"phase3_{n}"] = config_hash(h3)
     return hashes
 
