@@ -180,6 +180,32 @@ class Surrogate:
             y = y * response_scale(self.inputs, self.setup, jnp.asarray(params), d, xp=jnp)
         return y
 
+    def loading_range(self, diameter_um=None) -> tuple[float, float]:
+        """The loading coordinate's training range at a diameter, in the coordinate's own units.
+
+        Parameters
+        ----------
+        diameter_um : float, optional
+            Bubble diameter [um] (a network over the diameter; default: the bound one).  A per-diameter
+            surrogate takes none.
+
+        Returns
+        -------
+        (float, float)
+            ``x_range`` of a per-diameter surrogate; for a network over the diameter ``loading_range_per_size``
+            back in DPD length (compression: times the diameter in DPD length) or DPD force (indentation).
+
+        Raises
+        ------
+        ValueError
+            A diameter given to a per-diameter surrogate, or none to an unbound network over the diameter.
+        """
+        d = self._diameter(diameter_um)
+        if not self.over_diameter:
+            return tuple(float(v) for v in self.x_range)
+        unit = float(x_per_size(self.setup, 1.0, d))  # the per-size coordinate of x = 1
+        return tuple(float(v) / unit for v in self.loading_range_per_size)
+
     def _loading_box(self, x, diameter_um):
         """(coordinate, range) of the loading check: x and ``x_range``, or the per-size coordinate and range."""
         if not self.over_diameter:

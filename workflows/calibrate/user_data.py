@@ -140,15 +140,9 @@ def _agent_workflow(config: CalibrationConfig, agent: UserAgent) -> tuple[str, l
 def _loading_box_problems(bubble, surrogate, spec) -> list[str]:
     """Retained points beyond the surrogate's loading box at the bubble's diameter (named with file lines)."""
     from bubblecal.data import DEFAULT_UNITS
-    from bubblecal.surrogates.features import radius_of_diameter
     from bubblecal.workflows.domain import PRIOR_BOX_RTOL
 
-    if surrogate.over_diameter:
-        lo, hi = surrogate.loading_range_per_size
-        if surrogate.setup == "compression":
-            lo, hi = (v * 2.0 * float(radius_of_diameter(bubble.diameter_um)) for v in (lo, hi))
-    else:
-        lo, hi = surrogate.x_range
+    lo, hi = surrogate.loading_range(bubble.diameter_um if surrogate.over_diameter else None)
     shift = spec.parameters["d0"].prior.hi if surrogate.setup == "compression" and "d0" in spec.parameters else 0.0
     top = hi * (1 + PRIOR_BOX_RTOL) + shift  # compression reaches the network at x - d0: the largest d0 is the kindest
     x = np.asarray(bubble.x)

@@ -153,6 +153,23 @@ def test_bound_surrogate_domain(swept):
             bound.check_domain(p, 2 * x, action="raise")
 
 
+def test_loading_range_at_a_diameter(swept):
+    """The per-size training range back in the curve's own units: the largest trained x at each size."""
+    ts, _, path = swept
+    sur = load(path)
+    for d in (2.0, 5.0):
+        lo, hi = sur.loading_range(d)
+        xmax = np.nanmax(ts.x[np.isclose(ts.diameters_um, d)])
+        assert hi == pytest.approx(xmax, rel=1e-9) and lo == pytest.approx(0.0, abs=1e-12)
+        assert sur.at_diameter(d).loading_range() == (lo, hi)
+    if ts.setup == "compression":  # displacements scale with the size, forces do not
+        assert sur.loading_range(5.0)[1] == pytest.approx(2.5 * sur.loading_range(2.0)[1])
+    else:
+        assert sur.loading_range(5.0) == sur.loading_range(2.0)
+    with pytest.raises(ValueError, match="needs diameter_um"):
+        sur.loading_range()
+
+
 def test_bad_version_2_metadata_is_named(swept, tmp_path):
     _, _, path = swept
     with np.load(path) as npz:
