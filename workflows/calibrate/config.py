@@ -17,7 +17,7 @@ __all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "DE
            "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
            "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
            "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
-           "min_population", "agent_seed"]
+           "min_population", "agent_seed", "priors_fit_problems"]
 
 #: Workflows: each names one priors TOML per agent (``priors/<agent>_<workflow>.toml``).
 WORKFLOWS = ("reduced-acoustic", "reduced", "full")
@@ -334,3 +334,33 @@ def agent_seed(seed: int, agent: str) -> int:
 
     offset = {"definity": 0, "sonovue": 1000}.get(agent, 2000 + zlib.crc32(agent.encode("utf-8")) % 1_000_000)
     return (int(seed) + offset) % 2**32
+
+
+def priors_fit_problems(spec, *, protocol: str, workflow: str, who: str) -> list[str]:
+    """What keeps a priors file from serving a workflow on curves of one protocol (empty when it fits).
+
+    Parameters
+    ----------
+    spec : bubblecal.priors.PriorSpec
+        The loaded priors (its ``path`` names the file in the messages).
+    protocol : str
+        'compression' or 'indentation': the loading protocol of the curves.
+    workflow : str
+        A name of :data:`WORKFLOWS`; 'reduced-acoustic' needs ``workflow.acoustic = true``, the others false.
+    who : str
+        The curves' owner in the messages, e.g. "the definity curves" or "agent 'batch-7'".
+
+    Returns
+    -------
+    list of str
+        One message per problem, naming the file, the field, its value and what is needed.
+    """
+    problems = []
+    if spec.setup != protocol:
+        problems.append(f"{spec.path}: field workflow.setup is {spec.setup!r}, but {who} are {protocol} curves")
+    wants = workflow == "reduced-acoustic"
+    if spec.acoustic != wants:
+        problems.append(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but workflow "
+                        f"{workflow!r} of {who} needs {str(wants).lower()}")
+    return problems
+

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
+from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError, priors_fit_problems
 from bubblecal.workflows.calibrate.plan import AgentPlan
 
 __all__ = ["published_agent_plans"]
@@ -94,11 +94,11 @@ def published_agent_plans(config: CalibrationConfig, bundle, bundle_path: Path) 
             raise CalibrationError(str(exc)) from None
         if spec.agent != agent:
             raise CalibrationError(f"{spec.path}: field workflow.agent is {spec.agent!r}, expected {agent!r}")
-        wants_acoustic = config.workflow == "reduced-acoustic"
-        if spec.acoustic != wants_acoustic:
-            raise CalibrationError(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but "
-                                   f"workflow {config.workflow!r} needs {str(wants_acoustic).lower()}")
         curves = _select_curves(_load_curves(agent, config.data_dir), config.curves, agent)
+        problems = priors_fit_problems(spec, protocol=curves[0].kind, workflow=config.workflow,
+                                       who=f"the {agent} curves")
+        if problems:
+            raise CalibrationError("\n".join(problems))
         surrogates, domain = _curve_surrogates(curves, bundle, spec, agent)
         acoustic, f_res = [], None
         if spec.acoustic:
@@ -130,9 +130,6 @@ def _curve_surrogates(curves: list, bundle, spec, agent: str) -> tuple[list, lis
             sur = bundle.get(curve.kind, curve.diameter_um)
         except KeyError as exc:
             raise CalibrationError(f"{exc.args[0]}; the {agent} curve {curve.name} needs it") from None
-        if spec.setup != curve.kind:
-            raise CalibrationError(f"{spec.path}: field workflow.setup is {spec.setup!r}, the {agent} curves are "
-                                   f"{curve.kind}")
         surrogates.append(sur)
         domain += prior_box_domain_warnings(sur, spec, curve.x)
     return surrogates, domain

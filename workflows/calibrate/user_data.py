@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
+from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError, priors_fit_problems
 
 __all__ = ["PRIORS_FOR_ALL", "SAFE_NAME", "UserAgent", "user_agents", "user_agent_plans"]
 
@@ -250,15 +250,12 @@ def user_agent_plans(config: CalibrationConfig, bundle, out: Path) -> list:
         except PriorError as exc:
             problems.append(f"agent {agent.name}: {exc}")
             continue
-        if spec.setup != agent.protocol:
-            problems.append(f"{spec.path}: field workflow.setup is {spec.setup!r}, but the bubbles of agent "
-                            f"{agent.label!r} are measured by {agent.protocol}")
+        bad = priors_fit_problems(spec, protocol=agent.protocol, workflow=workflow,
+                                  who=f"the bubbles of agent {agent.name!r}")
+        if bad:
+            problems += bad
             continue
         wants_acoustic = workflow == "reduced-acoustic"
-        if spec.acoustic != wants_acoustic:
-            problems.append(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but agent "
-                            f"{agent.name} runs workflow {workflow!r}")
-            continue
         surrogates, bad, domain = _bubble_surrogates(agent, bundle, spec, config.networks)
         problems += bad
         acoustic, f_res = [], None

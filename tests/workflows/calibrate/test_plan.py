@@ -83,3 +83,27 @@ def test_no_shipped_bundle_message(tmp_path, monkeypatch):
     monkeypatch.setattr(bundle_mod, "__file__", str(tmp_path / "nowhere" / "bundle.py"))
     with pytest.raises(CalibrationError, match="no shipped surrogate bundle found at .*synthetic-bundle"):
         make_plan(CalibrationConfig(agents=("definity",), out=tmp_path / "o"))
+
+
+def test_priors_of_another_protocol_or_acoustic_flag_are_named(tmp_path, synthetic_bundle):
+    """A priors file written for indentation and for the acoustic workflow, given to compression curves without
+    acoustic data: both fields named, for the published curves and for measured bubbles alike."""
+    from bubblecal.priors import prior_path
+
+    text = Path(prior_path("definity_reduced_acoustic")).read_text()
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text(text.replace('setup = "compression"', 'setup = "indentation"'))
+    with pytest.raises(CalibrationError) as err:
+        make_plan(CalibrationConfig(agents=("definity",), workflow="reduced", bundle=synthetic_bundle,
+                                    priors={"definity": str(wrong)}, population=200, out=tmp_path / "o"))
+    msg = str(err.value)
+    assert "wrong.toml: field workflow.setup is 'indentation', but the definity curves are compression" in msg
+    assert "field workflow.acoustic is true, but workflow 'reduced' of the definity curves needs false" in msg
+    curves = tmp_path / "c.csv"
+    curves.write_text("bubble,agent,protocol,diameter_um,displacement_nm,force_nN\n"
+                      + "".join(f"b1,lab,compression,2.5,{x:.1f},{0.02 * x:.3f}\n" for x in (10.0, 40.0, 80.0)))
+    with pytest.raises(CalibrationError) as err:
+        make_plan(CalibrationConfig(workflow="reduced", data=curves, priors={"lab": str(wrong)},
+                                    population=200, out=tmp_path / "o"))
+    assert "but the bubbles of agent 'lab' are compression curves" in str(err.value)
+    assert "workflow 'reduced' of the bubbles of agent 'lab' needs false" in str(err.value)
