@@ -123,7 +123,7 @@ def test_resonance_rows_of_a_mixed_agent_and_priors_of_the_wrong_protocol(tmp_pa
     plan = make_plan(CalibrationConfig(data=curves, workflow="reduced", population=200, out=tmp_path / "o"))
     assert [a.agent for a in plan.agents] == ["mix-compression", "mix-indentation"]
     # one priors file for every agent: the indentation hierarchy refuses compression priors
-    with pytest.raises(CalibrationError, match="measured by indentation"):
+    with pytest.raises(CalibrationError, match="are indentation curves"):
         make_plan(CalibrationConfig(data=curves, workflow="reduced", population=200, out=tmp_path / "o",
                                     priors={"*": "definity_reduced"}))
 
