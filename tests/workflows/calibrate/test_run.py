@@ -189,7 +189,8 @@ def test_gpu_padding_groups_curves_by_network_shape_and_keeps_each_density(tmp_p
     from bubblecal.inference.tmcmc._flat_model import FlatModel
     from bubblecal.workflows.calibrate.run import _dataset_objects
 
-    plan = make_plan(CalibrationConfig(agents=("sonovue",), population=200, out=tmp_path / "o"), check_likelihoods=False)
+    plan = make_plan(CalibrationConfig(agents=("sonovue",), population=200, out=tmp_path / "o"),
+                     check_likelihoods=False)
     (ap,) = plan.agents
     plain, padded = _dataset_objects(ap, pad=False), _dataset_objects(ap, pad=True)
     n = len(ap.curves)
