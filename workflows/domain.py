@@ -9,11 +9,17 @@ import numpy as np
 
 from bubblecal.data import SHELL_PARAMETERS
 
-__all__ = ["PRIOR_BOX_RTOL", "prior_box_domain_warnings", "acoustic_ka_domain_warnings"]
+__all__ = ["PRIOR_BOX_RTOL", "TIER_VALIDATED_DIAMETERS_UM", "prior_box_domain_warnings", "acoustic_ka_domain_warnings",
+           "tier_validation_warnings"]
 
 #: Slack of the prior-box check, as a fraction of each training range: a Latin hypercube of n points samples the
 #: edge strata only to within width/n of the box edge, and the reduced shell's b1 = b2 = a4 = 0 sits on it.
 PRIOR_BOX_RTOL = 0.01
+
+#: Diameters [um] per protocol between which the quasi-static training curves agree with the explicit tier within
+#: the 3 % gate (benchmarks/RESULTS.md, "Fidelity tiers" and "Training sets over the diameter"): compression fails at
+#: 4.5 um, where shells buckle under the plates; indentation at 7.0 um.
+TIER_VALIDATED_DIAMETERS_UM = {"compression": (1.8, 3.0), "indentation": (1.8, 5.8)}
 
 
 def prior_box_domain_warnings(surrogate, spec, x) -> list[str]:
@@ -87,3 +93,31 @@ def acoustic_ka_domain_warnings(f_res, spec, datasets, label: str) -> list[str]:
                            f"does not contain the ka prior [{lo:.6g}, {hi:.6g}]")
     return out
 
+
+
+def tier_validation_warnings(protocol: str, diameter_um: float, name: str) -> list[str]:
+    """A note for a bubble whose size lies outside :data:`TIER_VALIDATED_DIAMETERS_UM` of its protocol.
+
+    Parameters
+    ----------
+    protocol : {'compression', 'indentation'}
+        The bubble's loading protocol.
+    diameter_um : float
+        Its diameter [um].
+    name : str
+        The bubble's name in the message.
+
+    Returns
+    -------
+    list of str
+        One message, or none inside the validated range.
+    """
+    lo, hi = TIER_VALIDATED_DIAMETERS_UM[protocol]
+    if lo <= diameter_um <= hi:
+        return []
+    why = (" (larger shells buckle under the plates in the quasi-static tier, not in the explicit one within its "
+           "protocol: docs/physics.md, 'Buckling under the plates')" if protocol == "compression" and diameter_um > hi
+           else "")
+    return [f"{name}: {protocol} at {diameter_um:g} um is outside {lo:g}-{hi:g} um, where the training curves of "
+            f"the networks over the diameter were checked against the explicit tier{why}; read its fit with that "
+            "in mind"]

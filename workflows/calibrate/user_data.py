@@ -165,7 +165,7 @@ def _bubble_surrogates(agent: UserAgent, bundle, spec, network: str) -> tuple[li
     """(surrogate per bubble, problems, domain warnings) of one hierarchy; ``network`` picks the network over the
     diameter ('fast' or 'accurate')."""
     from bubblecal.surrogates import OutOfDomainError
-    from bubblecal.workflows.domain import prior_box_domain_warnings
+    from bubblecal.workflows.domain import prior_box_domain_warnings, tier_validation_warnings
 
     surrogates, problems, domain = [], [], []
     for b in agent.bubbles:
@@ -181,6 +181,7 @@ def _bubble_surrogates(agent: UserAgent, bundle, spec, network: str) -> tuple[li
         surrogates.append(sur)
         problems += _loading_box_problems(b, sur, spec)
         domain += prior_box_domain_warnings(sur, spec, b.loading_curve().x)
+        domain += tier_validation_warnings(b.protocol, b.diameter_um, f"bubble {b.bubble!r}")
     return surrogates, problems, domain
 
 

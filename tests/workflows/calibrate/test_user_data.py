@@ -88,6 +88,9 @@ def test_plan_one_hierarchy_per_agent_on_networks_over_the_diameter(tmp_path, tw
     # the report says which priors and workflow each agent got
     assert any("definity_reduced_acoustic" in n for n in lipid.notes)
     assert any("sonovue_reduced" in n for n in poly.notes) and any("no resonance rows" in n for n in poly.notes)
+    # a compression bubble above the sizes checked against the explicit tier is noted; one inside is not
+    assert any("bubble 'A2': compression at 3.7 um is outside 1.8-3 um" in w for w in lipid.domain_warnings)
+    assert not any("'A1'" in w and "outside" in w for w in lipid.domain_warnings)
 
 
 def test_every_problem_named_at_once_before_sampling(tmp_path):
@@ -190,3 +193,17 @@ def test_measured_bubbles_on_cpu_cores_pad_to_length_buckets():
     assert all(np.array_equal(a[0][:len(c.x)], c.x) for (a, _), c in zip(args, curves, strict=True))
     assert _pad_curves(CalibrationConfig(data=Path("c.csv"))) == LENGTH_BUCKET
     assert _pad_curves(CalibrationConfig()) is False and _pad_curves(CalibrationConfig(device="gpu")) is True
+
+
+def test_bubbles_outside_the_validated_sizes_are_noted():
+    """A compression bubble above 3 um and an indentation bubble above 5.8 um get a note naming the range and the
+    bubble; sizes inside get none."""
+    from bubblecal.workflows.domain import TIER_VALIDATED_DIAMETERS_UM, tier_validation_warnings
+
+    assert tier_validation_warnings("compression", 2.5, "b") == []
+    assert tier_validation_warnings("indentation", 5.8, "b") == []
+    (note,) = tier_validation_warnings("compression", 4.5, "bubble 'big'")
+    assert "bubble 'big': compression at 4.5 um is outside 1.8-3 um" in note and "buckle" in note
+    (note,) = tier_validation_warnings("indentation", 7.0, "bubble 'x'")
+    assert "outside 1.8-5.8 um" in note and "buckle" not in note
+    assert tier_validation_warnings("indentation", 1.5, "s") and TIER_VALIDATED_DIAMETERS_UM["compression"][1] == 3.0
