@@ -1,10 +1,10 @@
 """What a NetCDF phase file costs to write at a given number of draws, and where the time goes.
 
-A phase result of ``--draws`` TMCMC-like draws (``--distinct`` distinct particles resampled, as a final TMCMC
-population is) of four shell and noise parameters, with a ``--points``-point pointwise log likelihood, is turned into
-its InferenceData (``bubblecal.workflows.calibrate.phase_inference_data``) and written as the calibration writes it
-(``write_phase``: ArviZ's ``to_netcdf``, zlib-compressed), then as one xarray DataTree write without compression and
-with zlib level 1, and as ``.npz``.  Best of ``--repeat`` per variant.
+A phase result of ``--draws`` TMCMC-like float32 draws (``--distinct`` distinct particles resampled, as a final
+TMCMC population is) of four shell and noise parameters, with a ``--points``-point pointwise log likelihood, is
+turned into its InferenceData (``bubblecal.workflows.calibrate.phase_inference_data``) and written as the
+calibration writes it (``write_phase``: ArviZ's ``to_netcdf``, zlib-compressed), then as one xarray DataTree write
+without compression and with zlib level 1, and as ``.npz``.  Best of ``--repeat`` per variant.
 
 Usage::
 
@@ -40,9 +40,10 @@ def main() -> None:
 
     rng = np.random.default_rng(0)
     pick = rng.integers(0, args.distinct, args.draws)
-    samples = {k: rng.normal(size=args.distinct)[pick] for k in ("ka", "kb", "d0", "sigma_mech")}
-    pointwise = {"obs": rng.normal(size=(args.distinct, args.points))[pick]}
-    loglik = rng.normal(size=args.distinct)[pick]
+    # float32, as the samplers' draws and log likelihoods are
+    samples = {k: rng.normal(size=args.distinct).astype(np.float32)[pick] for k in ("ka", "kb", "d0", "sigma_mech")}
+    pointwise = {"obs": rng.normal(size=(args.distinct, args.points)).astype(np.float32)[pick]}
+    loglik = rng.normal(size=args.distinct).astype(np.float32)[pick]
     result = PhaseResult("phase3_bench", samples, -10.0, 0.1, "converged", 1.0)
     folder = args.out or Path(tempfile.mkdtemp(prefix="phase_file_cost_"))
     folder.mkdir(parents=True, exist_ok=True)
