@@ -197,7 +197,8 @@ def train(
 def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic surrogate .json or a bundle "
                                                "directory.")) -> None:
     """Print the metadata of a surrogate file (mechanical or acoustic) or the contents of a bundle."""
-    from bubblecal.surrogates import AcousticFormatError, SurrogateFormatError, load, load_bundle
+    from bubblecal.surrogates import AcousticFormatError, SurrogateFormatError, load, load_bundle, load_validation
+    from bubblecal.surrogates.bundle_validation import validation_lines
 
     try:
         if path.suffix.lower() == ".json" and not path.is_dir():
@@ -209,6 +210,7 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic su
             typer.echo(text)
         elif path.is_dir():
             b = load_bundle(path)
+            figures = load_validation(path)
             if b.manifest.get("notes"):
                 typer.echo(f"notes: {b.manifest['notes']}")
             listed = [(b.surrogates[key], None) for key in b.keys()]
@@ -222,6 +224,8 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic su
                 typer.echo(f"  trained on {md.get('source', '?')}: {md.get('n_curves_train', '?')} curves "
                            f"({md.get('n_prefix_curves_train', 0)} failure-truncated prefixes), "
                            f"held-out median relative L2 {sur.holdout_score:.3g}{ldo}")
+                for line in validation_lines(figures, sur.path.name if sur.path else ""):
+                    typer.echo(line)
             for name, ac in list(b.acoustic.items()) + list(b.acoustic_law.items()):
                 typer.echo(f"acoustic {name}: " + (_acoustic_law_text(ac) if hasattr(ac, "law") else
                                                    f"diameters {', '.join(f'{d:g}' for d in ac.diameters)} um"))
