@@ -30,7 +30,14 @@ def test_stored_without_outputs_and_paired(path):
         f"{path.name} and {twin.name} differ: run `jupytext --sync {twin}`"
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+#: Run under ``-m slow`` only: the hierarchy notebook (~100 s on 2 cores, mostly compilation) keeps the default
+#: suite under the CI limit; its code paths (staged TMCMC, joint NUTS, exact phase 3) are tested by
+#: tests/inference/test_hierarchical.py and tests/workflows/calibrate/test_run.py.
+SLOW_NOTEBOOKS = {"04_hierarchy"}
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW_NOTEBOOKS else p
+                                  for p in NOTEBOOKS], ids=lambda p: p.stem)
 def test_notebook_runs(path, tmp_path, monkeypatch):
     monkeypatch.setenv("BUBBLECAL_NOTEBOOK_SMALL", "1")
     monkeypatch.setenv("MPLBACKEND", "Agg")
