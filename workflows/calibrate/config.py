@@ -363,4 +363,3 @@ def priors_fit_problems(spec, *, protocol: str, workflow: str, who: str) -> list
         problems.append(f"{spec.path}: field workflow.acoustic is {str(spec.acoustic).lower()}, but workflow "
                         f"{workflow!r} of {who} needs {str(wants).lower()}")
     return problems
-
