@@ -72,10 +72,11 @@ def write_bundle(path: str | Path, surrogate_files: Iterable[str | Path] = (),
         if role != DEFAULT_NETWORK and not sur.over_diameter:
             raise SurrogateFormatError(f"{f}: a {role} network must be a network over the diameter (this one is "
                                        f"per diameter, {sur.diameter_um:g} um)")
-        if sur.over_diameter and (sur.setup, role) in roles:
-            raise SurrogateFormatError(f"{f}: a second {role!r} {sur.setup} network over the diameter (the first: "
-                                       f"{roles[sur.setup, role]})")
-        roles[sur.setup, role] = f
+        if sur.over_diameter:
+            if (sur.setup, role) in roles:
+                raise SurrogateFormatError(f"{f}: a second {role!r} {sur.setup} network over the diameter (the "
+                                           f"first: {roles[sur.setup, role]})")
+            roles[sur.setup, role] = f
         loaded.append((f, role, sur))
     for f, role, sur in loaded:
         dest = path / f.name

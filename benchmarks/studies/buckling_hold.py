@@ -54,6 +54,8 @@ def main() -> None:
     ap.add_argument("--tier", default="implicit", choices=("implicit", "explicit"), help="the MD tier")
     ap.add_argument("--scale", type=float, default=0.25, help="MD protocol scale (steps per point)")
     ap.add_argument("--subdivisions", type=int, default=None, help="mesh level (default: the campaign's)")
+    ap.add_argument("--box-pad", type=float, default=None,
+                    help="explicit tier: periodic box (2R+pad, 2R+pad, 2R+pad+5) [DPD length] (default: the tier's, pad 5)")
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--out", type=Path, default=None, help="JSON file of every curve")
     args = ap.parse_args()
@@ -72,7 +74,13 @@ def main() -> None:
                            subdivisions=args.subdivisions or cfg.subdivisions)
     out = {}
     qs = get_tier("quasistatic", **{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"})
-    for name, tier in (("quasistatic", qs), (args.tier, get_tier(args.tier, scale=args.scale))):
+    md_settings = {"scale": args.scale}
+    if args.box_pad is not None:
+        from bubblecal.surrogates import radius_of_diameter
+
+        side = 2.0 * float(radius_of_diameter(args.diameter)) + args.box_pad
+        md_settings["box"] = (side, side, side + 5.0)
+    for name, tier in (("quasistatic", qs), (args.tier, get_tier(args.tier, **md_settings))):
         t0 = time.perf_counter()
         batch = tier.run(request, args.device)
         out[name] = {"force": np.asarray(batch.observable, float), "status": list(batch.status),
@@ -87,7 +95,7 @@ def main() -> None:
     for i, row in zip(points, ratio, strict=True):
         print(f"  point {i}: " + " ".join(f"{v:.3f}" for v in row), flush=True)
     line = {"study": "buckling_hold", "campaign": CAMPAIGN, "diameter_um": args.diameter, "points": points,
-            "depth_fraction": args.depth, "tier": args.tier, "scale": args.scale,
+            "depth_fraction": args.depth, "tier": args.tier, "scale": args.scale, "box": md_settings.get("box"),
             "ratio_first_hold": ratio[:, 0].tolist(), "ratio_last_hold": ratio[:, -1].tolist(),
             "seconds": {k: v["seconds"] for k, v in out.items()}}
     if args.out:

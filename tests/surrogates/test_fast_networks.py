@@ -96,6 +96,8 @@ def test_manifest_roles_are_validated(tmp_path):
                                "compression_3um.npz")
     out = tmp_path / "b"
     write_bundle(out, [acc_c, per], fast_files=[fast_c])
+    # a per-diameter file of the same protocol is no second network over the diameter, in either order
+    assert len(json.loads(write_bundle(tmp_path / "g", [per, acc_c]).read_text())["surrogates"]) == 2
     mpath = out / "manifest.json"
     good = json.loads(mpath.read_text())
 
