@@ -93,8 +93,10 @@ def test_info_prints_the_provenance():
     assert r.exit_code == 0, r.output
     for name in ("definity_compression_2.1um", "definity_compression_2.9um", "definity_compression_3.0um",
                  "sonovue_indentation_3.2um_mirheo", "sonovue_indentation_3.4um_mirheo",
-                 "sonovue_indentation_5.8um_mirheo", *WIDE.values()):
+                 "sonovue_indentation_5.8um_mirheo"):
         assert f"trained on data/training/{name}.jsonl.gz" in r.output
+    for names in WIDE.values():
+        assert "trained on " + " + ".join(f"data/training/{n}.jsonl.gz" for n in names) + ":" in r.output
     assert "acoustic definity" in r.output and "acoustic sonovue" in r.output
     assert "Surrogate(compression, 1.5-8 um" in r.output and "Surrogate(indentation, 1.5-8 um" in r.output
     assert "law 'definity'" in r.output and "diameter 1.5-11.2 um" in r.output and "law 'sonovue'" in r.output
@@ -103,8 +105,10 @@ def test_info_prints_the_provenance():
 # -------------------------------------------------------------------------------------------------
 # over the diameter: the two mechanical networks and the two acoustic laws
 # -------------------------------------------------------------------------------------------------
-#: The network over the diameter of each loading protocol and the shipped set it was trained on.
-WIDE = {"compression": "definity_compression_1.5-8um", "indentation": "sonovue_indentation_1.5-8um_mirheo"}
+#: The network over the diameter of each loading protocol and the shipped sets it was trained on (together); the
+#: first is the design over the whole box.
+WIDE = {"compression": ("definity_compression_1.5-8um",),
+        "indentation": ("sonovue_indentation_1.5-8um_mirheo", "sonovue_indentation_1.5-8um_reduced_mirheo")}
 #: The workflows whose prior boxes each network must cover.
 WIDE_WORKFLOWS = {"compression": ("definity_full", "definity_reduced", "definity_reduced_acoustic"),
                   "indentation": ("sonovue_full", "sonovue_reduced", "sonovue_reduced_acoustic")}
@@ -116,10 +120,11 @@ def test_network_over_the_diameter_provenance_sweep_and_box(bundle, setup):
     from bubblecal.campaigns import load_campaign_file
     from bubblecal.priors import load_priors
 
-    sur, name = bundle.over_diameter[setup], WIDE[setup]
+    sur, name = bundle.over_diameter[setup], WIDE[setup][0]
     md = sur.metadata
     assert not md.get("synthetic", False)
-    assert md["source"] == f"data/training/{name}.jsonl.gz" and (TRAINING / f"{name}.jsonl.gz").is_file()
+    assert md["source"] == " + ".join(f"data/training/{n}.jsonl.gz" for n in WIDE[setup])
+    assert all((TRAINING / f"{n}.jsonl.gz").is_file() for n in WIDE[setup])
     assert md["n_curves_train"] >= 20_000
     # the full 12-architecture sweep; the selection takes the worse of the held-out and leave-diameters-out medians
     sweep = md["training"]["sweep"]
@@ -161,7 +166,7 @@ def test_get_binds_the_network_over_the_diameter_where_no_per_diameter_one_exist
         for d in (1.5, 4.5, 8.0):
             sur = bundle.get(setup, d)
             assert sur.over_diameter and sur.diameter_um == pytest.approx(d)
-            assert sur.metadata["source"].endswith(f"{WIDE[setup]}.jsonl.gz")
+            assert sur.metadata["source"].startswith(f"data/training/{WIDE[setup][0]}.jsonl.gz")
         for d in (1.2, 9.0):
             with pytest.raises(KeyError, match=rf"no {setup} surrogate at {d:g} um .*1\.5-8 um \(over the diameter\)"):
                 bundle.get(setup, d)
@@ -191,9 +196,11 @@ def test_shipped_set_gives_the_data_hash_the_network_records(bundle, setup):
     """`bubblecal surrogates train` on the shipped file (default filter) sees the data the network was trained on."""
     import hashlib
 
-    from bubblecal.surrogates.training import filter_curves, read_dataset
+    from bubblecal.surrogates.training import concat_training_sets, filter_curves, read_dataset
 
-    path = TRAINING / f"{WIDE[setup]}.jsonl.gz"
-    assert hashlib.sha256(path.read_bytes()).hexdigest() in (TRAINING / "README.md").read_text()
-    ts, _ = filter_curves(read_dataset(path, setup=setup), keep_failed_prefix=True)
+    paths = [TRAINING / f"{n}.jsonl.gz" for n in WIDE[setup]]
+    for path in paths:
+        assert hashlib.sha256(path.read_bytes()).hexdigest() in (TRAINING / "README.md").read_text()
+    raw = concat_training_sets([read_dataset(path, setup=setup) for path in paths])
+    ts, _ = filter_curves(raw, keep_failed_prefix=True)
     assert ts.data_hash() == bundle.over_diameter[setup].data_hash
