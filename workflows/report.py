@@ -165,7 +165,7 @@ def _surrogates_phrase(config) -> str:
     if config.data is not None:
         return f"the networks over the diameter ({config.networks}) for every bubble"
     if config.resolved_surrogates == "per-diameter":
-        return "per-diameter files where the bundle has them (the paper's set-up)"
+        return "the per-diameter files and acoustic quadratics where the bundle has them (the paper's set-up)"
     return (f"the networks over the diameter ({config.networks}) and the acoustic laws where the bundle has them, "
             "else its per-diameter files")
 
