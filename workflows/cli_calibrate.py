@@ -250,8 +250,8 @@ def evidence(
     seed: int = typer.Option(_D.seed, "--seed"),
     surrogates: Surrogates = typer.Option(_D.resolved_surrogates, "--surrogates", help="The networks over the "
                                           "diameter (over-diameter, calibrate's default) or the per-diameter files "
-                                          "(per-diameter, calibrate --paper's); the same as the calibration the "
-                                          "report puts the evidence beside."),
+                                          "(per-diameter, calibrate --paper's); give the calibration's own, since "
+                                          "its report shows the evidence beside it."),
     networks: Networks = typer.Option(_D.networks, "--networks", help="With --surrogates over-diameter: the fast "
                                       "or the accurate networks."),
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
