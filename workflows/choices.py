@@ -16,10 +16,17 @@ from bubblecal.data import AGENTS, LOADING_PROTOCOLS, UNITS
 from bubblecal.sim.protocols.ringdown.batch import RINGDOWN_TIERS
 from bubblecal.sim.tiers.base import TIER_NAMES
 from bubblecal.surrogates.resonance_law import LAW_FORMS
-from bubblecal.workflows.calibrate.config import DEVICES, NETWORKS, PHASE3_TARGETS, SAMPLERS, WORKFLOWS
+from bubblecal.workflows.calibrate.config import (
+    DEVICES,
+    NETWORKS,
+    PHASE3_TARGETS,
+    SAMPLERS,
+    SURROGATE_CHOICES,
+    WORKFLOWS,
+)
 
-__all__ = ["ALL_AGENTS", "Agent", "AgentOrAll", "Workflow", "Sampler", "JaxDevice", "Phase3", "Networks", "Tier",
-           "RingdownTier", "LoadingProtocol", "Units", "LawFormName", "choice_value"]
+__all__ = ["ALL_AGENTS", "Agent", "AgentOrAll", "Workflow", "Sampler", "JaxDevice", "Phase3", "Networks", "Surrogates",
+           "Tier", "RingdownTier", "LoadingProtocol", "Units", "LawFormName", "choice_value"]
 
 #: ``--agent`` value selecting every agent.
 ALL_AGENTS = "all"
@@ -44,6 +51,8 @@ JaxDevice = _choices("JaxDevice", DEVICES)
 Phase3 = _choices("Phase3", PHASE3_TARGETS)
 #: Networks over the diameter (``calibrate --networks``).
 Networks = _choices("Networks", NETWORKS)
+#: Which surrogates serve the published study (``calibrate --surrogates``).
+Surrogates = _choices("Surrogates", SURROGATE_CHOICES)
 #: A DPD fidelity tier (:data:`bubblecal.sim.TIER_NAMES`).
 Tier = _choices("Tier", TIER_NAMES)
 #: A tier that runs the ringdown protocol.

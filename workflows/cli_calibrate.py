@@ -29,6 +29,7 @@ from bubblecal.workflows.choices import (
     Networks,
     Phase3,
     Sampler,
+    Surrogates,
     Tier,
     Workflow,
     choice_value,
@@ -93,8 +94,13 @@ def calibrate(
                               "instead of the published study (check it first: bubblecal data check FILE)."),
     acoustic: Path = typer.Option(None, "--acoustic", help="Tidy resonance CSV for the agents of --data (agent, "
                                   "diameter_um, frequency_MHz[, source])."),
-    networks: Networks = typer.Option(_D.networks, "--networks", help="With --data: the bundle's fast networks over "
-                                      "the diameter (many bubbles on CPU cores) or its accurate ones."),
+    networks: Networks = typer.Option(_D.networks, "--networks", help="Where the networks over the diameter serve "
+                                      "(--data, or the published study with --surrogates over-diameter): the "
+                                      "bundle's fast ones (cheaper per point) or its accurate ones."),
+    surrogates: Surrogates = typer.Option(_D.surrogates, "--surrogates", help="Published study: the networks over "
+                                          "the diameter and the acoustic laws (over-diameter) or the files fitted at "
+                                          "each published diameter (per-diameter, the paper's set-up). Default: "
+                                          "per-diameter with --paper, else over-diameter.", show_default=False),
     data_dir: Path = typer.Option(_D.data_dir, "--data-dir", help="Folder of curve CSVs (DPD units) named like the "
                                   "shipped ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
                                   "acoustic_observations_published.csv, replacing them."),
@@ -122,8 +128,8 @@ def calibrate(
     OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
-    agent, workflow, sampler, device, phase3, networks = (choice_value(o) for o in (agent, workflow, sampler, device,
-                                                                                   phase3, networks))
+    agent, workflow, sampler, device, phase3, networks, surrogates = (
+        choice_value(o) for o in (agent, workflow, sampler, device, phase3, networks, surrogates))
     if workflow is None:
         workflow = _D.workflow if data is None or acoustic is not None else "reduced"
     _compilation_cache(cache)
@@ -133,7 +139,7 @@ def calibrate(
         config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
                                    paper=paper, out=out, device=device, bundle=bundle, force=force, seed=seed,
                                    priors=priors_map, data_dir=data_dir, data=data, acoustic_data=acoustic,
-                                   networks=networks, curves=tuple(curve or ()),
+                                   networks=networks, surrogates=surrogates, curves=tuple(curve or ()),
                                    phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
                                    nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
                                    netcdf=netcdf, figures=figures, phase3=phase3)
@@ -143,7 +149,11 @@ def calibrate(
     if plan.synthetic_bundle:
         console.print(f"[bold yellow]warning:[/] {plan.bundle_path} is a SYNTHETIC bundle (closed-form laws, not DPD): "
                       "the posteriors are not physical results", highlight=False)
+    from bubblecal.workflows.calibrate import served_lines
+
     for ap in plan.agents:
+        for line in served_lines(ap, plan.bundle):
+            console.print(f"surrogates: {escape(ap.agent)}: {escape(line)}", highlight=False)
         for note in ap.notes:
             console.print(f"[cyan]note:[/] {escape(ap.agent)}: {escape(note)}", highlight=False)
         for msg in ap.domain_warnings[:5]:
@@ -238,6 +248,12 @@ def evidence(
     bundle: Path = typer.Option(_D.bundle, "--bundle", help="Surrogate bundle directory (default: the shipped one)."),
     device: JaxDevice = typer.Option(_D.device, "--device", help="JAX device."),
     seed: int = typer.Option(_D.seed, "--seed"),
+    surrogates: Surrogates = typer.Option(_D.resolved_surrogates, "--surrogates", help="The networks over the "
+                                          "diameter (over-diameter, calibrate's default) or the per-diameter files "
+                                          "(per-diameter, calibrate --paper's); give the calibration's own, since "
+                                          "its report shows the evidence beside it."),
+    networks: Networks = typer.Option(_D.networks, "--networks", help="With --surrogates over-diameter: the fast "
+                                      "or the accurate networks."),
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
                                "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
 ) -> None:
@@ -250,7 +266,8 @@ def evidence(
     from bubblecal.workflows.console import make_table
     from bubblecal.workflows.evidence import run_evidence
 
-    agent, device = choice_value(agent), choice_value(device)
+    agent, device, surrogates, networks = (choice_value(o) for o in (agent, device, surrogates, networks))
+    lookup = {"prefer": surrogates, "network": networks}
     _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     if population < 100 or replicas < 2:
@@ -263,14 +280,14 @@ def evidence(
             from bubblecal.data import reference_curves
 
             for c in reference_curves(a):
-                b.get(c.kind, c.diameter_um)
+                b.get(c.kind, c.diameter_um, **lookup)
     except (CalibrationError, KeyError) as exc:
         raise fail(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
     display = StageDisplay("TMCMC", num_replicas=replicas, console=console)
     try:
         df = run_evidence(agents, b, population=population, replicas=replicas, seed=seed, device=device, out=out,
                           curves=tuple(curve or ()), progress=lambda m: console.print(f"  {m}", highlight=False),
-                          stages=display)
+                          stages=display, surrogates=surrogates, networks=networks)
     finally:
         display.close()
     table = make_table("Model evidence per curve: full vs reduced shell (ln Z, Bayes factor; PSIS-LOO)",

@@ -104,7 +104,8 @@ def confirm_run(run_dir: Path, *, tier: str = DEFAULT_TIER, device: str = "cpu",
     subdivisions : int or None
         Icosphere level (None: the tier's).
     bundle : bubblecal.surrogates.Bundle or None
-        A loaded bundle whose surrogates replace the run's (None: the run's own, as its manifest describes them).
+        A loaded bundle whose surrogates replace the run's, of the kind and network role the run's manifest
+        records (None: the run's own, as its manifest describes them).
     tier_settings : dict or None
         Keyword arguments of :func:`bubblecal.sim.tiers.get_tier` (e.g. ``scale``).
     progress : callable or None
@@ -127,13 +128,14 @@ def confirm_run(run_dir: Path, *, tier: str = DEFAULT_TIER, device: str = "cpu",
 
     from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.tiers import CurveRequest, get_tier
-    from bubblecal.workflows.calibrate import run_plan
+    from bubblecal.workflows.calibrate import run_config, run_plan
 
     run_dir = Path(run_dir)
     say = progress or (lambda _m: None)
     ap = run_plan(run_dir)  # the run's own curves and surrogates: published or the user's bubbles
     agent, spec = ap.agent, ap.spec
-    surrogates = ap.surrogates if bundle is None else [bundle.get(c.kind, c.diameter_um) for c in ap.curves]
+    lookup = run_config(run_dir)[0].surrogate_lookup()  # another bundle answers with the kind the run used
+    surrogates = ap.surrogates if bundle is None else [bundle.get(c.kind, c.diameter_um, **lookup) for c in ap.curves]
     settings = dict(tier_settings or {})
     if subdivisions is not None:
         settings["subdivisions"] = subdivisions

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate import DEFAULT_POPULATION
+from bubblecal.workflows.calibrate import DEFAULT_POPULATION, CalibrationConfig
 
 __all__ = ["kass_raftery", "loo_columns", "run_evidence", "EVIDENCE_COLUMNS", "DEFAULT_REPLICAS", "PARETO_K_LIMIT"]
 
@@ -37,9 +37,11 @@ EVIDENCE_COLUMNS = ("agent", "curve", "diameter_um", "log_z_full", "log_z_full_s
                     "log_z_reduced_se", "ln_bayes_factor", "ln_bayes_factor_se", "favours", "verdict", "num_particles",
                     "num_replicas", "seconds", "elpd_loo_full", "elpd_loo_full_se", "p_loo_full", "pareto_k_bad_full",
                     "elpd_loo_reduced", "elpd_loo_reduced_se", "p_loo_reduced", "pareto_k_bad_reduced",
-                    "elpd_diff", "elpd_diff_se", "loo_favours")
+                    "elpd_diff", "elpd_diff_se", "loo_favours", "surrogate")
 #: Pareto k̂ above which a point's PSIS leave-one-out estimate is unreliable.
 PARETO_K_LIMIT = 0.7
+#: The defaults ``evidence`` shares with ``calibrate`` (its surrogates and network without ``--paper``).
+_D = CalibrationConfig()
 
 
 def kass_raftery(ln_b: float, se: float = 0.0) -> tuple[str, str]:
@@ -112,7 +114,8 @@ def loo_columns(idatas) -> dict:
 def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replicas: int = DEFAULT_REPLICAS,
                  seed: int = 0, device: str = "cpu", out: Path | None = None, curves: tuple[str, ...] = (),
                  num_mcmc_steps: int = 10, progress: Callable[[str], None] | None = None,
-                 stages: Callable[[int, Mapping], None] | None = None):
+                 stages: Callable[[int, Mapping], None] | None = None, surrogates: str | None = None,
+                 networks: str = _D.networks):
     """ln Z of the full and the reduced shell for every curve of ``agents``, and the Bayes factors.
 
     Parameters
@@ -140,13 +143,27 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
     stages : callable or None
         ``stages(replica, row)``: each TMCMC stage (the ``progress`` reporter of
         :class:`~bubblecal.inference.TMCMC`).
+    surrogates : {'over-diameter', 'per-diameter'} or None
+        Which surrogates serve the curves, as ``calibrate --surrogates`` (None: calibrate's default without
+        ``--paper``, the networks over the diameter); the per-diameter file answers where no network covers a
+        curve.
+    networks : {'fast', 'accurate'}
+        Role of the network over the diameter.
 
     Returns
     -------
     pandas.DataFrame
-        Columns :data:`EVIDENCE_COLUMNS` (PSIS-LOO columns from :func:`loo_columns`). ln Z and elpd are
+        Columns :data:`EVIDENCE_COLUMNS` (PSIS-LOO columns from :func:`loo_columns`; ``surrogate`` names the
+        surrogate of the curve, :func:`~bubblecal.workflows.calibrate.surrogate_label`). ln Z and elpd are
         dimensionless (natural log of a density of the curve's y
         in DPD units).
+
+    Raises
+    ------
+    KeyError
+        When the bundle has no surrogate for a curve.
+    ValueError
+        For an unknown ``surrogates`` or ``networks``.
     """
     import time
 
@@ -157,9 +174,10 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
     from bubblecal.inference import TMCMC
     from bubblecal.models import mechanical_model
     from bubblecal.priors import load_priors
-    from bubblecal.workflows.calibrate import PAPER_COV, PAPER_COV_SCALE, on_device
+    from bubblecal.workflows.calibrate import PAPER_COV, PAPER_COV_SCALE, on_device, surrogate_label
 
     say = progress or (lambda _m: None)
+    lookup = {"prefer": surrogates or _D.resolved_surrogates, "network": networks}
     rows = []
     key = jax.random.PRNGKey(seed)
     for agent in agents:
@@ -168,8 +186,9 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
         for curve in reference_curves(agent):
             if curves and curve.name not in curves:
                 continue
-            sur = bundle.get(curve.kind, curve.diameter_um)
-            row = {"agent": agent, "curve": curve.name, "diameter_um": curve.diameter_um}
+            sur = bundle.get(curve.kind, curve.diameter_um, **lookup)
+            row = {"agent": agent, "curve": curve.name, "diameter_um": curve.diameter_um,
+                   "surrogate": surrogate_label(sur, bundle)}
             t0 = time.perf_counter()
             idatas = {}
             for model_name, spec in specs.items():

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from bubblecal.workflows.calibrate import phase2_samples
+from bubblecal.workflows.calibrate import phase2_samples, served_lines
 from bubblecal.workflows.summary import PHYSICAL, POPULATION_ROW, bubble_rows, population_bands
 
 __all__ = ["DETAIL_DATASETS", "summary_table", "hyperprior_bound_notes", "bubble_lines", "population_lines",
@@ -160,6 +160,16 @@ def population_lines(result) -> list[str]:
     return lines
 
 
+def _surrogates_phrase(config) -> str:
+    """What the run's ``surrogates`` / ``networks`` settings asked for (the lines below it say what served)."""
+    if config.data is not None:
+        return f"the networks over the diameter ({config.networks}) for every bubble"
+    if config.resolved_surrogates == "per-diameter":
+        return "the per-diameter files and acoustic quadratics where the bundle has them (the paper's set-up)"
+    return (f"the networks over the diameter ({config.networks}) and the acoustic laws where the bundle has them, "
+            "else its per-diameter files")
+
+
 def _data_line(ap) -> str:
     """The datasets of a run: their names, or past :data:`DETAIL_DATASETS` their count, protocols and diameters."""
     if len(ap.curves) <= DETAIL_DATASETS:
@@ -257,6 +267,8 @@ def write_report(result, plan) -> Path:
     lines += [
         "## Inputs", "",
         f"- surrogate bundle: `{plan.bundle_path}` — {plan.bundle.manifest.get('notes', '')[:200]}",
+        f"- surrogates: {_surrogates_phrase(config)}",
+        *[f"  - {line}" for line in served_lines(ap, plan.bundle)],
         f"- priors: `{ap.priors_path}`",
         f"- data: {_data_line(ap)}" + (f" (from `{config.data}`" + (f" and `{config.acoustic_data}`"
                                         if config.acoustic_data else "") + ")" if config.data else ""),
@@ -328,6 +340,9 @@ def write_report(result, plan) -> Path:
             lines.append(f"| {r.curve} | {r.log_z_full:.3f} ± {r.log_z_full_se:.3f} | {r.log_z_reduced:.3f} ± "
                          f"{r.log_z_reduced_se:.3f} | {r.ln_bayes_factor:.3f} ± {r.ln_bayes_factor_se:.3f} | "
                          f"{r.verdict} |" + cells)
+        if "surrogate" in e.columns:  # evidence.csv written before it was recorded has no such column
+            lines += ["", "Surrogates of the evidence runs: " + "; ".join(
+                f"{r.curve}: {r.surrogate}" for r in e.itertuples())]
         lines += ["", "Source: [evidence.csv](../evidence.csv)", ""]
     if result.figures:
         lines += ["## Figures", ""]

@@ -55,7 +55,7 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=0.25, help="MD protocol scale (steps per point)")
     ap.add_argument("--subdivisions", type=int, default=None, help="mesh level (default: the campaign's)")
     ap.add_argument("--box-pad", type=float, default=None,
-                    help="explicit tier: periodic box (2R+pad, 2R+pad, 2R+pad+5) [DPD length] (default: the tier's, pad 5)")
+                    help="explicit tier: periodic box (2R+pad, 2R+pad, 2R+pad+5) [DPD length] (default: the tier's: 5)")
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--out", type=Path, default=None, help="JSON file of every curve")
     args = ap.parse_args()

@@ -12,7 +12,8 @@ Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.published` (the published study's inputs),
 :mod:`~bubblecal.workflows.calibrate.user_data` (measured bubbles from tidy files: ``data=CURVES.csv``),
 :mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one
-run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws).
+run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws),
+:mod:`~bubblecal.workflows.calibrate.served` (which surrogate served each dataset, in words).
 
 Measured bubbles: ``CalibrationConfig(data=Path("curves.csv"), acoustic_data=Path("resonance.csv"))`` runs one
 hierarchy per agent label of the file (``out/<label>/<workflow>/``).
@@ -49,6 +50,7 @@ from bubblecal.workflows.calibrate.config import (
     PHASE2_DRAW_BUDGET,
     PHASE3_TARGETS,
     SAMPLERS,
+    SURROGATE_CHOICES,
     WORKFLOWS,
     CalibrationConfig,
     CalibrationError,
@@ -75,8 +77,9 @@ from bubblecal.workflows.calibrate.phase_files import (
     read_pointwise,
     write_phase,
 )
-from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle, run_plan
+from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle, run_config, run_plan
 from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_calibration
+from bubblecal.workflows.calibrate.served import acoustic_label, served_lines, surrogate_label
 from bubblecal.workflows.calibrate.store import (
     PhaseStore,
     array_hash,
@@ -88,16 +91,17 @@ from bubblecal.workflows.calibrate.store import (
 from bubblecal.workflows.calibrate.user_data import PRIORS_FOR_ALL, user_agent_plans
 
 __all__ = [
-    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "DEFAULT_POPULATION", "PAPER_POPULATION",
-    "PAPER_COV",
+    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES", "DEFAULT_POPULATION",
+    "PAPER_POPULATION", "PAPER_COV",
     "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
     "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
     "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
     "min_population", "check_device", "on_device",
-    "AgentPlan", "Plan", "make_plan", "run_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
+    "AgentPlan", "Plan", "make_plan", "run_config", "run_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
     "PhaseStore", "PhaseFileError", "phase_dependencies",
     "write_phase", "phase_inference_data", "read_phase", "read_pointwise", "phase_format",
     "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
     "AgentResult", "agent_seed", "run_agent", "run_calibration", "PRIORS_FOR_ALL", "user_agent_plans",
+    "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
 ]

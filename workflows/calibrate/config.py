@@ -13,7 +13,8 @@ from pathlib import Path
 
 from bubblecal.data import AGENTS
 
-__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "DEFAULT_POPULATION", "PAPER_POPULATION",
+__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
+           "DEFAULT_POPULATION", "PAPER_POPULATION",
            "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
            "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
            "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
@@ -30,6 +31,9 @@ DEVICES = ("cpu", "gpu")
 #: Networks over the diameter a bundle may hold per protocol: 'fast' (smaller, for many bubbles on CPU cores)
 #: and 'accurate' (the sweep's best); docs/decisions.md, "Fast networks over the diameter".
 NETWORKS = ("fast", "accurate")
+#: Surrogates of the published study: the bundle's networks and acoustic laws over the diameter, or the files fitted
+#: at each published diameter (the paper's); docs/decisions.md, "The published study on the networks over ...".
+SURROGATE_CHOICES = ("over-diameter", "per-diameter")
 #: Default TMCMC particles per phase: small enough for both agents on a few CPU cores (compile-dominated
 #: at this size; measurements in ``benchmarks/RESULTS.md``).
 DEFAULT_POPULATION = 2000
@@ -99,9 +103,14 @@ class CalibrationConfig:
     acoustic_data : Path or None
         A tidy resonance file (MHz) for the agents of ``data``: one acoustic dataset per row.
     networks : str
-        Which network over the diameter serves the bubbles of ``data``: 'fast' or 'accurate' (:data:`NETWORKS`;
-        a bundle without a fast network answers with its accurate one). The published study keeps its
-        per-diameter surrogates.
+        Which network over the diameter serves a curve when the networks over the diameter do (the bubbles of
+        ``data``, and the published curves with ``surrogates`` 'over-diameter'): 'fast' or 'accurate'
+        (:data:`NETWORKS`; a bundle without a fast network answers with its accurate one).
+    surrogates : str or None
+        Surrogates of the published study (:data:`SURROGATE_CHOICES`): 'over-diameter' (the networks over the
+        diameter, role ``networks``, and the acoustic laws; the per-diameter file where none covers a diameter)
+        or 'per-diameter' (the files fitted at each published diameter: the paper's set-up). None: see
+        :attr:`resolved_surrogates`. ``data`` always uses the networks over the diameter.
     curves : tuple of str
         Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
     phase2_samples : int or None
@@ -145,6 +154,7 @@ class CalibrationConfig:
     data: Path | None = None
     acoustic_data: Path | None = None
     networks: str = "fast"
+    surrogates: str | None = None
     curves: tuple[str, ...] = ()
     phase2_samples: int | None = None
     num_mcmc_steps: int = 10
@@ -192,8 +202,24 @@ class CalibrationConfig:
         """Covariance scaling s² of the TMCMC proposal."""
         return PAPER_COV_SCALE
 
+    @property
+    def resolved_surrogates(self) -> str:
+        """The surrogates this run uses (:data:`SURROGATE_CHOICES`): ``surrogates`` when set, else 'per-diameter'
+        with ``paper`` and 'over-diameter' otherwise; always 'over-diameter' with ``data``."""
+        if self.data is not None:
+            return "over-diameter"
+        if self.surrogates is not None:
+            return self.surrogates
+        return "per-diameter" if self.paper else "over-diameter"
+
+    def surrogate_lookup(self) -> dict[str, str]:
+        """``prefer`` (:attr:`resolved_surrogates`) and ``network`` of :meth:`bubblecal.surrogates.Bundle.get`:
+        the keyword arguments that pick this run's mechanical surrogates."""
+        return {"prefer": self.resolved_surrogates, "network": self.networks}
+
     def as_dict(self) -> dict:
-        """The settings as a JSON-able dict (paths as strings, plus ``num_particles``).
+        """The settings as a JSON-able dict (paths as strings, plus ``num_particles``); ``surrogates`` is written
+        as :attr:`resolved_surrogates`, so a rebuilt run uses what it ran on whatever the default becomes.
 
         Returns
         -------
@@ -201,6 +227,7 @@ class CalibrationConfig:
             The manifest's ``run.config``; its hash is the run's ``config_hash``.
         """
         d = dataclasses.asdict(self)
+        d["surrogates"] = self.resolved_surrogates
         d.update({k: (None if v is None else str(v)) for k, v in d.items() if isinstance(v, Path)})
         d["agents"] = list(self.agents)
         d["priors"] = {k: str(v) for k, v in self.priors.items()}
@@ -212,6 +239,9 @@ class CalibrationConfig:
     def from_dict(cls, d: Mapping) -> CalibrationConfig:
         """The config a manifest's ``run.config`` describes: the inverse of :meth:`as_dict`.
 
+        A manifest without ``surrogates`` ran the published study on the per-diameter files, one without
+        ``networks`` on the accurate networks: both read so.
+
         Parameters
         ----------
         d : Mapping
@@ -220,10 +250,14 @@ class CalibrationConfig:
         Returns
         -------
         CalibrationConfig
-            ``from_dict(c.as_dict()) == c``.
+            ``from_dict(c.as_dict())`` equals ``c`` with ``surrogates`` set to ``c.resolved_surrogates``.
         """
         names = {f.name for f in dataclasses.fields(cls)}
         kw = {k: v for k, v in d.items() if k in names}
+        if "surrogates" not in d and d.get("data") is None:
+            kw["surrogates"] = "per-diameter"
+        if "networks" not in d:
+            kw["networks"] = "accurate"
         for k in ("agents", "curves"):
             kw[k] = tuple(kw.get(k) or ())
         for k in _PATH_FIELDS:

@@ -20,6 +20,7 @@ from bubblecal.workflows.calibrate.config import (
     PARTICLES_PER_DIMENSION,
     PHASE3_TARGETS,
     SAMPLERS,
+    SURROGATE_CHOICES,
     WORKFLOWS,
     CalibrationConfig,
     CalibrationError,
@@ -28,7 +29,7 @@ from bubblecal.workflows.calibrate.config import (
 from bubblecal.workflows.calibrate.device import check_device
 from bubblecal.workflows.calibrate.preflight import preflight
 
-__all__ = ["AgentPlan", "Plan", "resolve_bundle", "make_plan", "run_plan"]
+__all__ = ["AgentPlan", "Plan", "resolve_bundle", "make_plan", "run_config", "run_plan"]
 
 
 @dataclass
@@ -161,6 +162,9 @@ def _check_choices(config: CalibrationConfig) -> None:
         raise CalibrationError(f"--sampler must be one of {', '.join(SAMPLERS)}, got {config.sampler!r}")
     if config.networks not in NETWORKS:
         raise CalibrationError(f"--networks must be one of {', '.join(NETWORKS)}, got {config.networks!r}")
+    if config.surrogates is not None and config.surrogates not in SURROGATE_CHOICES:
+        raise CalibrationError(f"--surrogates must be one of {', '.join(SURROGATE_CHOICES)} or unset, got "
+                               f"{config.surrogates!r}")
     if config.phase3 not in PHASE3_TARGETS:
         raise CalibrationError(f"--phase3 must be one of {', '.join(PHASE3_TARGETS)}, got {config.phase3!r}")
     if config.device not in DEVICES:
@@ -185,6 +189,10 @@ def _check_data_mode(config: CalibrationConfig) -> None:
     if clash:
         raise CalibrationError(f"{', '.join(clash)}: select(s) the published study's data; with --data CURVES.csv "
                                "the file says which bubbles and agents to calibrate")
+    if config.surrogates == "per-diameter":
+        raise CalibrationError("--surrogates per-diameter: the published study's files at its own diameters; with "
+                               "--data CURVES.csv every bubble is served by the networks over the diameter "
+                               "(--networks picks fast or accurate)")
     for flag, path in (("--data", config.data), ("--acoustic", config.acoustic_data)):
         if path is not None and not Path(path).is_file():
             raise CalibrationError(f"{flag} {path}: no such file")
@@ -289,6 +297,35 @@ def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True) -> P
     return plan
 
 
+def run_config(run_dir: Path) -> tuple[CalibrationConfig, dict]:
+    """The configuration of a finished run folder, read from its ``manifest.json``.
+
+    Parameters
+    ----------
+    run_dir : Path
+        A run folder OUT/<agent>/<workflow> holding ``manifest.json``.
+
+    Returns
+    -------
+    tuple of (CalibrationConfig, dict)
+        The run's configuration (:meth:`CalibrationConfig.from_dict`: a manifest without ``surrogates`` reads as
+        the per-diameter files it ran on) and the manifest's ``run`` entry.
+
+    Raises
+    ------
+    CalibrationError
+        If the manifest is missing or unreadable.
+    """
+    import json
+
+    path = Path(run_dir) / "manifest.json"
+    try:
+        run = json.loads(path.read_text())["run"]
+        return CalibrationConfig.from_dict(run["config"]), run
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise CalibrationError(f"{path}: not a calibration manifest ({type(exc).__name__}: {exc})") from None
+
+
 def run_plan(run_dir: Path) -> AgentPlan:
     """The agent plan of a finished run folder, rebuilt from its ``manifest.json``: the same curves (published or
     the user's, with their names), surrogates, priors and acoustic data as the run had.
@@ -301,7 +338,8 @@ def run_plan(run_dir: Path) -> AgentPlan:
     Returns
     -------
     AgentPlan
-        The plan of the run's agent (label) whose output folder is ``run_dir``.
+        The plan of the run's agent (label) whose output folder is ``run_dir``; its surrogates are the kind the
+        run recorded (:func:`run_config`), never the current default.
 
     Raises
     ------
@@ -309,22 +347,15 @@ def run_plan(run_dir: Path) -> AgentPlan:
         If the manifest is missing or unreadable, an input it names (data, priors, bundle) cannot be loaded any
         more, or no agent of the rebuilt plan writes to ``run_dir``.
     """
-    import json
-
     run_dir = Path(run_dir)
-    path = run_dir / "manifest.json"
-    try:
-        run = json.loads(path.read_text())["run"]
-        config = CalibrationConfig.from_dict(run["config"])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise CalibrationError(f"{path}: not a calibration manifest ({type(exc).__name__}: {exc})") from None
+    config, run = run_config(run_dir)
     # the folder may have moved since the run: its layout OUT/<agent>/<workflow> gives the output root
     plan = make_plan(dataclasses.replace(config, out=run_dir.parent.parent), check_likelihoods=False)
     for ap in plan.agents:
         if ap.agent == run.get("agent") and Path(ap.out_dir).resolve() == run_dir.resolve():
             return ap
-    raise CalibrationError(f"{path}: the run's configuration plans no agent {run.get('agent')!r} with its output "
-                           f"in {run_dir}")
+    raise CalibrationError(f"{run_dir / 'manifest.json'}: the run's configuration plans no agent "
+                           f"{run.get('agent')!r} with its output in {run_dir}")
 
 
 def _check_population(config: CalibrationConfig, ap: AgentPlan) -> None:

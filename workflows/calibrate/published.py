@@ -61,12 +61,19 @@ def _load_acoustic(agent: str, data_dir: Path | None) -> list:
 
 def published_agent_plans(config: CalibrationConfig, bundle, bundle_path: Path) -> list[AgentPlan]:
     """One plan per published agent of ``config.agents``: the shipped curves (or ``--data-dir`` replacements),
-    acoustic table, priors and per-diameter surrogates.
+    acoustic table, priors and the surrogates the config picks.
+
+    With :attr:`~CalibrationConfig.resolved_surrogates` 'over-diameter' the curves get the bundle's networks over
+    the diameter (role ``config.networks``) and the acoustic datasets its laws continuous in the diameter; with
+    'per-diameter' the files fitted at the published diameters. Either falls back to the other kind where the
+    bundle has no file of the chosen one covering a diameter (a bundle without networks over the diameter runs
+    on its per-diameter files).
 
     Parameters
     ----------
     config : CalibrationConfig
-        ``agents``, ``workflow``, ``priors`` (agent -> file), ``data_dir`` and ``curves``.
+        ``agents``, ``workflow``, ``priors`` (agent -> file), ``data_dir``, ``curves``, ``surrogates`` and
+        ``networks``.
     bundle : bubblecal.surrogates.Bundle
         The loaded surrogate bundle.
     bundle_path : Path
@@ -99,7 +106,7 @@ def published_agent_plans(config: CalibrationConfig, bundle, bundle_path: Path) 
                                        who=f"the {agent} curves")
         if problems:
             raise CalibrationError("\n".join(problems))
-        surrogates, domain = _curve_surrogates(curves, bundle, spec, agent)
+        surrogates, domain = _curve_surrogates(curves, bundle, spec, agent, config)
         acoustic, f_res = [], None
         if spec.acoustic:
             acoustic, f_res = _acoustic_inputs(agent, config, bundle, bundle_path, spec, domain)
@@ -120,14 +127,16 @@ def _select_curves(curves: list, names: tuple[str, ...], agent: str) -> list:
     return curves
 
 
-def _curve_surrogates(curves: list, bundle, spec, agent: str) -> tuple[list, list[str]]:
-    """(surrogate per curve, domain warnings of the prior box vs each surrogate's training box)."""
+def _curve_surrogates(curves: list, bundle, spec, agent: str,
+                      config: CalibrationConfig) -> tuple[list, list[str]]:
+    """(surrogate per curve, domain warnings of the prior box vs each surrogate's training box); the config's
+    choice of surrogates and network (:meth:`CalibrationConfig.surrogate_lookup`)."""
     from bubblecal.workflows.domain import prior_box_domain_warnings
 
     surrogates, domain = [], []
     for curve in curves:
         try:
-            sur = bundle.get(curve.kind, curve.diameter_um)
+            sur = bundle.get(curve.kind, curve.diameter_um, **config.surrogate_lookup())
         except KeyError as exc:
             raise CalibrationError(f"{exc.args[0]}; the {agent} curve {curve.name} needs it") from None
         surrogates.append(sur)
@@ -146,8 +155,8 @@ def _acoustic_inputs(agent: str, config: CalibrationConfig, bundle, bundle_path:
     if not acoustic:
         raise CalibrationError(f"no acoustic observations of {agent} (workflow {config.workflow})")
     diameters = np.concatenate([np.atleast_1d(np.asarray(ds.diameter_um, dtype=float)) for ds in acoustic])
-    try:  # the per-diameter quadratics where fitted at every bubble, else the law over the diameter
-        f_res = bundle.acoustic_for(agent, diameters)
+    try:  # the chosen kind where it covers every bubble, else the other
+        f_res = bundle.acoustic_for(agent, diameters, prefer=config.resolved_surrogates)
     except AcousticRangeError as exc:
         raise CalibrationError(f"{exc}; workflow {config.workflow} needs it for the {agent} acoustic data") from None
     for ds in acoustic:

@@ -71,6 +71,9 @@ def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
     assert len(ess) == len(diameters) and (ess["ess_median"] >= 1).all()
     report = (run_dir / "report.md").read_text()
     assert "SYNTHETIC" in report and "ess.csv" in report and "figures/fit.png" in report
+    # the default asks for the networks over the diameter; the synthetic bundle has none, so its file served
+    assert "- surrogates: the networks over the diameter (fast)" in report
+    assert "  - definity_compression_2.1um: per-diameter file compression_2.1um.npz" in report
     for name in ("fit", "ka_kb", "population"):
         assert (run_dir / "figures" / f"{name}.png").stat().st_size > 10_000
     # NetCDF phase files open with ArviZ and carry the evidence and the config hash
@@ -91,6 +94,7 @@ def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
     assert r.exit_code == 0, r.output
     assert "reused phases: phase1_definity_compression_2.1um" in r.output and "compression_2.1um" in r.output
     assert "E [MPa]" in r.output and "coverage" in r.output
+    assert "surrogates: definity: definity_compression_2.1um: per-diameter file compression_2.1um.npz" in r.output
 
     # a changed setting invalidates exactly the dependent phases: a new phase-2 sample size keeps phase 1
     cfg2 = CalibrationConfig(**{**config.__dict__, "phase2_samples": 100, "figures": False})
