@@ -2,7 +2,8 @@
 
     python benchmarks/published_via_data.py --root OUT [calibrate args, e.g. --population 2000]
 
-Runs ``bubblecal calibrate`` (the published study: per-diameter surrogates, Definity's acoustic rows as one dataset)
+Runs ``bubblecal calibrate --surrogates per-diameter`` (the published study on its per-diameter surrogates,
+Definity's acoustic rows as one dataset)
 and ``bubblecal calibrate --data data/reference/published_curves.csv --acoustic data/reference/published_resonance.csv``
 (the same curves as measured bubbles: networks over the diameter, one acoustic dataset per resonance row) with the
 same seed and settings, then compares per bubble the phase-3 MAP and posterior mean of k_a (matched by agent and
@@ -85,7 +86,7 @@ def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--root", type=Path, required=True, help="folder of the two runs")
     args, extra = ap.parse_known_args(argv)
-    pub = _run(extra, args.root / "published")
+    pub = _run(["--surrogates", "per-diameter", *extra], args.root / "published")
     dat = _run(["--data", str(CURVES), "--acoustic", str(RESONANCE), *extra], args.root / "via_data")
     published = {}
     for summary in sorted(pub.glob("*/*/summary.csv")):
