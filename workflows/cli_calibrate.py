@@ -267,7 +267,7 @@ def evidence(
     from bubblecal.workflows.evidence import run_evidence
 
     agent, device, surrogates, networks = (choice_value(o) for o in (agent, device, surrogates, networks))
-    lookup = {"prefer": surrogates, "network": networks}
+    lookup = CalibrationConfig(surrogates=surrogates, networks=networks).surrogate_lookup()
     _compilation_cache(cache)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     if population < 100 or replicas < 2:

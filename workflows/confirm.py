@@ -134,8 +134,10 @@ def confirm_run(run_dir: Path, *, tier: str = DEFAULT_TIER, device: str = "cpu",
     say = progress or (lambda _m: None)
     ap = run_plan(run_dir)  # the run's own curves and surrogates: published or the user's bubbles
     agent, spec = ap.agent, ap.spec
-    lookup = run_config(run_dir)[0].surrogate_lookup()  # another bundle answers with the kind the run used
-    surrogates = ap.surrogates if bundle is None else [bundle.get(c.kind, c.diameter_um, **lookup) for c in ap.curves]
+    surrogates = ap.surrogates
+    if bundle is not None:  # another bundle answers with the kind the run used
+        lookup = run_config(run_dir)[0].surrogate_lookup()
+        surrogates = [bundle.get(c.kind, c.diameter_um, **lookup) for c in ap.curves]
     settings = dict(tier_settings or {})
     if subdivisions is not None:
         settings["subdivisions"] = subdivisions

@@ -94,7 +94,6 @@ def acoustic_ka_domain_warnings(f_res, spec, datasets, label: str) -> list[str]:
     return out
 
 
-
 def tier_validation_warnings(protocol: str, diameter_um: float, name: str) -> list[str]:
     """A note for a bubble whose size lies outside :data:`TIER_VALIDATED_DIAMETERS_UM` of its protocol.
 

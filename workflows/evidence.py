@@ -177,7 +177,7 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
     from bubblecal.workflows.calibrate import PAPER_COV, PAPER_COV_SCALE, on_device, surrogate_label
 
     say = progress or (lambda _m: None)
-    lookup = {"prefer": surrogates or _D.resolved_surrogates, "network": networks}
+    lookup = CalibrationConfig(surrogates=surrogates, networks=networks).surrogate_lookup()
     rows = []
     key = jax.random.PRNGKey(seed)
     for agent in agents:

@@ -256,11 +256,10 @@ def user_agent_plans(config: CalibrationConfig, bundle, out: Path) -> list:
         if bad:
             problems += bad
             continue
-        wants_acoustic = workflow == "reduced-acoustic"
         surrogates, bad, domain = _bubble_surrogates(agent, bundle, spec, config.networks)
         problems += bad
         acoustic, f_res = [], None
-        if wants_acoustic:
+        if spec.acoustic:  # priors_fit_problems matched it to the workflow
             acoustic, f_res, bad, warned = _acoustic_datasets(agent, resonance, bundle, spec)
             problems += bad
             domain += warned
