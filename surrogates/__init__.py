@@ -44,7 +44,7 @@ from bubblecal.surrogates.bundle import (
     load_bundle,
 )
 from bubblecal.surrogates.bundle_networks import DEFAULT_NETWORK, NETWORK_ROLES
-from bubblecal.surrogates.bundle_validation import VALIDATION_FILE, load_validation
+from bubblecal.surrogates.bundle_validation import VALIDATION_FILE, load_validation, validation_lines
 from bubblecal.surrogates.bundle_write import write_bundle
 from bubblecal.surrogates.classical_resonance import classical_f0, diameter_exponent
 from bubblecal.surrogates.features import (
@@ -104,7 +104,7 @@ __all__ = [
     # bundles
     "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
     "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "NETWORK_ROLES", "DEFAULT_NETWORK", "VALIDATION_FILE",
-    "load_validation",
+    "load_validation", "validation_lines",
     # acoustics
     "AcousticSurrogate", "DiameterFit", "fit_quadratic", "AcousticFormatError", "AcousticRangeError",
     "AcousticRangeWarning", "ACOUSTIC_FORMAT", "ACOUSTIC_FORMAT_VERSION", "fit_ringdown", "RingdownFit",

@@ -197,8 +197,14 @@ def train(
 def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic surrogate .json or a bundle "
                                                "directory.")) -> None:
     """Print the metadata of a surrogate file (mechanical or acoustic) or the contents of a bundle."""
-    from bubblecal.surrogates import AcousticFormatError, SurrogateFormatError, load, load_bundle, load_validation
-    from bubblecal.surrogates.bundle_validation import validation_lines
+    from bubblecal.surrogates import (
+        AcousticFormatError,
+        SurrogateFormatError,
+        load,
+        load_bundle,
+        load_validation,
+        validation_lines,
+    )
 
     try:
         if path.suffix.lower() == ".json" and not path.is_dir():
