@@ -4,13 +4,13 @@
     python benchmarks/calibrate_scaling.py --bubbles 1,10,50,200 --device gpu --paper --npz
 
 For each bubble count K the script writes a tidy curves file of K compression bubbles of one agent at random
-diameters (uniform in ``--diameters``) and, with ``--resonance`` (default on), one resonance row per bubble; then runs
-``bubblecal calibrate --data ... --acoustic ...`` in a fresh process with a fresh ``--out`` folder and an empty
-compilation cache (cold: compilation counted). The curves are drawn from the shipped network over the diameter at
-parameters from a population inside the Definity reduced priors, with the likelihood's relative noise; they serve
-the timing only (the validity study with quasi-static curves is ``benchmarks/synthetic_population.py``).
-Every argument the script does not know goes to ``calibrate`` (``--population``, ``--paper``, ``--device``,
-``--npz``, ``--no-figures``, ...).
+diameters (uniform in ``--diameters``) and, with ``--resonance`` (default on), one resonance row per bubble; then
+runs ``bubblecal calibrate --data ... --acoustic ...`` in a fresh process with a fresh ``--out`` folder and an empty
+compilation cache (cold: compilation counted); ``--warm`` runs each count once more with the cache it filled. The
+curves are drawn from the shipped network over the diameter at parameters from a population inside the Definity
+reduced priors, with the likelihood's relative noise; they serve the timing only (the validity study with quasi-
+static curves is ``benchmarks/synthetic_population.py``). Every argument the script does not know goes to
+``calibrate`` (``--population``, ``--paper``, ``--device``, ``--npz``, ``--no-figures``, ...).
 
 Prints a table (K, datasets, wall [s], CPU [s], calibrate's "done in" [s], peak RSS [MiB], wall per bubble) and one
 JSON line ``{"benchmark": "calibrate_scaling", ...}`` with the growth exponent b of wall ~ K^b between the two largest
@@ -108,16 +108,21 @@ def write_bubbles(folder: Path, n: int, seed: int, diameters: tuple[float, float
     return curves, res
 
 
-def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: list[str]) -> dict:
-    """Write the files of ``n`` bubbles and run calibrate on them in a fresh process (empty compilation cache)."""
+def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: list[str], warm: bool = False) -> dict:
+    """Write the files of ``n`` bubbles and run calibrate on them in a fresh process (empty compilation cache;
+    ``warm``: again, into a new ``--out``, with the cache the first run filled)."""
     folder = root / f"k{n}"
-    curves, res = write_bubbles(folder, n, seed, diameters, resonance)
+    if warm:
+        curves, res = folder / "curves.csv", (folder / "resonance.csv" if resonance else None)
+    else:
+        curves, res = write_bubbles(folder, n, seed, diameters, resonance)
     env = {**os.environ, "BUBBLECAL_CACHE_DIR": str(folder / "jax_cache"), "COLUMNS": "200"}
     env.pop("JAX_PLATFORMS", None)
     if _CHILD_PLATFORMS is not None:
         env["JAX_PLATFORMS"] = _CHILD_PLATFORMS
     cmd = [sys.executable, "-m", "bubblecal.workflows.cli", "calibrate", "--data", str(curves),
-           *(["--acoustic", str(res)] if res is not None else []), *extra, "--out", str(folder / "out")]
+           *(["--acoustic", str(res)] if res is not None else []), *extra,
+           "--out", str(folder / ("out_warm" if warm else "out"))]
     # peak RSS of this child alone: RUSAGE_CHILDREN keeps the maximum over every child so far, so measure it
     # through a wrapper that reports its own child's figure
     wrapper = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); "
@@ -136,7 +141,7 @@ def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: 
     rss = re.findall(r"MAXRSS (\d+)", proc.stderr)
     done = _DONE.findall(proc.stdout)
     datasets = n + (n if res is not None else 0)
-    return {"bubbles": n, "datasets": datasets, "wall_s": round(wall, 1),
+    return {"bubbles": n, "cache": "warm" if warm else "cold", "datasets": datasets, "wall_s": round(wall, 1),
             "cpu_s": round(usage.ru_utime + usage.ru_stime - usage0.ru_utime - usage0.ru_stime, 1),
             "done_in_s": float(done[-1]) if done else None,
             "peak_rss_mib": round(int(rss[-1]) / 1024, 1) if rss else None,
@@ -144,10 +149,11 @@ def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: 
 
 
 def growth_exponent(rows: list[dict]) -> float | None:
-    """b in wall ~ K^b between the two largest bubble counts (None with fewer than two)."""
-    if len(rows) < 2:
+    """b in wall ~ K^b between the two largest bubble counts of the cold runs (None with fewer than two)."""
+    cold = [r for r in rows if r.get("cache", "cold") == "cold"]
+    if len(cold) < 2:
         return None
-    a, b = sorted(rows, key=lambda r: r["bubbles"])[-2:]
+    a, b = sorted(cold, key=lambda r: r["bubbles"])[-2:]
     return round(math.log(b["wall_s"] / a["wall_s"]) / math.log(b["bubbles"] / a["bubbles"]), 3)
 
 
@@ -159,6 +165,7 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--diameters", default="1.8,6.0", help="range of the bubble diameters [um]")
     ap.add_argument("--no-resonance", action="store_true", help="curves only (no resonance rows)")
     ap.add_argument("--root", type=Path, default=None, help="folder of the runs (default: a temporary folder)")
+    ap.add_argument("--warm", action="store_true", help="run each count again with the compilation cache it filled")
     args, extra = ap.parse_known_args(argv)
     if "--out" in extra or "--data" in extra:
         raise SystemExit("--out and --data are set per run")
@@ -169,13 +176,14 @@ def main(argv=None) -> list[dict]:
     root = args.root or Path(tempfile.mkdtemp(prefix="bubblecal_scaling_"))
     rows = []
     for n in counts:
-        rows.append(run_count(n, root, args.seed, diameters, not args.no_resonance, extra))
-        print(json.dumps(rows[-1]), flush=True)
-    print(f"\n{'bubbles':>8} {'datasets':>9} {'wall [s]':>9} {'CPU [s]':>9} {'done in':>9} {'RSS [MiB]':>10} "
-          f"{'s/bubble':>9}")
+        for warm in (False, True) if args.warm else (False,):
+            rows.append(run_count(n, root, args.seed, diameters, not args.no_resonance, extra, warm=warm))
+            print(json.dumps(rows[-1]), flush=True)
+    print(f"\n{'bubbles':>8} {'cache':>6} {'datasets':>9} {'wall [s]':>9} {'CPU [s]':>9} {'done in':>9} "
+          f"{'RSS [MiB]':>10} {'s/bubble':>9}")
     for r in rows:
-        print(f"{r['bubbles']:>8} {r['datasets']:>9} {r['wall_s']:>9} {r['cpu_s']:>9} {r['done_in_s']!s:>9} "
-              f"{r['peak_rss_mib']!s:>10} {r['wall_per_bubble_s']:>9}")
+        print(f"{r['bubbles']:>8} {r['cache']:>6} {r['datasets']:>9} {r['wall_s']:>9} {r['cpu_s']:>9} "
+              f"{r['done_in_s']!s:>9} {r['peak_rss_mib']!s:>10} {r['wall_per_bubble_s']:>9}")
     print(json.dumps({"benchmark": "calibrate_scaling", "calibrate_args": extra, "rows": rows,
                       "growth_exponent": growth_exponent(rows), "machine": platform.node(),
                       "cpus": os.cpu_count(), "date": time.strftime("%Y-%m-%d")}))

@@ -11,6 +11,7 @@ before these groups existed.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -63,6 +64,12 @@ def library_versions() -> dict[str, str]:
     dict of str to str
         bubblecal, numpy, jax, numpyro, arviz, xarray ('unknown' where not installed).
     """
+    return dict(_library_versions())
+
+
+@functools.cache
+def _library_versions() -> dict[str, str]:
+    """:func:`library_versions`, read once per process (each lookup scans the installed distributions)."""
     from importlib.metadata import PackageNotFoundError, version
 
     out = {}
@@ -110,7 +117,8 @@ def observed_sites(model: Callable, samples: Mapping[str, np.ndarray], args: tup
 def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray], args: tuple = (),
                              kwargs: Mapping | None = None, *, batch_ndims: int = 1, chunk_size: int = 1024,
                              keep: Mapping[str, Any] | None = None,
-                             evaluate: Callable | None = None) -> dict[str, np.ndarray]:
+                             evaluate: Callable | None = None,
+                             sites: list[str] | None = None) -> dict[str, np.ndarray]:
     """log p(y_j | θ_s) of every observed (non-factor) site, draw and observation, as float32.
 
     Parameters
@@ -131,6 +139,8 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
         ``evaluate(chunk) -> {site: log likelihood}`` of ``chunk_size`` draws, e.g. a program compiled once
         per model structure with the model's arrays as arguments (a sampler's); None: one program per call
         with the arguments as constants.
+    sites : list of str or None
+        The observed sites (as :func:`observed_sites` names them); None traces the model for them.
 
     Returns
     -------
@@ -152,7 +162,7 @@ def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray],
     if any(v.shape[:batch_ndims] != batch for v in arrays.values()):
         raise ValueError(f"samples disagree on their leading {batch_ndims} draw axes: "
                          + ", ".join(f"{k} {v.shape}" for k, v in arrays.items()))
-    names = list(observed_sites(model, arrays, args, kwargs, batch_ndims))
+    names = list(sites) if sites is not None else list(observed_sites(model, arrays, args, kwargs, batch_ndims))
     total = math.prod(batch)
     flat = {k: v.reshape((total,) + v.shape[batch_ndims:]) for k, v in arrays.items()}
     size = min(chunk_size, total)
@@ -188,9 +198,9 @@ def _likelihood_groups(model: Callable, samples: Mapping[str, np.ndarray], args:
     """
     if log_likelihood is True and model is not None:
         keep = dict(info.keep) if info is not None else None
+        observed = observed_sites(model, samples, args, kwargs, batch_ndims=2)  # one trace serves both groups
         pointwise = pointwise_log_likelihood(model, samples, args, kwargs, batch_ndims=2, chunk_size=chunk_size,
-                                             keep=keep, evaluate=evaluate)
-        observed = observed_sites(model, samples, args, kwargs, batch_ndims=2)
+                                             keep=keep, evaluate=evaluate, sites=list(observed))
         return pointwise, {k: (v[np.asarray(keep[k], dtype=bool)] if keep and k in keep else v)
                            for k, v in observed.items()}
     return (dict(log_likelihood) if isinstance(log_likelihood, Mapping) else None), None
@@ -208,7 +218,8 @@ def build_inference_data(posterior: Mapping[str, np.ndarray], *, sample_stats: M
                          log_likelihood: Mapping[str, np.ndarray] | None = None,
                          observed_data: Mapping[str, np.ndarray] | None = None,
                          info: ExportInfo | None = None, extra_stats: Mapping[str, tuple] | None = None,
-                         attrs: Mapping[str, Any] | None = None):
+                         attrs: Mapping[str, Any] | None = None,
+                         stats_coords: Mapping[str, Any] | None = None):
     """ArviZ InferenceData from (chain, draw, ...) arrays, with named dims, units and versions.
 
     Parameters
@@ -227,10 +238,16 @@ def build_inference_data(posterior: Mapping[str, np.ndarray], *, sample_stats: M
         Statistics that are not per draw (e.g. per stage): name -> (dims, values), added to sample_stats.
     attrs : mapping of str to object or None
         Attributes of every group (after the library versions and ``info.attrs``).
+    stats_coords : mapping of str to array_like or None
+        Coordinates of the dimensions of ``extra_stats`` (e.g. the stage numbers).
 
     Returns
     -------
     arviz.InferenceData
+
+    Notes
+    -----
+    Pure array work (no model is traced): it may run on another thread than the sampler's.
     """
     import arviz as az
 
@@ -272,6 +289,8 @@ def build_inference_data(posterior: Mapping[str, np.ndarray], *, sample_stats: M
             idata.sample_stats = idata.sample_stats.merge(extra)
         else:
             idata.add_groups({"sample_stats": extra})
+        for k, v in (stats_coords or {}).items():
+            idata.sample_stats.coords[k] = np.asarray(v)
     meta = {**library_versions(), "bubblecal_idata_format": IDATA_FORMAT, **dict(info.attrs), **dict(attrs or {})}
     for group in idata.groups():
         ds = getattr(idata, group)

@@ -8,6 +8,11 @@ that ``bubblecal --help`` stays fast.
 from __future__ import annotations
 
 import importlib
+import os
+
+# HDF5 locks a file for its writer, and a child process (XLA's GPU compiler) started while a phase file is being
+# written inherits that lock: the command's files are its own (the run folder has its own lock), so HDF5's is off
+os.environ.setdefault("HDF5_USE_FILE_LOCKING", "FALSE")
 
 import typer
 

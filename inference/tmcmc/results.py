@@ -224,7 +224,28 @@ class TMCMCResults:
             only); log_likelihood and observed_data; the evidence, status, settings and library versions
             in the attrs of every group.
         """
-        from bubblecal.inference.idata import _likelihood_groups, build_inference_data
+        from bubblecal.inference.idata import build_inference_data
+
+        return build_inference_data(**self.inference_parts(info, log_likelihood, chunk_size))
+
+    def inference_parts(self, info=None, log_likelihood=True, chunk_size: int = 1024) -> dict:
+        """The arrays of :meth:`to_inference_data`, before ArviZ builds its groups.
+
+        The part that traces the model and evaluates the pointwise log likelihood: call it on the thread that
+        sampled (NumPyro's effect handlers are not thread-safe); building the InferenceData from its result
+        is array work that may run elsewhere.
+
+        Parameters
+        ----------
+        info, log_likelihood, chunk_size
+            As :meth:`to_inference_data`.
+
+        Returns
+        -------
+        dict
+            Keyword arguments of :func:`~bubblecal.inference.idata.build_inference_data`.
+        """
+        from bubblecal.inference.idata import _likelihood_groups
 
         self._need_run()
         replicas = [self.get_samples(r) for r in range(self.num_replicas)]
@@ -261,8 +282,6 @@ class TMCMCResults:
         programs = _model_programs(self._flat, self.config.chunk_size)
         pointwise, observed = _likelihood_groups(self.model, posterior, args, kwargs, log_likelihood, info,
                                                  chunk_size, lambda chunk: programs.pointwise(chunk, self._data))
-        idata = build_inference_data(posterior, sample_stats={"lp": lprior + ll, "loglik": ll, "log_prior": lprior},
-                                     log_likelihood=pointwise, observed_data=observed, info=info,
-                                     extra_stats=stages, attrs=attrs)
-        idata.sample_stats.coords["stage"] = np.arange(n_stages)
-        return idata
+        return {"posterior": posterior, "sample_stats": {"lp": lprior + ll, "loglik": ll, "log_prior": lprior},
+                "log_likelihood": pointwise, "observed_data": observed, "info": info, "extra_stats": stages,
+                "attrs": attrs, "stats_coords": {"stage": np.arange(n_stages)}}

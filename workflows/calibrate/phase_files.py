@@ -7,25 +7,28 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from bubblecal.data import atomic_write
 
-__all__ = ["PhaseFileError", "write_phase", "phase_inference_data", "read_phase", "read_pointwise", "phase_format"]
+__all__ = ["PhaseFileError", "write_phase", "phase_inference_data", "phase_inference_parts", "read_phase",
+           "read_pointwise", "phase_format"]
 
 
 class PhaseFileError(ValueError):
     """A stored phase file cannot be read (truncated, damaged, not a phase file); the message names it."""
 
 
-def phase_inference_data(result, loglik, *, info=None, pointwise=None):
-    """The ArviZ InferenceData of a phase file (without the run's attributes).
+def phase_inference_parts(result, loglik, *, info=None, pointwise=None) -> dict:
+    """The arrays of a phase file's InferenceData (the keyword arguments of ``build_inference_data``).
 
     Traces the phase's model (observed values, pointwise log likelihood): call it on the thread that samples,
-    since NumPyro's effect handlers are not thread-safe.
+    since NumPyro's effect handlers are not thread-safe; building the InferenceData from the result is array
+    work that may run on another thread.
 
     Parameters
     ----------
@@ -40,19 +43,36 @@ def phase_inference_data(result, loglik, *, info=None, pointwise=None):
 
     Returns
     -------
+    dict
+        Keyword arguments of :func:`bubblecal.inference.idata.build_inference_data`.
+    """
+    ll = {k: np.asarray(v)[None] for k, v in pointwise.items()} if pointwise is not None else None
+    if result.sampler is not None:
+        return result.sampler.inference_parts(info, log_likelihood=True if ll is None else ll)
+    stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
+    return {"posterior": {k: np.asarray(v)[None] for k, v in result.samples.items()}, "sample_stats": stats,
+            "log_likelihood": ll, "info": info}
+
+
+def phase_inference_data(result, loglik, *, info=None, pointwise=None):
+    """The ArviZ InferenceData of a phase file (without the run's attributes).
+
+    Parameters
+    ----------
+    result, loglik, info, pointwise
+        As :func:`phase_inference_parts` (and, like it, call it on the thread that samples).
+
+    Returns
+    -------
     arviz.InferenceData
     """
     from bubblecal.inference.idata import build_inference_data
 
-    ll = {k: np.asarray(v)[None] for k, v in pointwise.items()} if pointwise is not None else None
-    if result.sampler is not None:
-        return result.sampler.to_inference_data(info, log_likelihood=True if ll is None else ll)
-    stats = {"loglik": np.asarray(loglik)[None]} if loglik is not None else None
-    return build_inference_data({k: np.asarray(v)[None] for k, v in result.samples.items()}, sample_stats=stats,
-                                log_likelihood=ll, info=info)
+    return build_inference_data(**phase_inference_parts(result, loglik, info=info, pointwise=pointwise))
 
 
-def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointwise=None, idata=None) -> Path:
+def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointwise=None, idata=None,
+                parts: Mapping | None = None) -> Path:
     """Write a phase result atomically: ArviZ NetCDF (``.nc``) or plain ``.npz`` (samples + attrs JSON).
 
     Parameters
@@ -71,6 +91,9 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
         (draw, ...) pointwise log likelihood (else the sampler's model gives it).
     idata : arviz.InferenceData or None
         Write this (the joint run's chains) instead of building one from ``result``.
+    parts : mapping or None
+        :func:`phase_inference_parts` computed before (then no model is traced here, and the write may run on
+        another thread than the sampler's).
 
     Returns
     -------
@@ -82,11 +105,15 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
             "seconds": result.seconds, "name": result.name, **attrs}
     if path.suffix == ".nc":
         if idata is None:
-            idata = phase_inference_data(result, loglik, info=info, pointwise=pointwise)
+            from bubblecal.inference.idata import build_inference_data
+
+            if parts is None:
+                parts = phase_inference_parts(result, loglik, info=info, pointwise=pointwise)
+            idata = build_inference_data(**parts)
         idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
                                           ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
                                       for k, v in meta.items()})
-        atomic_write(path, lambda p: idata.to_netcdf(str(p)))
+        _retry_locked(lambda: atomic_write(path, lambda p: idata.to_netcdf(str(p))), path)
     else:
         arrays = {f"sample__{k}": np.asarray(v) for k, v in result.samples.items()}
         if loglik is not None:
@@ -99,6 +126,29 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
 
         atomic_write(path, _w)
     return path
+
+
+#: Attempts of a NetCDF write that finds its own temporary file locked, and the first wait [s] (doubled each time).
+LOCK_RETRIES, LOCK_WAIT_S = 8, 0.05
+
+
+def _retry_locked(write: Callable[[], Path], path: Path) -> Path:
+    """Run ``write`` again (into a new temporary file) while HDF5 finds the file locked.
+
+    A child process started meanwhile (XLA's GPU compiler, for one) inherits the open HDF5 descriptor of a file
+    being written, and with it HDF5's lock, until it exits: the writer's next open of that file then fails with
+    EAGAIN. The child is short-lived, so a few waits clear it.
+    """
+    for attempt in range(LOCK_RETRIES - 1):
+        try:
+            return write()
+        except BlockingIOError:
+            time.sleep(LOCK_WAIT_S * 2**attempt)
+    try:
+        return write()
+    except BlockingIOError as exc:
+        raise OSError(f"{path}: the file stayed locked by another process over {LOCK_RETRIES} attempts ({exc}); "
+                      "set HDF5_USE_FILE_LOCKING=FALSE if the folder is not shared") from exc
 
 
 def read_phase(path: Path):

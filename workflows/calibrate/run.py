@@ -21,12 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate.config import (
-    CalibrationConfig,
-    agent_seed,
-    phase2_samples,
-    phase_tmcmc_options,
-)
+from bubblecal.workflows.calibrate.config import CalibrationConfig, agent_seed, phase2_samples, phase_tmcmc_options
 from bubblecal.workflows.calibrate.device import on_device
 from bubblecal.workflows.calibrate.export import PHASE2_LOGLIK, phase2_log_likelihood, phase_exports
 from bubblecal.workflows.calibrate.phase_files import write_phase
@@ -34,7 +29,6 @@ from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
 from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes
 
 __all__ = ["AgentResult", "run_agent", "run_calibration"]
-
 
 
 @dataclass
@@ -194,7 +188,9 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     run_info = {"config": config.as_dict(), "config_hash": config_hash(config.as_dict()), "agent": ap.agent,
                 "priors": str(ap.priors_path), "bundle": str(plan.bundle_path),
                 "synthetic_bundle": plan.synthetic_bundle}
-    store = PhaseStore(ap.out_dir, netcdf=config.netcdf, force=config.force, run_info=run_info, say=say)
+    # phase files are written while the next phase samples (flushed before anything reads them)
+    store = PhaseStore(ap.out_dir, netcdf=config.netcdf, force=config.force, run_info=run_info, say=say,
+                       background=True)
     store.expected = phase_hashes(ap, config, bundle_hashes(plan.bundle))
     store.write_manifest()
     seconds: dict[str, float] = {}
@@ -233,9 +229,13 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
                 def reweight(i, phase1_i, m_samples, tau_samples):
                     return leave_one_out_log_weights(m_samples, tau_samples, phase1_i, bounds)
 
-            staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1, phase2_options=o23,
-                                phase3_options=o23, phase2_max_samples=phase2_samples(config, len(datasets)),
-                                load=load, save=store.save, progress=say, phase3_reweight=reweight)
+            try:
+                staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1,
+                                    phase2_options=o23, phase3_options=o23,
+                                    phase2_max_samples=phase2_samples(config, len(datasets)), load=load,
+                                    save=store.save, progress=say, phase3_reweight=reweight)
+            finally:  # a failing phase still leaves the finished ones on disk and in the manifest
+                store.flush()
             if staged.phase3_ess:
                 say("phase 3 leave-one-out importance ESS: "
                     + ", ".join(f"{k} {v:.0f}" for k, v in staged.phase3_ess.items()))

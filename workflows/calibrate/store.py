@@ -12,6 +12,7 @@ import fnmatch
 import hashlib
 import json
 import math
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -133,10 +134,16 @@ class PhaseStore:
     ``exports[name]`` (:class:`~bubblecal.inference.idata.ExportInfo`) names the dimensions, units and constant
     data of a phase's file; ``pointwise_fns[name](result)`` gives the pointwise log likelihood of a phase whose
     model has no observed site (phase 2); :attr:`pointwise` holds each phase's pointwise log likelihood.
+
+    With ``background``, :meth:`save` traces the model on the caller's thread and leaves building the
+    InferenceData, writing the file and recording it in the manifest to one writer thread, so the next phase
+    samples meanwhile; :meth:`flush` waits for every write (call it before reading the files, and in a
+    ``finally`` so that a failing run still leaves its finished phases on disk). A phase is in the manifest only
+    once its file is complete, as without ``background``.
     """
 
     def __init__(self, folder: Path, netcdf: bool = True, force: bool = False, run_info: Mapping | None = None,
-                 say: Callable[[str], None] | None = None):
+                 say: Callable[[str], None] | None = None, background: bool = False):
         self.folder = Path(folder)
         self.netcdf = netcdf
         self.force = force
@@ -152,6 +159,10 @@ class PhaseStore:
         self.manifest = self._read_manifest()
         if run_info is not None:
             self.manifest["run"] = dict(run_info)
+        self.background = background
+        self._writer = None
+        self._pending: list = []
+        self._manifest_lock = threading.Lock()
 
     def _read_manifest(self) -> dict:
         """The folder's manifest, or an empty one when absent or unreadable."""
@@ -166,8 +177,30 @@ class PhaseStore:
 
     def write_manifest(self) -> None:
         """Write ``manifest.json`` atomically."""
-        text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
-        atomic_write(self.manifest_path, lambda p: p.write_text(text))
+        with self._manifest_lock:
+            text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
+            atomic_write(self.manifest_path, lambda p: p.write_text(text))
+
+    def flush(self) -> None:
+        """Wait for the phase files :meth:`save` left to the writer thread.
+
+        Raises
+        ------
+        Exception
+            The first error a background write raised (every other write still finishes first).
+        """
+        pending, self._pending = self._pending, []
+        errors = []
+        for fut in pending:
+            try:
+                fut.result()
+            except Exception as exc:  # noqa: PERF203 - every write is waited for before the first error is raised
+                errors.append(exc)
+        if self._writer is not None:
+            self._writer.shutdown(wait=True)
+            self._writer = None
+        if errors:
+            raise errors[0]
 
     def path(self, name: str) -> Path:
         """The file that :meth:`save` writes for phase ``name``."""
@@ -242,14 +275,33 @@ class PhaseStore:
         pointwise = fn(result) if fn is not None else None
         if pointwise is not None:
             self.pointwise[name] = {k: np.asarray(v) for k, v in pointwise.items()}
-        from bubblecal.workflows.calibrate.phase_files import write_phase
+        from bubblecal.workflows.calibrate.phase_files import phase_inference_parts, write_phase
 
-        write_phase(path, result, loglik, attrs, info=self.exports.get(name), pointwise=pointwise)
-        self.manifest["phases"][name] = {
-            "file": path.name, "config_hash": self.expected.get(name, ""), "log_evidence": result.log_evidence,
-            "log_evidence_se": result.log_evidence_se if math.isfinite(result.log_evidence_se) else None,
-            "status": result.status, "seconds": result.seconds,
-            "num_draws": int(next(iter(result.samples.values())).shape[0])}
+        info = self.exports.get(name)
+        entry = {"file": path.name, "config_hash": self.expected.get(name, ""), "log_evidence": result.log_evidence,
+                 "log_evidence_se": result.log_evidence_se if math.isfinite(result.log_evidence_se) else None,
+                 "status": result.status, "seconds": result.seconds,
+                 "num_draws": int(next(iter(result.samples.values())).shape[0])}
+        if not self.background:
+            write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise)
+            self._record(name, entry)
+            return
+        parts = phase_inference_parts(result, loglik, info=info, pointwise=pointwise) if self.netcdf else None
+        if self._writer is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bubblecal-phase-writer")
+
+        def write():
+            write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
+            self._record(name, entry)
+
+        self._pending.append(self._writer.submit(write))
+
+    def _record(self, name: str, entry: Mapping) -> None:
+        """Enter a written phase in the manifest and write it."""
+        with self._manifest_lock:
+            self.manifest["phases"][name] = dict(entry)
         self.write_manifest()
 
 

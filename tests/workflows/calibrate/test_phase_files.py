@@ -4,6 +4,7 @@ depend on them (never mixed); `.npz` files are reused as before; the joint run's
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from bubblecal.inference.hierarchical import PhaseResult
 from bubblecal.workflows.calibrate import PhaseStore, phase_format, read_phase, write_phase
@@ -71,3 +72,62 @@ def test_joint_file_chains_are_concatenated_on_read(tmp_path):
     back, loglik = read_phase(path)
     np.testing.assert_array_equal(back.samples["ka"], np.arange(12.0))
     np.testing.assert_array_equal(loglik, -np.arange(12.0))
+
+
+def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path):
+    import json
+
+    import xarray as xr
+
+    direct, later = _store(tmp_path / "direct"), PhaseStore(tmp_path / "later", background=True)
+    later.expected = direct.expected
+    for k, n in enumerate(NAMES):
+        res = PhaseResult(n, {"ka": np.arange(5.0) + k, "kb": np.ones(5) * k}, -1.0 - k, 0.1, "converged", 1.0)
+        direct.save(res)
+        later.save(res)
+    later.flush()
+    manifest = json.loads((tmp_path / "later" / "manifest.json").read_text())
+    assert sorted(manifest["phases"]) == sorted(NAMES)
+    for n in NAMES:
+        a, b = (xr.open_dataset(d / f"{n}.nc", group="posterior", engine="h5netcdf")
+                for d in (tmp_path / "direct", tmp_path / "later"))
+        assert a.equals(b) and a.attrs["log_evidence"] == b.attrs["log_evidence"]
+        assert read_phase(tmp_path / "later" / f"{n}.nc")[0].log_evidence == direct.manifest["phases"][n][
+            "log_evidence"]
+
+
+def test_a_failed_background_write_is_raised_by_flush_after_the_others_landed(tmp_path):
+    import json
+
+    st = PhaseStore(tmp_path, background=True)
+    st.expected = {n: f"hash-{n}" for n in NAMES}
+    st.save(PhaseResult("phase1_a", {"ka": np.arange(3.0)}, -1.0, 0.1, "converged", 1.0))
+    (tmp_path / "phase1_b.nc").mkdir()  # a folder where the file must go: the atomic rename fails
+    st.save(PhaseResult("phase1_b", {"ka": np.arange(3.0)}, -1.0, 0.1, "converged", 1.0))
+    st.save(PhaseResult("phase2", {"m_ka": np.arange(3.0)}, -1.0, 0.1, "converged", 1.0))
+    with pytest.raises(OSError):
+        st.flush()
+    phases = json.loads((tmp_path / "manifest.json").read_text())["phases"]
+    assert sorted(phases) == ["phase1_a", "phase2"]  # the failed phase is not recorded as written
+    assert read_phase(tmp_path / "phase2.nc")[0].name == "phase2"
+
+
+def test_a_netcdf_write_that_finds_its_file_locked_is_retried_then_named(tmp_path, monkeypatch):
+    from bubblecal.workflows.calibrate import phase_files
+
+    monkeypatch.setattr(phase_files, "LOCK_WAIT_S", 0.0)
+    calls = []
+
+    def locked_twice():
+        calls.append(1)
+        if len(calls) <= 2:
+            raise BlockingIOError(11, "unable to lock file")
+        return tmp_path / "x.nc"
+
+    assert phase_files._retry_locked(locked_twice, tmp_path / "x.nc") == tmp_path / "x.nc" and len(calls) == 3
+
+    def always_locked():
+        raise BlockingIOError(11, "unable to lock file")
+
+    with pytest.raises(OSError, match="x.nc: the file stayed locked"):
+        phase_files._retry_locked(always_locked, tmp_path / "x.nc")
