@@ -106,12 +106,25 @@ def observed_sites(model: Callable, samples: Mapping[str, np.ndarray], args: tup
     dict of str to numpy.ndarray
         Site name -> observed value (units of the data).
     """
+    import jax
     from numpyro.distributions.distribution import Unit
     from numpyro.handlers import substitute, trace
 
-    tr = trace(substitute(model, _first_draw(samples, batch_ndims))).get_trace(*args, **dict(kwargs or {}))
-    return {name: np.asarray(site["value"]) for name, site in tr.items()
-            if site["type"] == "sample" and site["is_observed"] and not isinstance(site["fn"], Unit)}
+    draw, kw = _first_draw(samples, batch_ndims), dict(kwargs or {})
+
+    def observed():
+        tr = trace(substitute(model, draw)).get_trace(*args, **kw)
+        return {name: site["value"] for name, site in tr.items()
+                if site["type"] == "sample" and site["is_observed"] and not isinstance(site["fn"], Unit)}
+
+    # run eagerly, every operation of the model would be a program of its own (dozens per dataset shape): staged,
+    # an observation passed in as data comes out as it went in, and one computed from the data (a dtype cast)
+    # takes one compiled program
+    found: dict = {}
+    jax.make_jaxpr(lambda: found.update(observed()))()
+    if any(isinstance(v, jax.core.Tracer) for v in found.values()):
+        found = jax.jit(observed)()
+    return {name: np.asarray(v) for name, v in found.items()}
 
 
 def pointwise_log_likelihood(model: Callable, samples: Mapping[str, np.ndarray], args: tuple = (),

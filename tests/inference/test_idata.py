@@ -87,3 +87,26 @@ def test_pareto_k_per_column():
     lw = np.log(np.stack([rng.pareto(a, size=4000) + 1.0 for a in (1.0, 4.0)], axis=-1))
     k = pareto_k(lw)
     assert k.shape == (2,) and k[0] == pytest.approx(1.0, abs=0.15) and k[1] == pytest.approx(0.25, abs=0.15)
+
+
+def test_observed_sites_as_data_and_computed_in_the_model_equal_the_eager_trace():
+    import jax.numpy as jnp
+    from numpyro.handlers import substitute, trace
+
+    from bubblecal.inference.idata import observed_sites
+
+    y = np.array([0.5, 1.5, 2.5], dtype=np.float32)
+
+    def model(y, scale):
+        mu = numpyro.sample("mu", dist.Normal(0.0, 1.0))
+        numpyro.sample("as_data", dist.Normal(mu, 1.0), obs=y)
+        numpyro.sample("computed", dist.Normal(mu, 1.0), obs=jnp.asarray(y, dtype=float) * scale)
+        numpyro.factor("not_an_observation", -mu**2)
+
+    draws = {"mu": np.zeros((2, 4))}
+    got = observed_sites(model, draws, (y, 3.0), batch_ndims=2)
+    eager = trace(substitute(model, {"mu": 0.0})).get_trace(y, 3.0)
+    assert sorted(got) == ["as_data", "computed"]
+    for name in got:
+        assert isinstance(got[name], np.ndarray)
+        np.testing.assert_array_equal(got[name], np.asarray(eager[name]["value"]))
