@@ -110,3 +110,25 @@ def test_observed_sites_as_data_and_computed_in_the_model_equal_the_eager_trace(
     for name in got:
         assert isinstance(got[name], np.ndarray)
         np.testing.assert_array_equal(got[name], np.asarray(eager[name]["value"]))
+
+
+def test_export_evaluates_the_pointwise_loglik_in_cpu_chunks_or_all_at_once_on_an_accelerator(monkeypatch):
+    from bubblecal.inference import idata as idata_module
+    from bubblecal.inference.tmcmc import results as results_module
+
+    tm = TMCMC(normal_mean, num_particles=1500, num_replicas=2, num_mcmc_steps=1)
+    tm.run(jax.random.PRNGKey(3), Y)
+    sizes = []
+    real = idata_module.pointwise_log_likelihood
+
+    def spy(*args, **kwargs):
+        sizes.append(kwargs["chunk_size"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(idata_module, "pointwise_log_likelihood", spy)
+    on_cpu = tm.inference_parts()["log_likelihood"]["y"]
+    monkeypatch.setattr(results_module, "_default_platform", lambda: "gpu")
+    at_once = tm.inference_parts()["log_likelihood"]["y"]
+    assert sizes == [results_module.POINTWISE_CPU_CHUNK, 3000]
+    np.testing.assert_allclose(at_once, on_cpu, rtol=1e-6, atol=1e-6)
+    assert on_cpu.shape == (2, 1500, Y.size)
