@@ -12,6 +12,7 @@ import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -23,6 +24,14 @@ __all__ = ["Surrogate", "OutOfDomainError", "SurrogateDomainWarning"]
 
 class OutOfDomainError(ValueError):
     """Evaluation requested outside the box of parameters / loading coordinates seen in training."""
+
+
+def _host(a, dtype=None) -> np.ndarray:
+    """``a`` as a host array of ``dtype`` (default: float32 for float64 input, as JAX without x64 would make it)."""
+    a = np.asarray(a)
+    if dtype is None:
+        dtype = np.float32 if a.dtype == np.float64 else a.dtype
+    return a.astype(dtype, copy=False)
 
 
 class SurrogateDomainWarning(UserWarning):
@@ -64,12 +73,13 @@ class Surrogate:
 
     def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, metadata: Mapping,
                  path: str | Path | None = None, diameter_um: float | None = None):
-        self.weights = tuple(jnp.asarray(w) for w in weights)
-        self.biases = tuple(jnp.asarray(b) for b in biases)
-        self.in_mean = jnp.asarray(in_mean, dtype=jnp.float32)
-        self.in_std = jnp.asarray(in_std, dtype=jnp.float32)
-        self.out_mean = jnp.asarray(out_mean, dtype=jnp.float32)
-        self.out_std = jnp.asarray(out_std, dtype=jnp.float32)
+        # cast on the host and put on the device: jnp.asarray compiles one small program per array shape
+        self.weights = tuple(jax.device_put(_host(w)) for w in weights)
+        self.biases = tuple(jax.device_put(_host(b)) for b in biases)
+        self.in_mean = jax.device_put(_host(in_mean, np.float32))
+        self.in_std = jax.device_put(_host(in_std, np.float32))
+        self.out_mean = jax.device_put(_host(out_mean, np.float32))
+        self.out_std = jax.device_put(_host(out_std, np.float32))
         self.metadata = dict(metadata)
         self.path = None if path is None else Path(path)
         md = self.metadata
@@ -206,11 +216,11 @@ class Surrogate:
         unit = float(x_per_size(self.setup, 1.0, d))  # the per-size coordinate of x = 1
         return tuple(float(v) / unit for v in self.loading_range_per_size)
 
-    def _loading_box(self, x, diameter_um):
+    def _loading_box(self, x, diameter_um, xp=jnp):
         """(coordinate, range) of the loading check: x and ``x_range``, or the per-size coordinate and range."""
         if not self.over_diameter:
             return x, self.x_range
-        return x_per_size(self.setup, x, diameter_um, xp=jnp), self.loading_range_per_size
+        return x_per_size(self.setup, x, diameter_um, xp=xp), self.loading_range_per_size
 
     def in_training_box(self, params, x, rtol: float = 1e-6, diameter_um=None):
         """Boolean mask of the points inside the training box (jit-friendly).
@@ -235,23 +245,26 @@ class Surrogate:
         jax.Array of bool
             Shape of the broadcast output.
         """
-        d = self._diameter(diameter_um)
-        params = jnp.asarray(params)
-        x = jnp.asarray(x)
+        return self._in_box(params, x, rtol, self._diameter(diameter_um), jnp)
+
+    def _in_box(self, params, x, rtol: float, d, xp):
+        """:meth:`in_training_box` with the array module ``xp`` (numpy on the host: no JAX program per shape)."""
+        params = xp.asarray(params)
+        x = xp.asarray(x)
         width = self._hi - self._lo
-        lo = jnp.asarray(self._lo - rtol * width)
-        hi = jnp.asarray(self._hi + rtol * width)
-        p_ok = jnp.all((params >= lo) & (params <= hi), axis=-1)
-        xc, (xlo, xhi) = self._loading_box(x, d)
+        lo = xp.asarray(self._lo - rtol * width)
+        hi = xp.asarray(self._hi + rtol * width)
+        p_ok = xp.all((params >= lo) & (params <= hi), axis=-1)
+        xc, (xlo, xhi) = self._loading_box(x, d, xp)
         xw = xhi - xlo
         x_ok = (xc >= xlo - rtol * xw) & (xc <= xhi + rtol * xw)
         if self.over_diameter:
             dlo, dhi = self.diameter_range_um
             dw = rtol * (dhi - dlo)
-            dd = jnp.asarray(d)
+            dd = xp.asarray(d)
             x_ok = x_ok & (dd >= dlo - dw) & (dd <= dhi + dw)
-        shape = jnp.broadcast_shapes(p_ok.shape, x_ok.shape)
-        return jnp.broadcast_to(p_ok, shape) & jnp.broadcast_to(x_ok, shape)
+        shape = np.broadcast_shapes(p_ok.shape, x_ok.shape)
+        return xp.broadcast_to(p_ok, shape) & xp.broadcast_to(x_ok, shape)
 
     def check_domain(self, params, x, action: str = "warn", rtol: float = 1e-6, diameter_um=None) -> np.ndarray:
         """Check the training box on the host; warn (``action='warn'``) or raise (``'raise'``).
@@ -287,7 +300,7 @@ class Surrogate:
         if action not in ("warn", "raise"):
             raise ValueError(f"action must be 'warn' or 'raise', got {action!r}")
         d = self._diameter(diameter_um)
-        mask = np.asarray(self.in_training_box(params, x, rtol=rtol, diameter_um=d))
+        mask = np.asarray(self._in_box(params, x, rtol, d, np))
         if mask.all():
             return mask
         p = np.asarray(params, dtype=float).reshape(-1, len(self.param_names))

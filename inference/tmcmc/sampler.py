@@ -238,7 +238,7 @@ class TMCMC(TMCMCResults):
             If the model has a discrete or no latent site.
         """
         flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
-        data = tuple(jnp.asarray(v) for v in flat.data)
+        data = _on_device(flat.data)
         model = _model_programs(flat, self.config.chunk_size)
         position = model.draws(rng_key, data, self.num_particles)
         return np.asarray(model.evaluate(position, data)[1])
@@ -270,7 +270,7 @@ class TMCMC(TMCMCResults):
         self._samples_cache = None
         n, move, cfg = self.num_particles, self.move, self.config
         # the model's arrays go to the device once, then every program call takes them as arguments
-        data = self._data = tuple(jnp.asarray(v) for v in flat.data)
+        data = self._data = _on_device(flat.data)
         model = _model_programs(flat, cfg.chunk_size)
 
         if not self.compiled and _splittable(move):
@@ -374,3 +374,8 @@ class TMCMC(TMCMCResults):
                 }
             )
 
+
+def _on_device(data) -> tuple:
+    """The model's arrays on the default device, as ``jnp.asarray`` gives them (float64 as float32 without x64);
+    host arrays go through ``jax.device_put``, which unlike ``jnp.asarray`` compiles no program per shape."""
+    return tuple(jax.device_put(v) if isinstance(v, np.ndarray) else jnp.asarray(v) for v in data)
