@@ -143,3 +143,24 @@ def test_fast_network_agrees_with_the_accurate_one_inside_the_box(bundle, setup)
     y_acc, y_fast = np.asarray(acc(params, x, d)), np.asarray(fast(params, x, d))
     rel = np.abs(y_fast - y_acc) / np.abs(y_acc)
     assert np.median(rel) < tol, (setup, float(np.median(rel)), tol)
+
+
+@pytest.mark.parametrize("setup", sorted(SHIPPED))
+def test_check_domain_on_the_host_agrees_with_the_jit_friendly_mask(bundle, setup):
+    import warnings
+
+    sur = bundle.over_diameter[setup]
+    rng = np.random.default_rng(11)
+    n = 600
+    lo = np.array([sur.param_ranges[k][0] for k in sur.param_names])
+    hi = np.array([sur.param_ranges[k][1] for k in sur.param_names])
+    width = hi - lo
+    params = lo - 0.1 * width + rng.random((n, 6)) * 1.2 * width  # about half the points outside somewhere
+    d = rng.uniform(sur.diameter_range_um[0] - 0.5, sur.diameter_range_um[1] + 0.5, n)
+    size = 2 * np.asarray(radius_of_diameter(d)) if setup == "compression" else 1.0
+    x = rng.uniform(-0.1, 1.2, n) * sur.loading_range_per_size[1] * size
+    jit_mask = np.asarray(sur.in_training_box(params, x, diameter_um=d))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        host_mask = sur.check_domain(params, x, diameter_um=d)
+    assert 0.2 < jit_mask.mean() < 0.8 and np.array_equal(host_mask, jit_mask)
