@@ -125,6 +125,11 @@ class PhaseStore:
         Stored as the manifest's ``run`` entry (configuration, its hash, agent, priors, bundle).
     say : callable or None
         Receives one line per damaged phase file (the file named, and that it is recomputed).
+    background : bool
+        Write the files off the caller's thread (below).
+    writers : int or None
+        Writer processes of a background store (0: one thread; None: by the machine's cores,
+        :func:`~bubblecal.workflows.calibrate.writer.writer_processes`).
 
     A stored phase file that cannot be read (truncated, garbage) is not reused: that phase runs again, and so
     does every phase that depends on it (:func:`phase_dependencies`), while the others are still reused. So
@@ -136,14 +141,14 @@ class PhaseStore:
     model has no observed site (phase 2); :attr:`pointwise` holds each phase's pointwise log likelihood.
 
     With ``background``, :meth:`save` traces the model on the caller's thread and leaves building the
-    InferenceData, writing the file and recording it in the manifest to one writer thread, so the next phase
-    samples meanwhile; :meth:`flush` waits for every write (call it before reading the files, and in a
-    ``finally`` so that a failing run still leaves its finished phases on disk). A phase is in the manifest only
-    once its file is complete, as without ``background``.
+    InferenceData and writing the file to a :class:`~bubblecal.workflows.calibrate.writer.PhaseWriter` (one
+    thread, or ``writers`` processes), so the next phase samples meanwhile; :meth:`flush` waits for every write
+    (call it before reading the files, and in a ``finally`` so that a failing run still leaves its finished
+    phases on disk). A phase enters the manifest only once its file is complete, as without ``background``.
     """
 
     def __init__(self, folder: Path, netcdf: bool = True, force: bool = False, run_info: Mapping | None = None,
-                 say: Callable[[str], None] | None = None, background: bool = False):
+                 say: Callable[[str], None] | None = None, background: bool = False, writers: int | None = None):
         self.folder = Path(folder)
         self.netcdf = netcdf
         self.force = force
@@ -160,8 +165,8 @@ class PhaseStore:
         if run_info is not None:
             self.manifest["run"] = dict(run_info)
         self.background = background
+        self.writers = writers
         self._writer = None
-        self._pending: list = []
         self._manifest_lock = threading.Lock()
 
     def _read_manifest(self) -> dict:
@@ -182,25 +187,16 @@ class PhaseStore:
             atomic_write(self.manifest_path, lambda p: p.write_text(text))
 
     def flush(self) -> None:
-        """Wait for the phase files :meth:`save` left to the writer thread.
+        """Wait for the phase files :meth:`save` left to the writer, and enter them in the manifest.
 
         Raises
         ------
         Exception
             The first error a background write raised (every other write still finishes first).
         """
-        pending, self._pending = self._pending, []
-        errors = []
-        for fut in pending:
-            try:
-                fut.result()
-            except Exception as exc:  # noqa: PERF203 - every write is waited for before the first error is raised
-                errors.append(exc)
-        if self._writer is not None:
-            self._writer.shutdown(wait=True)
-            self._writer = None
-        if errors:
-            raise errors[0]
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.close()
 
     def path(self, name: str) -> Path:
         """The file that :meth:`save` writes for phase ``name``."""
@@ -288,15 +284,11 @@ class PhaseStore:
             return
         parts = phase_inference_parts(result, loglik, info=info, pointwise=pointwise) if self.netcdf else None
         if self._writer is None:
-            from concurrent.futures import ThreadPoolExecutor
+            from bubblecal.workflows.calibrate.writer import PhaseWriter
 
-            self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bubblecal-phase-writer")
-
-        def write():
-            write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
-            self._record(name, entry)
-
-        self._pending.append(self._writer.submit(write))
+            self._writer = PhaseWriter(self.writers)
+        self._writer.submit(lambda: self._record(name, entry), path, result, loglik, attrs, info=info,
+                            pointwise=pointwise, parts=parts)
 
     def _record(self, name: str, entry: Mapping) -> None:
         """Enter a written phase in the manifest and write it."""

@@ -74,12 +74,13 @@ def test_joint_file_chains_are_concatenated_on_read(tmp_path):
     np.testing.assert_array_equal(loglik, -np.arange(12.0))
 
 
-def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path):
+@pytest.mark.parametrize("writers", [0, 2], ids=["thread", "processes"])
+def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path, writers):
     import json
 
     import xarray as xr
 
-    direct, later = _store(tmp_path / "direct"), PhaseStore(tmp_path / "later", background=True)
+    direct, later = _store(tmp_path / "direct"), PhaseStore(tmp_path / "later", background=True, writers=writers)
     later.expected = direct.expected
     for k, n in enumerate(NAMES):
         res = PhaseResult(n, {"ka": np.arange(5.0) + k, "kb": np.ones(5) * k}, -1.0 - k, 0.1, "converged", 1.0)
@@ -99,7 +100,7 @@ def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_
 def test_a_failed_background_write_is_raised_by_flush_after_the_others_landed(tmp_path):
     import json
 
-    st = PhaseStore(tmp_path, background=True)
+    st = PhaseStore(tmp_path, background=True, writers=0)
     st.expected = {n: f"hash-{n}" for n in NAMES}
     st.save(PhaseResult("phase1_a", {"ka": np.arange(3.0)}, -1.0, 0.1, "converged", 1.0))
     (tmp_path / "phase1_b.nc").mkdir()  # a folder where the file must go: the atomic rename fails
@@ -131,3 +132,11 @@ def test_a_netcdf_write_that_finds_its_file_locked_is_retried_then_named(tmp_pat
 
     with pytest.raises(OSError, match="x.nc: the file stayed locked"):
         phase_files._retry_locked(always_locked, tmp_path / "x.nc")
+
+
+def test_writer_processes_follow_the_cores():
+    from bubblecal.workflows.calibrate.writer import MAX_WRITER_PROCESSES, WRITER_PROCESS_MIN_CPUS, writer_processes
+
+    assert writer_processes(2) == 0 and writer_processes(WRITER_PROCESS_MIN_CPUS - 1) == 0
+    assert writer_processes(WRITER_PROCESS_MIN_CPUS) == WRITER_PROCESS_MIN_CPUS // 4
+    assert writer_processes(16) == 4 and writer_processes(128) == MAX_WRITER_PROCESSES

@@ -1,0 +1,152 @@
+"""Phase files written off the sampling thread: one writer thread, or writer processes where cores are spare.
+
+A NetCDF phase file costs about half a second whatever its size (ArviZ builds the groups, xarray opens the file once
+per group), and h5py runs every HDF5 call of a process behind one lock: one writer thread keeps up on a laptop, but
+on a GPU host, where a phase samples in a fraction of a second, 200 files queue behind it. There the files go to
+writer processes (spawned: JAX must not be forked), each with its own HDF5 library. The model-dependent part of an
+export (:func:`~bubblecal.workflows.calibrate.phase_inference_parts`) stays on the caller's thread; what crosses
+to a writer is host arrays and metadata.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES"]
+
+#: Cores from which a background store writes through processes instead of one thread.
+WRITER_PROCESS_MIN_CPUS = 8
+#: Most writer processes (a quarter of the cores, at most this many).
+MAX_WRITER_PROCESSES = 4
+
+
+def writer_processes(cpus: int | None = None) -> int:
+    """Writer processes for a machine of ``cpus`` cores (0: one writer thread).
+
+    Parameters
+    ----------
+    cpus : int or None
+        Cores (None: those this process may run on).
+
+    Returns
+    -------
+    int
+        0 below :data:`WRITER_PROCESS_MIN_CPUS` cores, else min(:data:`MAX_WRITER_PROCESSES`, cpus // 4).
+    """
+    if cpus is None:
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return 0 if cpus < WRITER_PROCESS_MIN_CPUS else min(MAX_WRITER_PROCESSES, cpus // 4)
+
+
+def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -> Path:
+    """:func:`~bubblecal.workflows.calibrate.write_phase` (module level: a writer process unpickles it)."""
+    from bubblecal.workflows.calibrate.phase_files import write_phase
+
+    return write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
+
+
+def _host(obj):
+    """``obj`` with every device array replaced by a NumPy array (mappings, sequences and ExportInfo walked)."""
+    if isinstance(obj, np.ndarray | np.generic | str | bytes | int | float | bool) or obj is None:
+        return obj
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return dataclasses.replace(obj, **{f.name: _host(getattr(obj, f.name)) for f in dataclasses.fields(obj)})
+    if isinstance(obj, Mapping):
+        return {k: _host(v) for k, v in obj.items()}
+    if isinstance(obj, tuple | list):
+        return type(obj)(_host(v) for v in obj)
+    if hasattr(obj, "__array__"):
+        return np.asarray(obj)
+    return obj
+
+
+class PhaseWriter:
+    """Writes phase files in the background and reports each finished one, in submission order.
+
+    Parameters
+    ----------
+    processes : int or None
+        Writer processes; 0: one writer thread; None: :func:`writer_processes` of this machine.
+
+    Notes
+    -----
+    ``on_done`` callbacks run on the caller's thread, from :meth:`submit` (for the writes finished by then) and
+    :meth:`close`, never on a writer: the caller's bookkeeping (the run's manifest) needs no lock.
+    """
+
+    def __init__(self, processes: int | None = None):
+        self.processes = writer_processes() if processes is None else int(processes)
+        self._pool = None
+        self._pending: list[tuple] = []
+        self._errors: list[BaseException] = []
+
+    def _executor(self):
+        """The thread or process pool, started on first use."""
+        if self._pool is None:
+            from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+
+            if self.processes > 0:
+                import multiprocessing
+
+                self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"))
+            else:
+                self._pool = ThreadPoolExecutor(1, thread_name_prefix="bubblecal-phase-writer")
+        return self._pool
+
+    def submit(self, on_done: Callable[[], None], path: Path, result, loglik, attrs: Mapping, *, info=None,
+               pointwise=None, parts: Mapping | None = None) -> None:
+        """Queue one :func:`~bubblecal.workflows.calibrate.write_phase`; ``on_done()`` once the file is complete.
+
+        Parameters
+        ----------
+        on_done : callable
+            Called without arguments after the write succeeded (not after a failed one).
+        path, result, loglik, attrs, info, pointwise, parts
+            As :func:`~bubblecal.workflows.calibrate.write_phase`; ``parts`` computed on the sampling thread.
+        """
+        from bubblecal.inference.hierarchical import PhaseResult
+
+        if self.processes > 0:  # what crosses to a process: host arrays and plain metadata, no sampler
+            result = PhaseResult(result.name, _host(dict(result.samples)), result.log_evidence,
+                                 result.log_evidence_se, result.status, result.seconds)
+            loglik, info, pointwise, parts = _host(loglik), _host(info), _host(pointwise), _host(parts)
+        future = self._executor().submit(_write, Path(path), result, loglik, dict(attrs), info, pointwise, parts)
+        self._pending.append((future, on_done))
+        self._harvest(wait=False)
+
+    def _harvest(self, wait: bool) -> None:
+        """Report the finished writes in order (all of them with ``wait``), keeping their errors."""
+        while self._pending:
+            future, on_done = self._pending[0]
+            if not wait and not future.done():
+                return
+            self._pending.pop(0)
+            try:
+                future.result()
+            except Exception as exc:  # noqa: PERF203 - one failed file must not hide the others
+                self._errors.append(exc)
+            else:
+                on_done()
+
+    def close(self) -> None:
+        """Wait for every write, report them, stop the writers.
+
+        Raises
+        ------
+        Exception
+            The first error a write raised (every other write finished and was reported first).
+        """
+        try:
+            self._harvest(wait=True)
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
+                self._pool = None
+        if self._errors:
+            errors, self._errors = self._errors, []
+            raise errors[0]
