@@ -26,14 +26,6 @@ class OutOfDomainError(ValueError):
     """Evaluation requested outside the box of parameters / loading coordinates seen in training."""
 
 
-def _host(a, dtype=None) -> np.ndarray:
-    """``a`` as a host array of ``dtype`` (default: float32 for float64 input, as JAX without x64 would make it)."""
-    a = np.asarray(a)
-    if dtype is None:
-        dtype = np.float32 if a.dtype == np.float64 else a.dtype
-    return a.astype(dtype, copy=False)
-
-
 class SurrogateDomainWarning(UserWarning):
     """Evaluation outside the training box (see :meth:`Surrogate.check_domain`)."""
 
@@ -73,13 +65,13 @@ class Surrogate:
 
     def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, metadata: Mapping,
                  path: str | Path | None = None, diameter_um: float | None = None):
-        # cast on the host and put on the device: jnp.asarray compiles one small program per array shape
-        self.weights = tuple(jax.device_put(_host(w)) for w in weights)
-        self.biases = tuple(jax.device_put(_host(b)) for b in biases)
-        self.in_mean = jax.device_put(_host(in_mean, np.float32))
-        self.in_std = jax.device_put(_host(in_std, np.float32))
-        self.out_mean = jax.device_put(_host(out_mean, np.float32))
-        self.out_std = jax.device_put(_host(out_std, np.float32))
+        # jax.device_put gives the dtypes jnp.asarray gives, without compiling a copy program per array shape
+        self.weights = tuple(jax.device_put(np.asarray(w)) for w in weights)
+        self.biases = tuple(jax.device_put(np.asarray(b)) for b in biases)
+        self.in_mean = jax.device_put(np.asarray(in_mean, dtype=np.float32))
+        self.in_std = jax.device_put(np.asarray(in_std, dtype=np.float32))
+        self.out_mean = jax.device_put(np.asarray(out_mean, dtype=np.float32))
+        self.out_std = jax.device_put(np.asarray(out_std, dtype=np.float32))
         self.metadata = dict(metadata)
         self.path = None if path is None else Path(path)
         md = self.metadata

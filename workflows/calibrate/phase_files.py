@@ -104,11 +104,11 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
     meta = {"log_evidence": result.log_evidence, "log_evidence_se": result.log_evidence_se, "status": result.status,
             "seconds": result.seconds, "name": result.name, **attrs}
     if path.suffix == ".nc":
-        if idata is None:
+        if idata is None and parts is None:
+            idata = phase_inference_data(result, loglik, info=info, pointwise=pointwise)
+        elif idata is None:
             from bubblecal.inference.idata import build_inference_data
 
-            if parts is None:
-                parts = phase_inference_parts(result, loglik, info=info, pointwise=pointwise)
             idata = build_inference_data(**parts)
         idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
                                           ("nan" if isinstance(v, float) and not math.isfinite(v) else v))

@@ -12,7 +12,6 @@ import fnmatch
 import hashlib
 import json
 import math
-import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -167,7 +166,6 @@ class PhaseStore:
         self.background = background
         self.writers = writers
         self._writer = None
-        self._manifest_lock = threading.Lock()
 
     def _read_manifest(self) -> dict:
         """The folder's manifest, or an empty one when absent or unreadable."""
@@ -182,9 +180,8 @@ class PhaseStore:
 
     def write_manifest(self) -> None:
         """Write ``manifest.json`` atomically."""
-        with self._manifest_lock:
-            text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
-            atomic_write(self.manifest_path, lambda p: p.write_text(text))
+        text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
+        atomic_write(self.manifest_path, lambda p: p.write_text(text))
 
     def flush(self) -> None:
         """Wait for the phase files :meth:`save` left to the writer, and enter them in the manifest.
@@ -291,9 +288,8 @@ class PhaseStore:
                             pointwise=pointwise, parts=parts)
 
     def _record(self, name: str, entry: Mapping) -> None:
-        """Enter a written phase in the manifest and write it."""
-        with self._manifest_lock:
-            self.manifest["phases"][name] = dict(entry)
+        """Enter a written phase in the manifest and write it (on the caller's thread, also for background writes)."""
+        self.manifest["phases"][name] = dict(entry)
         self.write_manifest()
 
 
