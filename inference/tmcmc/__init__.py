@@ -29,7 +29,7 @@ from bubblecal.inference.tmcmc.evaluator import CPU_CHUNK_SIZE, Evaluator, resol
 from bubblecal.inference.tmcmc.kernel import TMCMCKernel, TMCMCKernelState
 from bubblecal.inference.tmcmc.moves import KernelMove, Move, MoveResult, RandomWalk, hmc_move, nuts_move
 from bubblecal.inference.tmcmc.progress import StageDisplay, StageReporter, stage_text
-from bubblecal.inference.tmcmc.results import STAGE_COLUMNS, TMCMCResults
+from bubblecal.inference.tmcmc.results import POINTWISE_CPU_CHUNK, STAGE_COLUMNS, TMCMCResults
 from bubblecal.inference.tmcmc.sampler import PRESETS, TMCMC
 from bubblecal.inference.tmcmc.state import STATUS_NAMES, StageInfo, TMCMCConfig, TMCMCState
 
@@ -38,5 +38,5 @@ __all__ = [
     "TMCMCState", "StageInfo", "run_batched", "batch_groups", "structure_key", "BatchStructureError",
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
     "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "CPU_CHUNK_SIZE",
-    "resolve_chunk_size", "StageDisplay", "StageReporter", "stage_text",
+    "resolve_chunk_size", "POINTWISE_CPU_CHUNK", "StageDisplay", "StageReporter", "stage_text",
 ]

@@ -90,6 +90,12 @@ from bubblecal.workflows.calibrate.store import (
     phase_hashes,
 )
 from bubblecal.workflows.calibrate.user_data import PRIORS_FOR_ALL, user_agent_plans
+from bubblecal.workflows.calibrate.writer import (
+    MAX_WRITER_PROCESSES,
+    WRITER_PROCESS_MIN_CPUS,
+    PhaseWriter,
+    writer_processes,
+)
 
 __all__ = [
     "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES", "DEFAULT_POPULATION",
@@ -105,4 +111,5 @@ __all__ = [
     "AgentResult", "agent_seed", "run_agent", "run_calibration", "PRIORS_FOR_ALL", "user_agent_plans",
     "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
+    "PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES",
 ]
