@@ -133,10 +133,11 @@ def run_count(n: int, root: Path, seed: int, diameters, resonance: bool, extra: 
     proc = subprocess.run([sys.executable, "-c", wrapper, *cmd], env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    (folder / "stdout.txt").write_text(proc.stdout)
-    (folder / "stderr.txt").write_text(proc.stderr)
+    suffix = "_warm" if warm else ""
+    (folder / f"stdout{suffix}.txt").write_text(proc.stdout)
+    (folder / f"stderr{suffix}.txt").write_text(proc.stderr)
     if proc.returncode != 0:
-        raise SystemExit(f"K = {n}: calibrate exited with {proc.returncode}; see {folder}/stderr.txt\n"
+        raise SystemExit(f"K = {n}: calibrate exited with {proc.returncode}; see {folder}/stderr{suffix}.txt\n"
                          + proc.stderr[-3000:])
     rss = re.findall(r"MAXRSS (\d+)", proc.stderr)
     done = _DONE.findall(proc.stdout)

@@ -8,7 +8,8 @@ statuses and wall seconds.  ``--out`` receives ``diameter_gate.json`` (rewritten
 ``curves_<campaign>_<d>um.csv``.  ``--reference implicit`` compares with the solvent-free thermal tier instead
 (to separate the solvent's share of a gap), ``--ref-subdivisions`` gives the reference its own mesh level, and
 ``--qs-store`` takes the quasi-static curves from the campaign's finished store (the same design points) instead of
-re-running them.
+re-running them; ``--reference-curves`` takes the reference tier's curves from an earlier run's CSV, so that a
+quasi-static variant (``--qs-setting KEY=VALUE``, e.g. ``overpressure=4.95``) is gated on a CPU against GPU curves.
 
 Usage::
 
@@ -16,6 +17,9 @@ Usage::
         --device cuda --scale 0.25 --out OUT
     python benchmarks/diameter_gate.py --campaign sonovue_indentation_1.5-8um_mirheo --diameters 1.8 --n 2 \
         --device cpu --scale 0.002 --subdivisions 2 --out /tmp/gate      # CPU smoke
+    python benchmarks/diameter_gate.py --campaign definity_compression_1.5-8um --diameters 7.0 --n 8 --device cpu \
+        --qs-setting overpressure=4.95 \
+        --reference-curves benchmarks/figures/gate_diameter/curves_definity_compression_1.5-8um_7um_explicit.csv
 
 Prints one table and one JSON line (``{"benchmark": "diameter_gate", ...}``).
 """
@@ -62,9 +66,42 @@ def stored_curves(path: str, config, idx: np.ndarray, grid: tuple) -> dict:
     return {"y": y, "status": status, "seconds": 0.0}
 
 
+def stored_reference(path: str, idx, n_points: int) -> dict:
+    """The reference-tier rows (tier other than ``quasistatic``) of design points ``idx`` from a gate CSV."""
+    rows = {}
+    with open(path) as fh:
+        header = fh.readline().rstrip("\n").split(",")
+        if len(header) != 3 + n_points:
+            raise SystemExit(f"{path}: {len(header) - 3} load points, the level has {n_points}")
+        for line in fh:
+            cells = line.rstrip("\n").split(",")
+            if cells[1] != "quasistatic":
+                rows[int(cells[0])] = (np.asarray(cells[3:], dtype=float), cells[2])
+    missing = [int(i) for i in idx if int(i) not in rows]
+    if missing:
+        raise SystemExit(f"{path}: no reference curve of design points {missing}")
+    return {"y": np.stack([rows[int(i)][0] for i in idx]), "status": [rows[int(i)][1] for i in idx], "seconds": 0.0}
+
+
+def parse_setting(text: str) -> tuple[str, object]:
+    """``KEY=VALUE`` -> (key, value) with the value read as a bool, int, float or string."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise SystemExit(f"--qs-setting: expected KEY=VALUE, got {text!r}")
+    if value.lower() in ("true", "false"):
+        return key, value.lower() == "true"
+    for cast in (int, float):
+        try:
+            return key, cast(value)
+        except ValueError:
+            pass
+    return key, value
+
+
 def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None,
               start: int = 0, reference: str = "explicit", ref_subdivisions: int | None = None,
-              qs_store: str | None = None) -> dict:
+              qs_store: str | None = None, qs_overrides: dict | None = None,
+              reference_curves: str | None = None) -> dict:
     """Quasi-static and reference-tier curves of design points ``start`` .. ``start + n - 1`` of one level.
 
     The reference-tier result is stored under the key ``"explicit"`` whichever tier it is (the CSV names it).
@@ -79,7 +116,7 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
     request = CurveRequest(protocol=config.protocol, diameter_um=float(diameter_um), grid=grid,
                            params={k: np.asarray(design[k][idx]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][idx]), subdivisions=sub)
-    qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"}
+    qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"} | (qs_overrides or {})
     md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED}
     out = {"indices": idx.tolist(), "grid": list(request.grid)}
     if qs_store:
@@ -89,11 +126,14 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
         batch = get_tier("quasistatic", **qs_settings).run(request, device)
         out["quasistatic"] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
                               "seconds": time.perf_counter() - t0}
-    t0 = time.perf_counter()
-    ref_request = replace(request, subdivisions=ref_sub)
-    batch = get_tier(reference, scale=scale, **md_settings).run(ref_request, device)
-    out["explicit"] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
-                       "seconds": time.perf_counter() - t0}
+    if reference_curves:
+        out["explicit"] = stored_reference(reference_curves, idx, len(grid))
+    else:
+        t0 = time.perf_counter()
+        ref_request = replace(request, subdivisions=ref_sub)
+        batch = get_tier(reference, scale=scale, **md_settings).run(ref_request, device)
+        out["explicit"] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
+                           "seconds": time.perf_counter() - t0}
     ok = [i for i in range(len(idx)) if out["quasistatic"]["status"][i] == out["explicit"]["status"][i] == "ok"]
     yq, ye = out["quasistatic"]["y"], out["explicit"]["y"]
     out["rel_l2"] = [float(np.linalg.norm(yq[i] - ye[i]) / np.linalg.norm(ye[i])) for i in ok]
@@ -141,8 +181,13 @@ def main() -> None:
     ap.add_argument("--reference", default="explicit", choices=("explicit", "implicit"), help="reference tier")
     ap.add_argument("--ref-subdivisions", type=int, default=None, help="the reference's mesh level (default: QS's)")
     ap.add_argument("--qs-store", default=None, help="take the quasi-static curves from this finished store")
+    ap.add_argument("--qs-setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a quasi-static tier setting of the campaign (repeatable)")
+    ap.add_argument("--reference-curves", default=None, metavar="CSV",
+                    help="take the reference tier's curves from an earlier run's curves CSV (one diameter)")
     ap.add_argument("--out", default="diameter_gate_out")
     args = ap.parse_args()
+    qs_overrides = dict(parse_setting(v) for v in args.qs_setting)
     config = load_campaign_file(args.campaign).config
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -155,7 +200,8 @@ def main() -> None:
         for first in range(args.start, args.start + args.n, batch):
             parts.append(run_level(config, d, min(batch, args.start + args.n - first), args.device, args.scale,
                                    args.subdivisions, start=first, reference=args.reference,
-                                   ref_subdivisions=args.ref_subdivisions, qs_store=args.qs_store))
+                                   ref_subdivisions=args.ref_subdivisions, qs_store=args.qs_store,
+                                   qs_overrides=qs_overrides, reference_curves=args.reference_curves))
             res = merge(parts)
             write_curves(out / f"curves_{config.name}_{d:g}um{tag}.csv", res, config.protocol, args.reference)
             print(f"  {d:g} um: {len(res['indices'])} of {args.n} points done", flush=True)
@@ -170,7 +216,8 @@ def main() -> None:
               f"{row['seconds_quasistatic']:7.1f} {row['seconds_explicit']:7.1f}", flush=True)
         line = {"benchmark": "diameter_gate", "campaign": config.name, "device": args.device, "scale": args.scale,
                 "n": args.n, "start": args.start, "reference": args.reference,
-                "ref_subdivisions": args.ref_subdivisions, "qs_store": args.qs_store, "rows": rows}
+                "ref_subdivisions": args.ref_subdivisions, "qs_store": args.qs_store, "qs_settings": qs_overrides,
+                "reference_curves": args.reference_curves, "rows": rows}
         (out / f"diameter_gate{tag}.json").write_text(json.dumps(line, indent=1))
     print(json.dumps(line))
 

@@ -118,7 +118,7 @@ def crps_ensemble(draws, y, *, fair: bool = False) -> np.ndarray:
 
 
 def predictive_crps(means, sds, y, *, replicates: int = 5, seed: int | np.random.Generator = 0,
-                    fair: bool = False) -> CRPSResult:
+                    fair: bool = False, normals=None) -> CRPSResult:
     """CRPS of the Gaussian-mixture predictive at the observations, by Monte Carlo (module docstring).
 
     Each replicate draws one z_kp ~ N(μ_kp, s_kp²) per posterior sample and point; the per-point
@@ -136,6 +136,10 @@ def predictive_crps(means, sds, y, *, replicates: int = 5, seed: int | np.random
         Seed or generator of the draws.
     fair : bool
         Use the fair ensemble estimator.
+    normals : array_like, optional
+        (R, S, P) standard normal draws to use instead of drawing from ``seed``; R replaces
+        ``replicates``. Drawing them in advance lets callers fix the random stream of several scores
+        and compute the scores in any order (e.g. on threads).
 
     Returns
     -------
@@ -144,19 +148,25 @@ def predictive_crps(means, sds, y, *, replicates: int = 5, seed: int | np.random
     Raises
     ------
     ValueError
-        For a badly shaped ``y``, ``replicates`` < 1 or invalid inputs.
+        For a badly shaped ``y`` or ``normals``, ``replicates`` < 1 or invalid inputs.
     """
     mu, sd, _ = _prepare(means, sds, None)
     y = np.asarray(y, dtype=float)
     if y.shape != (mu.shape[1],):
         raise ValueError(f"y must have shape ({mu.shape[1]},), got {y.shape}")
+    if normals is not None:
+        normals = np.asarray(normals, dtype=float)
+        if normals.ndim != 3 or normals.shape[1:] != mu.shape:
+            raise ValueError(f"normals must have shape (replicates, {mu.shape[0]}, {mu.shape[1]}), "
+                             f"got {normals.shape}")
+        replicates = normals.shape[0]
     if replicates < 1:
         raise ValueError("replicates must be >= 1")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     per_rep = np.empty(replicates)
     per_point = np.zeros(mu.shape[1])
     for r in range(replicates):
-        draws = mu + sd * rng.standard_normal(mu.shape)
+        draws = mu + sd * (normals[r] if normals is not None else rng.standard_normal(mu.shape))
         c = crps_ensemble(draws, y, fair=fair)
         per_rep[r] = c.mean()
         per_point += c / replicates

@@ -113,13 +113,20 @@ def _mixture_cdf(z, mu, sd, w):
     return np.einsum("s,...sp->...p", w, _component_cdf(z[..., None, :], mu, sd))
 
 
-def _mixture_pdf(z, mu, sd, w):
-    """Mixture density of validated inputs."""
+def _mixture_cdf_pdf(z, mu, sd, w):
+    """Mixture CDF (the values of :func:`_mixture_cdf`) and density of validated inputs, sharing the
+    standardised distances; a component with sd = 0 is a step of zero density."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        safe = np.where(sd > 0, sd, 1.0)
+        positive = sd > 0
+        degenerate = not positive.all()
+        safe = np.where(positive, sd, 1.0) if degenerate else sd
         u = (z[..., None, :] - mu) / safe
-        dens = np.where(sd > 0, np.exp(-0.5 * u * u) / (safe * np.sqrt(2.0 * np.pi)), 0.0)
-    return np.einsum("s,...sp->...p", w, dens)
+        c = ndtr(u)
+        dens = np.exp(-0.5 * u * u) / (safe * np.sqrt(2.0 * np.pi))
+    if degenerate:
+        c = np.where(positive, c, (z[..., None, :] >= mu).astype(float))
+        dens = np.where(positive, dens, 0.0)
+    return np.einsum("s,...sp->...p", w, c), np.einsum("s,...sp->...p", w, dens)
 
 
 def mixture_quantile(means, sds, q, weights=None, *, tol: float = 1e-10, max_iter: int = 200) -> np.ndarray:
@@ -165,14 +172,13 @@ def mixture_quantile(means, sds, q, weights=None, *, tol: float = 1e-10, max_ite
     target = np.broadcast_to(qs[:, None], lo.shape)
     z = 0.5 * (lo + hi)
     for _ in range(max_iter):
-        F = _mixture_cdf(z, mu, sd, w)
+        F, f = _mixture_cdf_pdf(z, mu, sd, w)
         below = F < target
         lo = np.where(below, z, lo)
         hi = np.where(below, hi, z)
         done = (hi - lo <= tol * scale) | (np.abs(F - target) < 1e-13)
         if np.all(done):
             break
-        f = _mixture_pdf(z, mu, sd, w)
         with np.errstate(divide="ignore", invalid="ignore"):
             newton = z - (F - target) / f
         ok = np.isfinite(newton) & (newton > lo) & (newton < hi)

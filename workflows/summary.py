@@ -24,6 +24,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS, NOISE_PARAMETERS, NONLINEAR_PARAMETERS
+from bubblecal.workflows.summary_stats import StatisticsPool
 
 __all__ = ["PHYSICAL", "POPULATION_ROW", "BUBBLE_PARAMETERS", "dataset_posteriors", "psi_samples", "bubble_rows",
            "population_bands", "summarise_agent"]
@@ -269,7 +270,7 @@ def summarise_agent(result, config) -> None:
     import jax
     import pandas as pd
 
-    from bubblecal.inference import map_index, predictive_band, predictive_crps
+    from bubblecal.inference import map_index
     from bubblecal.models import mechanical_prediction, sample_population_predictive
     from bubblecal.models.acoustic import acoustic_prediction
 
@@ -284,48 +285,56 @@ def summarise_agent(result, config) -> None:
     bands = {}
     post = dataset_posteriors(result)
     rng = np.random.default_rng(config.seed)
-    for name, d in post.items():
-        samples, obj, kind = d["samples"], d["obj"], d["kind"]
-        ll = d["loglik"]
-        imap = map_index(ll) if ll is not None and np.size(ll) == next(iter(samples.values())).shape[0] else None
-        thin = _thin(samples, config.predictive_samples)
+    contexts = {}
+    # predictions on this thread (one compiled program), bands and CRPS on the pool's threads
+    with StatisticsPool(rng, config.crps_replicates) as pool:
+        for name, d in post.items():
+            samples, obj, kind = d["samples"], d["obj"], d["kind"]
+            ll = d["loglik"]
+            imap = map_index(ll) if ll is not None and np.size(ll) == next(iter(samples.values())).shape[0] else None
+            thin = _thin(samples, config.predictive_samples)
+            if kind == "acoustic":
+                diam = np.asarray(obj.diameter_um, dtype=float)
+                f = np.asarray(obj.frequency_MHz, dtype=float)
+                mu, sd = acoustic_prediction(thin["ka"], thin["sigma_ac"], ap.f_res, diam, f_scale=float(np.max(f)))
+                pool.submit(name, np.asarray(mu, dtype=float), np.asarray(sd, dtype=float), f)
+                contexts[name] = {"kind": kind, "x": diam, "y": f, "sigma_mean": float(np.mean(thin["sigma_ac"])),
+                                  "names": ["ka", "sigma_ac"], "samples": samples, "imap": imap,
+                                  "diameter": float(np.mean(diam)) if diam.size == 1 else math.nan}
+            else:
+                x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
+                y_scale = float(np.max(np.abs(y)))
+                grid = np.linspace(0.0, float(x.max()) * 1.02, _GRID_POINTS)
+                mu, sd, gmu, gsd, map_curve = _curve_predictions(predict, thin, samples, imap, d["surrogate"], spec,
+                                                                 x, grid, y_scale)
+                pool.submit(name, mu, sd, y, gmu, gsd)
+                contexts[name] = {"kind": kind, "x": x, "y": y, "grid": grid, "map_curve": map_curve,
+                                  "names": [*spec.parameters, noise], "samples": samples, "imap": imap,
+                                  "diameter": float(obj.diameter_um)}
+        stats = pool.results()
+    for name, c in contexts.items():
+        st, kind = stats[name], c["kind"]
+        band, crps = st.band, st.crps
+        cov = band.coverage(c["y"])
         if kind == "acoustic":
-            diam = np.asarray(obj.diameter_um, dtype=float)
-            f = np.asarray(obj.frequency_MHz, dtype=float)
-            mu, sd = acoustic_prediction(thin["ka"], thin["sigma_ac"], ap.f_res, diam, f_scale=float(np.max(f)))
-            mu, sd = np.asarray(mu, dtype=float), np.asarray(sd, dtype=float)
-            band = predictive_band(mu, sd, 0.9)
-            crps = predictive_crps(mu, sd, f, replicates=config.crps_replicates, seed=rng)
             crps_sd = float(np.std(crps.replicates, ddof=1) if crps.replicates.size > 1 else 0.0)
-            cov, crps_mean, unit = band.coverage(f), crps.mean, "MHz"
-            bands[name] = {"kind": kind, "x": diam, "y": f, "median": band.median, "lower": band.lower,
-                           "upper": band.upper, "sigma_mean": float(np.mean(thin["sigma_ac"]))}
-            names = ["ka", "sigma_ac"]
-            diameter = float(np.mean(diam)) if diam.size == 1 else math.nan
+            crps_mean, unit = crps.mean, "MHz"
+            bands[name] = {"kind": kind, "x": c["x"], "y": c["y"], "median": band.median, "lower": band.lower,
+                           "upper": band.upper, "sigma_mean": c["sigma_mean"]}
         else:
-            x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
-            y_scale = float(np.max(np.abs(y)))
-            grid = np.linspace(0.0, float(x.max()) * 1.02, _GRID_POINTS)
-            mu, sd, gmu, gsd, map_curve = _curve_predictions(predict, thin, samples, imap, d["surrogate"], spec,
-                                                             x, grid, y_scale)
-            band = predictive_band(mu, sd, 0.9)
-            crps = predictive_crps(mu, sd, y, replicates=config.crps_replicates, seed=rng)
             conv, unit = _y_to_physical(kind)
-            cov = band.coverage(y)
             crps_mean = float(conv(crps.mean))
             crps_sd = float(conv(np.std(crps.replicates, ddof=1))) if crps.replicates.size > 1 else 0.0
-            gband = predictive_band(gmu, gsd, 0.9)
-            # the model curve itself (no observation noise): the spread of the surrogate prediction
-            gmodel = np.quantile(gmu, [0.05, 0.5, 0.95], axis=0)
-            bands[name] = {"kind": kind, "x": x, "y": y, "median": band.median, "lower": band.lower,
-                           "upper": band.upper, "grid": grid, "grid_median": gband.median, "grid_lower": gband.lower,
-                           "grid_upper": gband.upper, "grid_model": gmodel, "map_curve": map_curve}
-            names = [*spec.parameters, noise]
-            diameter = float(obj.diameter_um)
-        base = {"agent": ap.agent, "workflow": ap.workflow, "dataset": name, "kind": kind, "diameter_um": diameter,
-                "n_points": int(np.size(bands[name]["y"])), "coverage_90": float(cov), "crps": float(crps_mean),
-                "crps_sd": float(crps_sd), "crps_unit": unit}
-        rows += _param_rows(base, samples, names, imap)
+            gband = st.grid_band
+            # grid_model: the model curve itself (no observation noise), the spread of the surrogate prediction
+            bands[name] = {"kind": kind, "x": c["x"], "y": c["y"], "median": band.median, "lower": band.lower,
+                           "upper": band.upper, "grid": c["grid"], "grid_median": gband.median,
+                           "grid_lower": gband.lower, "grid_upper": gband.upper, "grid_model": st.grid_model,
+                           "map_curve": c["map_curve"]}
+        base = {"agent": ap.agent, "workflow": ap.workflow, "dataset": name, "kind": kind,
+                "diameter_um": c["diameter"], "n_points": int(np.size(bands[name]["y"])),
+                "coverage_90": float(cov), "crps": float(crps_mean), "crps_sd": float(crps_sd), "crps_unit": unit}
+        rows += _param_rows(base, c["samples"], c["names"], c["imap"])
     # population predictive of a new bubble
     m, tau = psi_samples(result)
     pop = None

@@ -23,6 +23,7 @@ Variants (``--variants``, comma list; default all of VARIANTS):
   R_nominal      mesh radius from the nominal diameter (5.8 -> 11.6, 3.2 -> 6.4) instead of the rows' radius
   mirheo         the tier's indentation_convention = "mirheo" (vertices within 4.6 deg of a pole: 7 at subdivision 4,
                  19 at 5; kernel kb = published kb)
+  dp_<p>         gas pressure p above the ambient at the reference (the tier's ``overpressure``)
   a+b            combination, e.g. kfrac_0.003+kb_x1.5 (kb_x1.5 = kernel kb equal to the published kb)
 Analysis-only (no extra simulation, from the baseline curves):
   pubref_F0      published d taken relative to the published F = 0 axial diameter (instead of 2 radius)
@@ -67,7 +68,7 @@ ANALYSIS_ONLY = ("pubref_F0",)
 
 
 def variant_spec(name: str) -> dict:
-    """Settings of a variant: a VARIANTS key, a generic kfrac_<f> / sub<s> / kb_x<f> / ka_x<f> / gas_p0_<p>,
+    """Settings of a variant: a VARIANTS key, a generic kfrac_<f> / sub<s> / kb_x<f> / ka_x<f> / gas_p0_<p> / dp_<p>,
     or several joined by '+' (e.g. kfrac_0.003+kb_x1.5)."""
     spec: dict = {}
     for part in name.split("+"):
@@ -83,6 +84,8 @@ def variant_spec(name: str) -> dict:
             spec["ka"] = float(part[4:])
         elif part.startswith("gas_p0_"):
             spec["gas_p0"] = float(part[7:])
+        elif part.startswith("dp_"):
+            spec["overpressure"] = float(part[3:])
         else:
             raise ValueError(f"unknown variant {part!r}")
     return spec
@@ -152,6 +155,7 @@ def run_variant(name: str, spec: dict, diameter: float, ts, args) -> dict:
     dia = diameter if spec.get("nominal_radius") else diameter_um_from_radius(float(np.median(ts.radius_dpd)))
     sub = int(spec.get("subdivisions", args.subdivisions))
     tier = get_tier("quasistatic", subdivisions=sub, dtype=args.dtype, gas_p0=float(spec.get("gas_p0", 3.0)),
+                    overpressure=float(spec.get("overpressure", 0.0)),
                     indentation_convention=spec.get("convention", "bubblecal-v1"))
     params = {k: ts.params[:, j].copy() for j, k in enumerate(SHELL_PARAMETERS)}
     params["ka"] *= float(spec.get("ka", 1.0))

@@ -44,6 +44,10 @@ class QuasistaticTier:
         Icosphere level; overrides the request's when given.
     gas_p0 : float
         Gas pressure at the reference volume (DPD pressure).
+    overpressure : float
+        Gas pressure minus ambient pressure at the reference volume (DPD pressure; 0 = the stress-free sphere
+        is force-free).  A positive value inflates the shell against its membrane tension, as the explicit
+        tier's back pressure does against its water (docs/physics.md, "Reference pressure balance").
     ftol : float
         FIRE convergence: per-vertex force norm (DPD force).
     max_steps : int
@@ -94,6 +98,7 @@ class QuasistaticTier:
 
     subdivisions: int | None = None
     gas_p0: float = 3.0
+    overpressure: float = 0.0
     ftol: float = 0.05
     max_steps: int = 100_000
     rupture_strain: float = 1.0
@@ -131,6 +136,9 @@ class QuasistaticTier:
                 raise ValueError(f"quasistatic tier: max_replicas must be an integer >= 1, got {m!r}")
             if self.schedule != "async":
                 raise ValueError("quasistatic tier: max_replicas needs schedule = 'async'")
+        if isinstance(self.overpressure, bool) or not (isinstance(self.overpressure, (int, float))
+                                                        and math.isfinite(self.overpressure)):
+            raise ValueError(f"quasistatic tier: overpressure must be a finite number, got {self.overpressure!r}")
         if not isinstance(self.thermal_contact, bool):
             raise ValueError(f"quasistatic tier: thermal_contact must be true or false, got {self.thermal_contact!r}")
         if not (isinstance(self.kT, (int, float)) and math.isfinite(self.kT) and self.kT > 0):
@@ -184,7 +192,7 @@ class QuasistaticTier:
             meshes = [by_size[d] for d in request.diameters_um]
         fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable,
                             force_mode=self.force_mode)
-        gas = IdealGas(p0=self.gas_p0)
+        gas = IdealGas(p0=self.gas_p0, p_ambient=self.gas_p0 - self.overpressure)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,
                       extrapolate=self.extrapolate, schedule=self.schedule, max_replicas=self.max_replicas)

@@ -67,3 +67,35 @@ def test_quasistatic_tier_slot_refill_same_curves():
             get_tier("quasistatic", max_replicas=bad)
     with pytest.raises(ValueError, match="needs schedule"):
         get_tier("quasistatic", max_replicas=4, schedule="lockstep")
+
+
+def test_quasistatic_tier_overpressure_inflates_the_shell_by_laplace():
+    """A gas pressure Δp above the ambient inflates the unloaded sphere until the Lim area tension and the
+    gas's expansion balance it: k_a α (2 + 2ε) A0 = [p0 / (1 + ε)³ − (p0 − Δp)] 3 V0 (1 + ε)², α = 2ε + ε²
+    (uniform scaling of the mesh, its own A0 and V0); the unloaded depth is d = −2 R ε."""
+    pytest.importorskip("warp")
+    from scipy.optimize import brentq
+
+    from bubblecal.sim.engine import mesh_for_diameter
+    from bubblecal.sim.tiers import get_tier
+
+    ka, dp, p0 = 2000.0, 5.0, 3.0
+    shell = dict(ka=ka, kb=KB, b1=0.0, b2=0.0, a3=0.0, a4=0.0)
+    req = CurveRequest("indentation", 2.1, (0.0, 5.0), {k: np.array([v]) for k, v in shell.items()}, (1,),
+                       subdivisions=2)
+    with pytest.raises(ValueError, match="overpressure must be a finite number"):
+        get_tier("quasistatic", overpressure=float("nan"))
+    balanced = get_tier("quasistatic", ftol=1e-4).run(req)
+    inflated = get_tier("quasistatic", overpressure=dp, ftol=1e-4).run(req)
+    mesh = mesh_for_diameter(2.1, 2)
+    a0, v0 = mesh.area(), mesh.volume()
+
+    def balance(eps):
+        alpha = 2 * eps + eps * eps
+        return ka * alpha * (2 + 2 * eps) * a0 - (p0 / (1 + eps) ** 3 - (p0 - dp)) * 3 * v0 * (1 + eps) ** 2
+
+    eps = brentq(balance, 0.0, 0.1)
+    assert balanced.observable[0, 0] == pytest.approx(0.0, abs=1e-6)
+    assert inflated.observable[0, 0] == pytest.approx(-2 * mesh.radius_dpd * eps, rel=0.02)
+    # the inflated, pre-tensioned shell is stiffer against the pole load
+    assert inflated.observable[0, 1] - inflated.observable[0, 0] < balanced.observable[0, 1]
