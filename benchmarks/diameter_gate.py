@@ -9,7 +9,8 @@ statuses and wall seconds.  ``--out`` receives ``diameter_gate.json`` (rewritten
 (to separate the solvent's share of a gap), ``--ref-subdivisions`` gives the reference its own mesh level, and
 ``--qs-store`` takes the quasi-static curves from the campaign's finished store (the same design points) instead of
 re-running them; ``--reference-curves`` takes the reference tier's curves from an earlier run's CSV, so that a
-quasi-static variant (``--qs-setting KEY=VALUE``, e.g. ``overpressure=4.95``) is gated on a CPU against GPU curves.
+quasi-static variant (``--qs-setting KEY=VALUE``, e.g. ``overpressure=4.95``) is gated on a CPU against GPU curves;
+``--ref-setting KEY=VALUE`` sets the reference tier (e.g. the explicit tier's ``p_back``).
 
 Usage::
 
@@ -101,7 +102,7 @@ def parse_setting(text: str) -> tuple[str, object]:
 def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None,
               start: int = 0, reference: str = "explicit", ref_subdivisions: int | None = None,
               qs_store: str | None = None, qs_overrides: dict | None = None,
-              reference_curves: str | None = None) -> dict:
+              reference_curves: str | None = None, ref_overrides: dict | None = None) -> dict:
     """Quasi-static and reference-tier curves of design points ``start`` .. ``start + n - 1`` of one level.
 
     The reference-tier result is stored under the key ``"explicit"`` whichever tier it is (the CSV names it).
@@ -117,7 +118,7 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
                            params={k: np.asarray(design[k][idx]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][idx]), subdivisions=sub)
     qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"} | (qs_overrides or {})
-    md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED}
+    md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED} | (ref_overrides or {})
     out = {"indices": idx.tolist(), "grid": list(request.grid)}
     if qs_store:
         out["quasistatic"] = stored_curves(qs_store, config, idx, tuple(grid))
@@ -183,11 +184,14 @@ def main() -> None:
     ap.add_argument("--qs-store", default=None, help="take the quasi-static curves from this finished store")
     ap.add_argument("--qs-setting", action="append", default=[], metavar="KEY=VALUE",
                     help="override a quasi-static tier setting of the campaign (repeatable)")
+    ap.add_argument("--ref-setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="a setting of the reference tier, e.g. p_back=86.05 (repeatable)")
     ap.add_argument("--reference-curves", default=None, metavar="CSV",
                     help="take the reference tier's curves from an earlier run's curves CSV (one diameter)")
     ap.add_argument("--out", default="diameter_gate_out")
     args = ap.parse_args()
     qs_overrides = dict(parse_setting(v) for v in args.qs_setting)
+    ref_overrides = dict(parse_setting(v) for v in args.ref_setting)
     config = load_campaign_file(args.campaign).config
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -201,7 +205,8 @@ def main() -> None:
             parts.append(run_level(config, d, min(batch, args.start + args.n - first), args.device, args.scale,
                                    args.subdivisions, start=first, reference=args.reference,
                                    ref_subdivisions=args.ref_subdivisions, qs_store=args.qs_store,
-                                   qs_overrides=qs_overrides, reference_curves=args.reference_curves))
+                                   qs_overrides=qs_overrides, reference_curves=args.reference_curves,
+                                   ref_overrides=ref_overrides))
             res = merge(parts)
             write_curves(out / f"curves_{config.name}_{d:g}um{tag}.csv", res, config.protocol, args.reference)
             print(f"  {d:g} um: {len(res['indices'])} of {args.n} points done", flush=True)
@@ -217,7 +222,7 @@ def main() -> None:
         line = {"benchmark": "diameter_gate", "campaign": config.name, "device": args.device, "scale": args.scale,
                 "n": args.n, "start": args.start, "reference": args.reference,
                 "ref_subdivisions": args.ref_subdivisions, "qs_store": args.qs_store, "qs_settings": qs_overrides,
-                "reference_curves": args.reference_curves, "rows": rows}
+                "ref_settings": ref_overrides, "reference_curves": args.reference_curves, "rows": rows}
         (out / f"diameter_gate{tag}.json").write_text(json.dumps(line, indent=1))
     print(json.dumps(line))
 

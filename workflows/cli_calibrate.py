@@ -157,8 +157,7 @@ def calibrate(
         for note in ap.notes:
             console.print(f"[cyan]note:[/] {escape(ap.agent)}: {escape(note)}", highlight=False)
         for msg in ap.domain_warnings[:5]:
-            console.print(f"[yellow]warning:[/] {ap.agent}: prior box exceeds a surrogate's training box: "
-                          f"{escape(msg)}", highlight=False)
+            console.print(f"[yellow]warning:[/] {ap.agent}: surrogate domain: {escape(msg)}", highlight=False)
     names = [ap.agent for ap in plan.agents]
     what = (f"{sum(len(ap.curves) for ap in plan.agents)} bubbles of {data}, agents {', '.join(names)}"
             if data is not None else f"agents {', '.join(names)}")

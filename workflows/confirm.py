@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS
-from bubblecal.workflows.plotting import new_figure, save_figure, styled
+from bubblecal.workflows.plotting import agent_title, new_figure, save_figure, styled
 
 __all__ = ["DEFAULT_TIER", "find_runs", "map_parameters", "confirm_run"]
 
@@ -219,5 +219,5 @@ def _figure(pts, summ, path: Path, tier: str, agent: str) -> Path:
         ax.set_xlim(left=0)
         ax.set_ylim(bottom=0)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(f"{agent.capitalize()}: {tier} simulation at the phase-3 MAP", fontsize=10)
+    fig.suptitle(f"{agent_title(agent)}: {tier} simulation at the phase-3 MAP", fontsize=10)
     return save_figure(fig, path)

@@ -10,7 +10,10 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-__all__ = ["STYLE", "COLOURS", "styled", "new_figure", "save_figure", "figure_title", "short_label"]
+__all__ = ["STYLE", "COLOURS", "styled", "new_figure", "save_figure", "figure_title", "agent_title", "short_label"]
+
+#: How the published agents are written in titles; a user's agent label is shown as given.
+AGENT_TITLES = {"definity": "Definity", "sonovue": "SonoVue"}
 
 #: rcParams of the calibration figures (applied only while a :func:`styled` function runs).
 STYLE = {"font.size": 9, "axes.spines.top": False, "axes.spines.right": False, "legend.frameon": False,
@@ -35,8 +38,23 @@ def figure_title(result, plan, what: str) -> str:
     -------
     str
     """
-    t = f"{result.plan.agent.capitalize()} — {what} ({result.plan.workflow})"
+    t = f"{agent_title(result.plan.agent)} — {what} ({result.plan.workflow})"
     return t + ("\nSYNTHETIC surrogate bundle: not a physical result" if plan.synthetic_bundle else "")
+
+
+def agent_title(agent: str) -> str:
+    """An agent as written in a title: the published agents' names (``AGENT_TITLES``), a user's label as given.
+
+    Parameters
+    ----------
+    agent : str
+        The agent label.
+
+    Returns
+    -------
+    str
+    """
+    return AGENT_TITLES.get(agent, agent)
 
 
 def short_label(text: str, width: int = 24) -> str:

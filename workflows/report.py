@@ -280,7 +280,8 @@ def write_report(result, plan) -> Path:
         "",
     ]
     if ap.domain_warnings:
-        lines += ["**Surrogate domain warnings** (prior box vs training box):", ""]
+        lines += ["**Surrogate domain warnings** (prior box vs training box; diameters outside the range where the "
+                  "training curves were checked against the explicit tier):", ""]
         lines += [f"- {w}" for w in ap.domain_warnings[:10]] + [""]
     df = result.summary
     lines += ["## Posterior summary", "",

@@ -179,3 +179,12 @@ def test_console_summary_lists_few_bubbles_and_keeps_the_population_for_many(tmp
     assert "population (new bubble)" in names
     assert len(names) == (n + 1 if n + 1 <= CONSOLE_ROWS else 1)
     assert (f"{n} datasets in summary.csv" in table.title) == (n + 1 > CONSOLE_ROWS)
+
+
+def test_agent_titles_keep_a_users_label_and_name_the_published_agents():
+    from bubblecal.workflows.plotting import agent_title
+
+    assert agent_title("lab-B") == "lab-B"  # a user's label as written, not "Lab-b"
+    assert agent_title("mylipid") == "mylipid"
+    assert agent_title("sonovue") == "SonoVue"
+    assert agent_title("definity") == "Definity"

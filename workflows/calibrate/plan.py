@@ -58,7 +58,8 @@ class AgentPlan:
     out_dir : Path
         ``out/<agent>/<workflow>``.
     domain_warnings : list of str
-        Places where the prior box exceeds a surrogate's training box (reported, not fatal).
+        Places where the prior box exceeds a surrogate's training box, or a bubble's diameter lies outside the
+        range where the training curves were checked against the explicit tier (reported, not fatal).
     surrogate_agent : str
         The published agent whose surrogates and acoustic law serve this agent ('' = ``agent`` itself).
     notes : list of str

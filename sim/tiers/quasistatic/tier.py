@@ -46,8 +46,9 @@ class QuasistaticTier:
         Gas pressure at the reference volume (DPD pressure).
     overpressure : float
         Gas pressure minus ambient pressure at the reference volume (DPD pressure; 0 = the stress-free sphere
-        is force-free).  A positive value inflates the shell against its membrane tension, as the explicit
-        tier's back pressure does against its water (docs/physics.md, "Reference pressure balance").
+        is force-free).  A positive value inflates the shell until its membrane tension balances it, a
+        pre-tension that stiffens the shell; for comparisons between tiers (docs/physics.md, "Reference pressure
+        balance").
     ftol : float
         FIRE convergence: per-vertex force norm (DPD force).
     max_steps : int
