@@ -332,7 +332,13 @@ def _run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore,
     result = PhaseResult(name=name, samples=samples, log_evidence=math.nan, log_evidence_se=math.nan,
                          status="converged" if res.converged else "not converged", seconds=seconds)
     store.loglik[name] = total_ll
-    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
+    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences,
+            "converged": int(res.converged)}  # 0 / 1: NetCDF attributes hold no booleans
+    if not res.converged:
+        say(f"warning: {name}: NUTS did not converge (max r_hat {res.max_r_hat:.3g}, min bulk ESS {res.min_n_eff:.0f},"
+            f" {res.num_divergences} divergences; wanted r_hat <= 1.01, ESS >= 400, none): the joint posterior is not"
+            " reliable; run longer chains (--nuts-samples, which also sets the warm-up; --nuts-chains) or use"
+            " --sampler tmcmc")
     idata = _joint_inference_data(res, ap, kwargs, total_ll, joint_export(ap), diag) if config.netcdf else None
     write_phase(store.path(name), result, total_ll, {"config_hash": store.expected[name], "phase": name,
                                                       "phase_result_chains": "all", **diag}, idata=idata)

@@ -170,10 +170,15 @@ def test_joint_nuts_run(tmp_path, synthetic_bundle):
     config = CalibrationConfig(agents=("definity",), workflow="reduced", sampler="nuts", bundle=synthetic_bundle,
                                out=tmp_path, nuts_samples=100, nuts_warmup=100, nuts_chains=1,
                                predictive_samples=100, curves=("definity_compression_2.9um",))
-    (res,) = run_calibration(make_plan(config))
+    said = []
+    (res,) = run_calibration(make_plan(config), progress=said.append)
     df = pd.read_csv(tmp_path / "definity" / "reduced" / "summary.csv")
     assert {"ka", "kb", "d0", "sigma"} <= set(df[df["dataset"] == "definity_compression_2.9um"]["parameter"])
     assert (tmp_path / "definity" / "reduced" / "joint_nuts.nc").is_file() and res.joint.diagnostics
+    # 100 draws of one chain cannot reach a bulk ESS of 400: the run and the report say the chains did not converge
+    assert res.joint.diagnostics["converged"] == 0
+    assert any("NUTS did not converge" in m and "--sampler tmcmc" in m for m in said)
+    assert "did not converge" in (tmp_path / "definity" / "reduced" / "report.md").read_text()
     import arviz as az
 
     idata = az.from_netcdf(str(tmp_path / "definity" / "reduced" / "joint_nuts.nc"))
