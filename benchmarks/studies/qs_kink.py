@@ -65,6 +65,15 @@ def run_variant(variant: str, diameter_um: float, points: list[int], device: str
     return np.asarray(res.force + res.force_bottom), list(res.status), time.perf_counter() - t0
 
 
+def parse_selection(points: str, variants: str, allowed: tuple[str, ...]) -> tuple[list[int], list[str]]:
+    """Comma-separated design point indices and variant names; exits naming unknown variants."""
+    chosen = [v for v in variants.split(",") if v]
+    bad = sorted(set(chosen) - set(allowed))
+    if bad:
+        raise SystemExit(f"--variants: unknown {bad}; allowed {allowed}")
+    return [int(v) for v in points.split(",") if v], chosen
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--diameter", type=float, default=7.0, help="diameter level of the design [um]")
@@ -74,11 +83,7 @@ def main() -> None:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--out", type=Path, default=None, help="JSON file of every curve")
     args = ap.parse_args()
-    points = [int(v) for v in args.points.split(",") if v]
-    variants = [v for v in args.variants.split(",") if v]
-    bad = sorted(set(variants) - set(VARIANTS))
-    if bad:
-        raise SystemExit(f"--variants: unknown {bad}; allowed {VARIANTS}")
+    points, variants = parse_selection(args.points, args.variants, VARIANTS)
     curves, rows = {}, []
     for v in variants:
         force, status, seconds = run_variant(v, args.diameter, points, args.device)

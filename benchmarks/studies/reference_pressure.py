@@ -38,6 +38,7 @@ import math
 import time
 
 import numpy as np
+from qs_kink import parse_selection  # the studies' folder is the script's (sys.path[0])
 
 CAMPAIGN = "definity_compression_1.5-8um"
 VARIANTS = ("balanced", "overpressure", "reservoir", "both", "implicit")
@@ -106,11 +107,7 @@ def main() -> None:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--scale", type=float, default=0.25, help="MD protocol scale of the implicit variant")
     args = ap.parse_args()
-    points = [int(v) for v in args.points.split(",") if v]
-    variants = [v for v in args.variants.split(",") if v]
-    bad = sorted(set(variants) - set(VARIANTS))
-    if bad:
-        raise SystemExit(f"--variants: unknown {bad}; allowed {VARIANTS}")
+    points, variants = parse_selection(args.points, args.variants, VARIANTS)
     explicit = stored_explicit(args.explicit, points)
     rows, curves = [], {}
     for v in variants:
