@@ -98,6 +98,14 @@ class NUTSResult:
         """r_hat ≤ 1.01 and bulk ESS ≥ 400 for every component, no divergences."""
         return self.max_r_hat <= 1.01 and self.min_n_eff >= 400 and self.num_divergences == 0
 
+    def convergence_note(self) -> str | None:
+        """Why the run does not count as :attr:`converged`, in one sentence, or None when it does."""
+        if self.converged:
+            return None
+        return (f"NUTS did not converge (max r_hat {self.max_r_hat:.3g}, min bulk ESS {self.min_n_eff:.0f}, "
+                f"{self.num_divergences} divergences; wanted r_hat <= 1.01, ESS >= 400, none): the posterior is "
+                "not reliable")
+
 
 def run_nuts(
     model: Callable,

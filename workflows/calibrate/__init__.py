@@ -8,7 +8,8 @@ Pipeline (``docs/inference.md`` sections 4 and 7)::
 
 Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.plan` (validation and inputs), :mod:`~bubblecal.workflows.calibrate.store`
-(phase files, manifest, config hashes), :mod:`~bubblecal.workflows.calibrate.run` (the samplers),
+(phase files, manifest, config hashes), :mod:`~bubblecal.workflows.calibrate.run` (the samplers; the joint NUTS run in
+:mod:`~bubblecal.workflows.calibrate.joint`),
 :mod:`~bubblecal.workflows.calibrate.published` (the published study's inputs),
 :mod:`~bubblecal.workflows.calibrate.user_data` (measured bubbles from tidy files: ``data=CURVES.csv``),
 :mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one

@@ -12,7 +12,6 @@ dataset under the workflow's uniform priors, phase 2 the population Ïˆ = (m_k, Ï
 from __future__ import annotations
 
 import functools
-import math
 import time
 import warnings
 from collections.abc import Callable, Mapping
@@ -24,7 +23,7 @@ import numpy as np
 from bubblecal.workflows.calibrate.config import CalibrationConfig, agent_seed, phase2_samples, phase_tmcmc_options
 from bubblecal.workflows.calibrate.device import on_device
 from bubblecal.workflows.calibrate.export import PHASE2_LOGLIK, phase2_log_likelihood, phase_exports
-from bubblecal.workflows.calibrate.phase_files import write_phase
+from bubblecal.workflows.calibrate.joint import run_joint
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
 from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes
 
@@ -40,7 +39,7 @@ class AgentResult:
     plan : AgentPlan
     staged : bubblecal.inference.hierarchical.StagedResult or None
         Phases 1, 2, 3 (``sampler='tmcmc'``).
-    joint : object or None
+    joint : bubblecal.workflows.calibrate.joint.JointResult or None
         The joint NUTS draws, log likelihood, seconds and diagnostics (``sampler='nuts'``).
     loglik : dict of str to ndarray
         Phase name -> log likelihood of every draw.
@@ -242,7 +241,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
         for r in [*staged.phase1, staged.phase2, *staged.phase3]:
             seconds[r.name] = r.seconds
     else:
-        joint = _run_joint(ap, config, key, store, say)
+        joint = run_joint(ap, config, key, store, say)
         seconds["joint_nuts"] = joint.seconds
     seconds["sampling_total"] = time.perf_counter() - t_start
 
@@ -288,84 +287,6 @@ def _phase_models(ap: AgentPlan, config: CalibrationConfig):
         return functools.partial(acoustic_model, *acoustic_arguments[i - n_curves], population=pop)
 
     return phase2_factory, phase3_factory, datasets
-
-
-@dataclass
-class _JointResult:
-    """Draws, total log likelihood per draw, seconds and NUTS diagnostics of the joint run."""
-
-    samples: dict
-    loglik: np.ndarray
-    seconds: float
-    diagnostics: dict
-    reused: bool
-
-
-def _run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore, say) -> _JointResult:
-    """Joint hierarchical model with NUTS (non-centred); reuses ``joint_nuts`` when its hash matches."""
-    from numpyro.infer import init_to_value, log_likelihood
-
-    from bubblecal.inference.hierarchical import PhaseResult
-    from bubblecal.inference.nuts import run_nuts
-    from bubblecal.models import hierarchical_model, nuts_init_values
-    from bubblecal.workflows.calibrate.export import joint_export
-
-    name = "joint_nuts"
-    store.expected[name] = config_hash({"phases": store.expected, "nuts": [config.nuts_warmup, config.nuts_samples,
-                                                                            config.nuts_chains], "seed": config.seed})
-    cached = store.load(name)
-    if cached is not None:
-        say(f"{name}: reused")
-        return _JointResult(cached.samples, store.loglik.get(name), cached.seconds, {}, True)
-    say(f"{name}: running NUTS ({config.nuts_chains} chains x {config.nuts_samples} draws)")
-    t0 = time.perf_counter()
-    kwargs = {"acoustic": ap.acoustic, "f_res": ap.f_res, "noncentred": True}
-    init = nuts_init_values(ap.spec, n_curves=len(ap.curves))
-    with on_device(config.device):
-        res = run_nuts(hierarchical_model, ap.curves, ap.surrogates, ap.spec, rng_key=key,
-                       num_warmup=config.nuts_warmup, num_samples=config.nuts_samples, num_chains=config.nuts_chains,
-                       target_accept_prob=0.9, init_strategy=init_to_value(values=init), **kwargs)
-        ll = log_likelihood(hierarchical_model, res.samples, ap.curves, ap.surrogates, ap.spec, **kwargs)
-    total_ll = sum(np.asarray(v).reshape(np.asarray(v).shape[0], -1).sum(axis=1) for v in ll.values())
-    seconds = time.perf_counter() - t0
-    samples = {k: np.asarray(v) for k, v in res.samples.items()}
-    result = PhaseResult(name=name, samples=samples, log_evidence=math.nan, log_evidence_se=math.nan,
-                         status="converged" if res.converged else "not converged", seconds=seconds)
-    store.loglik[name] = total_ll
-    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences,
-            "converged": int(res.converged)}  # 0 / 1: NetCDF attributes hold no booleans
-    if not res.converged:
-        say(f"warning: {name}: NUTS did not converge (max r_hat {res.max_r_hat:.3g}, min bulk ESS {res.min_n_eff:.0f},"
-            f" {res.num_divergences} divergences; wanted r_hat <= 1.01, ESS >= 400, none): the joint posterior is not"
-            " reliable; run longer chains (--nuts-samples, which also sets the warm-up; --nuts-chains) or use"
-            " --sampler tmcmc")
-    idata = _joint_inference_data(res, ap, kwargs, total_ll, joint_export(ap), diag) if config.netcdf else None
-    write_phase(store.path(name), result, total_ll, {"config_hash": store.expected[name], "phase": name,
-                                                      "phase_result_chains": "all", **diag}, idata=idata)
-    store.manifest["phases"][name] = {"file": store.path(name).name, "config_hash": store.expected[name],
-                                      "status": result.status, "seconds": seconds, "max_r_hat": res.max_r_hat,
-                                      "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
-    store.write_manifest()
-    return _JointResult(samples, total_ll, seconds, diag, False)
-
-
-def _joint_inference_data(res, ap: AgentPlan, kwargs, total_ll, export, diag):
-    """The joint run's chains as InferenceData: every observation of every dataset in one variable 'y'."""
-    from bubblecal.inference.idata import build_inference_data, pointwise_log_likelihood
-    from bubblecal.models import hierarchical_model
-
-    info, sites = export
-    pw = pointwise_log_likelihood(hierarchical_model, res.samples_by_chain, (ap.curves, ap.surrogates, ap.spec),
-                                  kwargs, batch_ndims=2)
-    observed = [np.asarray(c.y, dtype=float) for c in ap.curves]
-    observed += [np.asarray(d.frequency_MHz, dtype=float) for d in ap.acoustic] if ap.spec.acoustic else []
-    chains = res.diverging.shape[0]
-    stats = {"lp": -np.asarray(res.potential_energy), "diverging": np.asarray(res.diverging, dtype=bool),
-             "loglik": np.asarray(total_ll).reshape(chains, -1)}
-    return build_inference_data(res.samples_by_chain, sample_stats=stats,
-                                log_likelihood={"y": np.concatenate([pw[s] for s in sites], axis=-1)},
-                                observed_data={"y": np.concatenate(observed)}, info=info,
-                                attrs={"inference_library": "numpyro.infer.NUTS", **diag})
 
 
 def run_calibration(plan: Plan, *, progress: Callable[[str], None] | None = None,
