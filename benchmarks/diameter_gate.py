@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.campaigns import design_points, load_campaign_file
+from bubblecal.campaigns import design_points, load_campaign_file, parse_tier_settings
 from bubblecal.data import SHELL_PARAMETERS
 from bubblecal.sim.tiers import CurveRequest, get_tier
 
@@ -82,21 +82,6 @@ def stored_reference(path: str, idx, n_points: int) -> dict:
     if missing:
         raise SystemExit(f"{path}: no reference curve of design points {missing}")
     return {"y": np.stack([rows[int(i)][0] for i in idx]), "status": [rows[int(i)][1] for i in idx], "seconds": 0.0}
-
-
-def parse_setting(text: str) -> tuple[str, object]:
-    """``KEY=VALUE`` -> (key, value) with the value read as a bool, int, float or string."""
-    key, sep, value = text.partition("=")
-    if not sep or not key:
-        raise SystemExit(f"--qs-setting: expected KEY=VALUE, got {text!r}")
-    if value.lower() in ("true", "false"):
-        return key, value.lower() == "true"
-    for cast in (int, float):
-        try:
-            return key, cast(value)
-        except ValueError:
-            pass
-    return key, value
 
 
 def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None,
@@ -190,8 +175,10 @@ def main() -> None:
                     help="take the reference tier's curves from an earlier run's curves CSV (one diameter)")
     ap.add_argument("--out", default="diameter_gate_out")
     args = ap.parse_args()
-    qs_overrides = dict(parse_setting(v) for v in args.qs_setting)
-    ref_overrides = dict(parse_setting(v) for v in args.ref_setting)
+    try:  # the campaigns' own KEY=VALUE parser (values read as TOML)
+        qs_overrides, ref_overrides = parse_tier_settings(args.qs_setting), parse_tier_settings(args.ref_setting)
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from exc
     config = load_campaign_file(args.campaign).config
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -9,7 +9,6 @@ dataset order (:meth:`StatisticsPool.submit`), so the scores are the same whatev
 
 from __future__ import annotations
 
-import os
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -30,15 +29,19 @@ def statistics_threads(cpus: int | None = None) -> int:
     Parameters
     ----------
     cpus : int, optional
-        Cores to plan for (default: ``os.cpu_count()``).
+        Cores to plan for (default: those this process may run on,
+        :func:`~bubblecal.workflows.calibrate.device.usable_cores`).
 
     Returns
     -------
     int
         At least 1.
     """
-    n = os.cpu_count() if cpus is None else cpus
-    return max(1, min(MAX_STATISTICS_THREADS, int(n or 1)))
+    if cpus is None:
+        from bubblecal.workflows.calibrate.device import usable_cores
+
+        cpus = usable_cores()
+    return max(1, min(MAX_STATISTICS_THREADS, int(cpus or 1)))
 
 
 @dataclass(frozen=True)

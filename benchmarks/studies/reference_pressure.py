@@ -32,13 +32,17 @@ Prints one line per variant and point and one JSON line (``{"study": "reference_
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from qs_kink import parse_selection  # the studies' folder is the script's (sys.path[0])
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for diameter_gate.py
+from diameter_gate import stored_reference  # noqa: E402  (benchmark script)
 
 CAMPAIGN = "definity_compression_1.5-8um"
 VARIANTS = ("balanced", "overpressure", "reservoir", "both", "implicit")
@@ -56,19 +60,6 @@ def water_bulk_modulus(p: float = P_WATER, rho: float = RHO_WATER, kT: float = 1
 def explicit_box(radius: float) -> tuple[float, float, float]:
     """The explicit tier's default periodic box (2R + 5, 2R + 5, 2R + 10) (DPD length)."""
     return (2 * radius + 5, 2 * radius + 5, 2 * radius + 10)
-
-
-def stored_explicit(path: str, points: list[int]) -> dict[int, np.ndarray]:
-    """Explicit-tier curves of ``points`` from a gate CSV (index, tier, status, forces...)."""
-    out = {}
-    with open(path) as fh:
-        for row in csv.reader(fh):
-            if row[0] != "index" and row[1] == "explicit" and int(row[0]) in points:
-                out[int(row[0])] = np.asarray(row[3:], dtype=float)
-    missing = sorted(set(points) - set(out))
-    if missing:
-        raise SystemExit(f"{path}: no explicit curve of points {missing}")
-    return out
 
 
 def run_variant(variant: str, diameter_um: float, points: list[int], device: str, scale: float) -> np.ndarray:
@@ -108,7 +99,10 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=0.25, help="MD protocol scale of the implicit variant")
     args = ap.parse_args()
     points, variants = parse_selection(args.points, args.variants, VARIANTS)
-    explicit = stored_explicit(args.explicit, points)
+    from bubblecal.campaigns import load_campaign_file
+
+    n_points = len(load_campaign_file(CAMPAIGN).config.grid_for(args.diameter))
+    explicit = dict(zip(points, stored_reference(args.explicit, points, n_points)["y"], strict=True))
     rows, curves = [], {}
     for v in variants:
         t0 = time.perf_counter()

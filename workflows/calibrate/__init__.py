@@ -61,7 +61,7 @@ from bubblecal.workflows.calibrate.config import (
     phase2_samples,
     phase_tmcmc_options,
 )
-from bubblecal.workflows.calibrate.device import check_device, on_device
+from bubblecal.workflows.calibrate.device import check_device, on_device, usable_cores
 from bubblecal.workflows.calibrate.export import (
     PHASE2_LOGLIK,
     joint_export,
@@ -104,7 +104,7 @@ __all__ = [
     "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
     "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
     "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
-    "min_population", "check_device", "on_device",
+    "min_population", "check_device", "on_device", "usable_cores",
     "AgentPlan", "Plan", "make_plan", "run_config", "run_plan", "resolve_bundle", "LOCK_NAME", "run_lock",
     "PhaseStore", "PhaseFileError", "phase_dependencies",
     "write_phase", "phase_inference_data", "phase_inference_parts", "read_phase", "read_pointwise", "phase_format",

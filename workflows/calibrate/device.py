@@ -1,12 +1,26 @@
-"""The JAX device of a run: check that it exists, and place the sampling on it."""
+"""The machine of a run: the JAX device (check that it exists, place the sampling on it) and the host's cores."""
 
 from __future__ import annotations
 
 import contextlib
+import os
 
 from bubblecal.workflows.calibrate.config import CalibrationError
 
-__all__ = ["check_device", "on_device"]
+__all__ = ["check_device", "on_device", "usable_cores"]
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the platform has one, else the machine's).
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
 
 
 def check_device(device: str) -> None:

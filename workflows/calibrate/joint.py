@@ -24,13 +24,16 @@ __all__ = ["JointResult", "run_joint", "joint_inference_data"]
 
 @dataclass
 class JointResult:
-    """Draws, total log likelihood per draw, seconds and NUTS diagnostics of the joint run."""
+    """Draws, total log likelihood per draw, seconds and NUTS diagnostics of the joint run; ``convergence_note``
+    names what a run that did not converge misses (:meth:`bubblecal.inference.nuts.NUTSResult.convergence_note`),
+    None for a converged or reused run."""
 
     samples: dict
     loglik: np.ndarray
     seconds: float
     diagnostics: dict
     reused: bool
+    convergence_note: str | None = None
 
 
 def run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore, say) -> JointResult:
@@ -64,11 +67,11 @@ def run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore, 
     result = PhaseResult(name=name, samples=samples, log_evidence=math.nan, log_evidence_se=math.nan,
                          status="converged" if res.converged else "not converged", seconds=seconds)
     store.loglik[name] = total_ll
-    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences,
-            "converged": int(res.converged)}  # 0 / 1: NetCDF attributes hold no booleans
-    if not res.converged:
-        say(f"warning: {name}: {res.convergence_note()}; run longer chains (--nuts-samples, also the warm-up; "
-            "--nuts-chains) or use --sampler tmcmc")
+    diag = {"max_r_hat": res.max_r_hat, "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
+    note = res.convergence_note()
+    if note is not None:
+        say(f"warning: {name}: {note}; run longer chains (--nuts-samples, also the warm-up; --nuts-chains) or use "
+            "--sampler tmcmc")
     idata = joint_inference_data(res, ap, kwargs, total_ll, joint_export(ap), diag) if config.netcdf else None
     write_phase(store.path(name), result, total_ll, {"config_hash": store.expected[name], "phase": name,
                                                       "phase_result_chains": "all", **diag}, idata=idata)
@@ -76,7 +79,7 @@ def run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore, 
                                       "status": result.status, "seconds": seconds, "max_r_hat": res.max_r_hat,
                                       "min_n_eff": res.min_n_eff, "num_divergences": res.num_divergences}
     store.write_manifest()
-    return JointResult(samples, total_ll, seconds, diag, False)
+    return JointResult(samples, total_ll, seconds, diag, False, note)
 
 
 def joint_inference_data(res, ap: AgentPlan, kwargs, total_ll, export, diag):

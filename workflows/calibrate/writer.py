@@ -11,11 +11,12 @@ to a writer is host arrays and metadata.
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
+
+from bubblecal.workflows.calibrate.device import usable_cores
 
 __all__ = ["PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES"]
 
@@ -39,7 +40,7 @@ def writer_processes(cpus: int | None = None) -> int:
         0 below :data:`WRITER_PROCESS_MIN_CPUS` cores, else min(:data:`MAX_WRITER_PROCESSES`, cpus // 4).
     """
     if cpus is None:
-        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        cpus = usable_cores()
     return 0 if cpus < WRITER_PROCESS_MIN_CPUS else min(MAX_WRITER_PROCESSES, cpus // 4)
 
 

@@ -176,7 +176,7 @@ def test_joint_nuts_run(tmp_path, synthetic_bundle):
     assert {"ka", "kb", "d0", "sigma"} <= set(df[df["dataset"] == "definity_compression_2.9um"]["parameter"])
     assert (tmp_path / "definity" / "reduced" / "joint_nuts.nc").is_file() and res.joint.diagnostics
     # 100 draws of one chain cannot reach a bulk ESS of 400: the run and the report say the chains did not converge
-    assert res.joint.diagnostics["converged"] == 0
+    assert res.joint.convergence_note is not None and "NUTS did not converge" in res.joint.convergence_note
     assert any("NUTS did not converge" in m and "--sampler tmcmc" in m for m in said)
     assert "did not converge" in (tmp_path / "definity" / "reduced" / "report.md").read_text()
     import arviz as az
