@@ -20,14 +20,13 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
   only when it runs).
 """
 
-from bubblecal.inference.compare import Comparison, compare_posteriors
+from bubblecal.inference.compare import Comparison, compare_posteriors, compare_staged_joint
 from bubblecal.inference.crps import CRPSResult, crps_ensemble, gaussian_crps, predictive_crps
 from bubblecal.inference.hierarchical import (
     ESS_PREFIX,
     Dataset,
     PhaseResult,
     StagedResult,
-    compare_staged_joint,
     ess_table,
     run_phase,
     run_staged,

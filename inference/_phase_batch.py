@@ -22,7 +22,8 @@ def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, b
     Parameters
     ----------
     jobs : sequence of tuple
-        ``(phase name, model, args, kwargs, PRNG key)`` per dataset.
+        ``(phase name, model, args, kwargs, PRNG key, start)`` per dataset; ``start`` (None, or a run that starts
+        from given draws: see :func:`~bubblecal.inference.hierarchical.run_phase`) runs one by one.
     options : mapping or None
         Keyword arguments of :class:`~bubblecal.inference.tmcmc.TMCMC`.
     batch : bool
@@ -32,8 +33,8 @@ def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, b
     load : callable or None
         ``load(name) -> PhaseResult | None``: a stored result to reuse.
     run_one : callable
-        ``run_one(name, model, args, kwargs, key, options) -> PhaseResult``: one phase on its own (saved and
-        reported there).
+        ``run_one(name, model, args, kwargs, key, start, options) -> PhaseResult``: one phase on its own (saved
+        and reported there).
     result_of : callable
         ``result_of(name, sampler, seconds) -> PhaseResult`` of a finished sampler.
     check : callable
@@ -59,7 +60,7 @@ def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, b
         cached = load(job[0]) if load is not None else None
         if cached is not None:
             say(f"{job[0]}: reused (log Z = {cached.log_evidence:.3f})")
-        elif not batch:
+        elif not batch or job[5] is not None:
             cached = run_one(*job, options)
         results.append(cached)
     pending = [j for j, r in enumerate(results) if r is None]

@@ -14,10 +14,15 @@ sampling noise of ~1,000 effective draws per side; the reasoning is in ``docs/de
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.stats import ks_2samp
+
+if TYPE_CHECKING:
+    from bubblecal.inference.hierarchical import StagedResult
 
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
 
@@ -140,3 +145,44 @@ def compare_posteriors(
         passed=all(r["passed"] for r in rows),
         thresholds={"max_central_diff": max_central_diff, "max_tail_diff": max_tail_diff, "max_ks": max_ks},
     )
+
+
+def compare_staged_joint(staged: StagedResult, joint_samples: Mapping[str, np.ndarray],
+                         dataset_sites: Mapping[str, Mapping[str, tuple[str, int | None]]] | None = None):
+    """Compare staged and joint marginals: ψ (m_*, tau_*) and each dataset's Θ_i.
+
+    Parameters
+    ----------
+    staged : StagedResult
+        The staged run.
+    joint_samples : mapping of str to array_like
+        Samples of the joint model.
+    dataset_sites : mapping or None
+        ``dataset_sites[name]`` maps a phase-3 site (e.g. 'ka') to the joint model's (site, index)
+        holding that dataset's value (e.g. ('ka', 2) for the third curve of a plate; index None for a
+        site of its own).
+
+    Returns
+    -------
+    dict
+        ``{'psi': Comparison, name: Comparison, ...}`` from :func:`compare_posteriors`.
+    """
+    out = {}
+    psi_staged = staged.psi_samples
+    psi_joint = {k: np.asarray(joint_samples[k]) for k in psi_staged if k in joint_samples}
+    if psi_joint:
+        out["psi"] = compare_posteriors({k: psi_staged[k] for k in psi_joint}, psi_joint)
+    for result in staged.phase3:
+        name = result.name.removeprefix("phase3_")
+        mapping = (dataset_sites or {}).get(name)
+        if not mapping:
+            continue
+        a, b = {}, {}
+        for site, (joint_site, index) in mapping.items():
+            if site in result.samples and joint_site in joint_samples:
+                a[site] = np.asarray(result.samples[site])
+                joint = np.asarray(joint_samples[joint_site])
+                b[site] = joint if index is None else joint[..., index]
+        if a:
+            out[name] = compare_posteriors(a, b)
+    return out

@@ -8,13 +8,16 @@ The method is ``docs/inference.md`` section 4. Physics-free: the caller supplies
   (``phase2_factory(samples_per_dataset) -> model``); its deterministic sites ``is_ess_<name>`` hold
   the importance-sampling effective sample size of every dataset at each ψ draw.
 * Phase 3: each dataset again, under the learned population prior
-  (``phase3_factory(index, m_samples, tau_samples) -> model``).
+  (``phase3_factory(index, m_samples, tau_samples) -> model``); with ``phase3_tempered`` the run starts
+  from the dataset's phase-1 posterior and tempers only the population-prior factor (same posterior and
+  evidence, a fraction of the stages).
 
 ``load``/``save`` hooks reuse finished phases (resumable runs) and persist each phase as it ends.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -25,11 +28,9 @@ import jax
 import numpy as np
 
 from bubblecal.inference._phase_batch import run_phases
-from bubblecal.inference.compare import compare_posteriors
 from bubblecal.inference.tmcmc import TMCMC
 
-__all__ = ["Dataset", "PhaseResult", "StagedResult", "run_phase", "run_staged", "ess_table",
-           "compare_staged_joint", "ESS_PREFIX"]
+__all__ = ["Dataset", "PhaseResult", "StagedResult", "run_phase", "run_staged", "ess_table", "ESS_PREFIX"]
 
 #: Prefix of the phase-2 deterministic sites that hold the per-dataset IS effective sample size.
 ESS_PREFIX = "is_ess_"
@@ -148,7 +149,8 @@ def _num_draws(result: PhaseResult) -> int:
     return int(next(iter(result.samples.values())).shape[0])
 
 
-def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key, tmcmc_options: Mapping) -> PhaseResult:
+def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key, tmcmc_options: Mapping,
+              start: Mapping | None = None) -> PhaseResult:
     """Run TMCMC on one phase's model.
 
     Parameters
@@ -165,6 +167,10 @@ def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key,
         PRNG key of the run.
     tmcmc_options : mapping
         Keyword arguments of :class:`~bubblecal.inference.tmcmc.TMCMC`.
+    start : callable or None
+        ``start(num_particles) -> {"init_samples": ..., "init_log_evidence": ...}``, arguments of
+        :meth:`~bubblecal.inference.tmcmc.TMCMC.run` for a run that starts from a base density's draws; None:
+        exact prior draws.
 
     Returns
     -------
@@ -175,10 +181,10 @@ def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key,
     RuntimeError
         If TMCMC did not reach β = 1.
     """
-    start = time.perf_counter()
+    t0 = time.perf_counter()
     sampler = TMCMC(model, **dict(tmcmc_options))
-    sampler.run(rng_key, *args, **dict(kwargs))
-    result = _phase_result(name, sampler, time.perf_counter() - start)
+    sampler.run(rng_key, *args, **(start(sampler.num_particles) if start is not None else {}), **dict(kwargs))
+    result = _phase_result(name, sampler, time.perf_counter() - t0)
     _check_converged(result)
     return result
 
@@ -208,6 +214,7 @@ def run_staged(
     phase3_options: Mapping | None = None,
     phase2_max_samples: int | None = None,
     phase3_reweight: Callable[[int, dict, dict, dict], np.ndarray] | None = None,
+    phase3_tempered: Sequence[str] | None = None,
     load: Callable[[str], PhaseResult | None] | None = None,
     save: Callable[[PhaseResult], None] | None = None,
     progress: Callable[[str], None] | None = None,
@@ -242,6 +249,13 @@ def run_staged(
         Korali phase 3, which counts D_i twice (importance ESS per dataset in
         ``StagedResult.phase3_ess``; the phase names stay ``phase3_<name>``, so a ``load`` that reuses
         phases must tell the two variants apart). None (default): the published phase 3.
+    phase3_tempered : sequence of str or None
+        The factor sites through which each phase-3 model adds its population prior (e.g.
+        ``("population_prior",)``), where the model without them is the dataset's phase-1 model: phase 3 then
+        starts from the dataset's phase-1 draws and tempers only those sites (``TMCMC(tempered=...)``, log
+        evidence offset by phase 1's), the same posterior and evidence as tempering the likelihood and the
+        factor together from the uniform prior, in fewer stages (``docs/inference.md`` section 4). None
+        (default): phase 3 starts from the uniform prior, as Korali's.
     load : callable or None
         ``load(name) -> PhaseResult | None``: a stored result to reuse.
     save : callable or None
@@ -275,9 +289,9 @@ def run_staged(
     say = progress or (lambda _msg: None)
     keys = jax.random.split(rng_key, 2 * len(datasets) + 1)
 
-    def _fresh(name, model, args, kwargs, key, options):
-        say(f"{name}: running TMCMC")
-        result = run_phase(name, model, args, kwargs, key, options or {})
+    def _fresh(name, model, args, kwargs, key, start, options):
+        say(f"{name}: running TMCMC" + (" from its phase-1 draws" if start else ""))
+        result = run_phase(name, model, args, kwargs, key, options or {}, start)
         if save is not None:
             save(result)
         say(f"{name}: log Z = {result.log_evidence:.3f}, {result.seconds:.1f} s")
@@ -287,11 +301,11 @@ def run_staged(
         return run_phases(jobs, options, batch=batched, batch_size=batch_size, load=load, run_one=_fresh,
                           result_of=_phase_result, check=_check_converged, save=save, say=say)
 
-    phase1 = _run_all([(f"phase1_{d.name}", d.model, d.args, d.kwargs, keys[i]) for i, d in enumerate(datasets)],
-                      phase1_options)
+    phase1 = _run_all([(f"phase1_{d.name}", d.model, d.args, d.kwargs, keys[i], None)
+                       for i, d in enumerate(datasets)], phase1_options)
     thinned = [_thin(r.samples, phase2_max_samples) for r in phase1]
-    phase2, = _run_all([("phase2", phase2_factory(thinned, names), (), {}, keys[len(datasets)])], phase2_options,
-                       batched=False)
+    phase2, = _run_all([("phase2", phase2_factory(thinned, names), (), {}, keys[len(datasets)], None)],
+                       phase2_options, batched=False)
     m_samples = {k.removeprefix("m_"): v for k, v in phase2.samples.items() if k.startswith("m_")}
     tau_samples = {k.removeprefix("tau_"): v for k, v in phase2.samples.items() if k.startswith("tau_")}
     reweight_ess: dict[str, float] = {}
@@ -309,13 +323,26 @@ def run_staged(
         return ({k: np.asarray(v)[idx] for k, v in m_samples.items()},
                 {k: np.asarray(v)[idx] for k, v in tau_samples.items()})
 
+    if phase3_tempered is not None:
+        phase3_options = {**dict(phase3_options or {}), "tempered": tuple(phase3_tempered)}
     jobs3 = []
     for i, d in enumerate(datasets):
         m_i, tau_i = _population(i)
-        jobs3.append((f"phase3_{d.name}", phase3_factory(i, m_i, tau_i), (), {}, keys[len(datasets) + 1 + i]))
+        start = None if phase3_tempered is None else functools.partial(_phase1_start, phase1[i])
+        jobs3.append((f"phase3_{d.name}", phase3_factory(i, m_i, tau_i), (), {}, keys[len(datasets) + 1 + i],
+                      start))
     phase3 = _run_all(jobs3, phase3_options)
     return StagedResult(phase1=phase1, phase2=phase2, phase3=phase3, phase3_ess=reweight_ess,
                         phase2_max_samples=phase2_max_samples)
+
+
+def _phase1_start(phase1: PhaseResult, num: int) -> dict[str, Any]:
+    """``TMCMC.run`` arguments that start a run from ``num`` of phase 1's equal-weight draws (evenly spaced, so
+    repeated only where phase 1 holds fewer) with phase 1's log evidence."""
+    size = _num_draws(phase1)
+    idx = np.linspace(0, size - 1, num).round().astype(int)
+    return {"init_samples": {k: np.asarray(v)[idx] for k, v in phase1.samples.items()},
+            "init_log_evidence": float(phase1.log_evidence)}
 
 
 def _thin(samples: Mapping[str, np.ndarray], max_samples: int | None) -> dict[str, np.ndarray]:
@@ -357,44 +384,3 @@ def ess_table(phase2_samples: Mapping[str, np.ndarray], num_draws: Mapping[str, 
                      "ess_median": float(np.median(v)),
                      "ess_median_fraction": float(np.median(v)) / n if n else math.nan})
     return pd.DataFrame(rows)
-
-
-def compare_staged_joint(staged: StagedResult, joint_samples: Mapping[str, np.ndarray],
-                         dataset_sites: Mapping[str, Mapping[str, tuple[str, int | None]]] | None = None):
-    """Compare staged and joint marginals: ψ (m_*, tau_*) and each dataset's Θ_i.
-
-    Parameters
-    ----------
-    staged : StagedResult
-        The staged run.
-    joint_samples : mapping of str to array_like
-        Samples of the joint model.
-    dataset_sites : mapping or None
-        ``dataset_sites[name]`` maps a phase-3 site (e.g. 'ka') to the joint model's (site, index)
-        holding that dataset's value (e.g. ('ka', 2) for the third curve of a plate; index None for a
-        site of its own).
-
-    Returns
-    -------
-    dict
-        ``{'psi': Comparison, name: Comparison, ...}`` from :func:`compare_posteriors`.
-    """
-    out = {}
-    psi_staged = staged.psi_samples
-    psi_joint = {k: np.asarray(joint_samples[k]) for k in psi_staged if k in joint_samples}
-    if psi_joint:
-        out["psi"] = compare_posteriors({k: psi_staged[k] for k in psi_joint}, psi_joint)
-    for result in staged.phase3:
-        name = result.name.removeprefix("phase3_")
-        mapping = (dataset_sites or {}).get(name)
-        if not mapping:
-            continue
-        a, b = {}, {}
-        for site, (joint_site, index) in mapping.items():
-            if site in result.samples and joint_site in joint_samples:
-                a[site] = np.asarray(result.samples[site])
-                joint = np.asarray(joint_samples[joint_site])
-                b[site] = joint if index is None else joint[..., index]
-        if a:
-            out[name] = compare_posteriors(a, b)
-    return out

@@ -42,6 +42,7 @@ from bubblecal.models.likelihood import (
     sd_floor_for,
 )
 from bubblecal.models.mechanical import (
+    POPULATION_SITE,
     mechanical_model,
     mechanical_prediction,
     nuts_init_values,
@@ -70,6 +71,7 @@ from bubblecal.models.traced import TracedSurrogate, pad_curve
 __all__ = [
     # models
     "mechanical_model", "mechanical_prediction", "reduced_spec", "nuts_init_values", "population_factor",
+    "POPULATION_SITE",
     "TracedSurrogate", "pad_curve", "acoustic_model", "acoustic_prediction", "predict_frequency", "FrequencyTable",
     "hierarchical_model", "phase2_model", "pooled_bounds", "leave_one_out_log_weights",
     "dataset_log_likelihood", "dataset_log_likelihoods", "PHASE2_FACTOR", "ess_site_name",

@@ -56,6 +56,7 @@ from bubblecal.models.population import population_predictive_log_density
 from bubblecal.priors import PriorSpec
 
 __all__ = [
+    "POPULATION_SITE",
     "nuts_init_values",
     "population_factor",
     "mechanical_model",
@@ -201,7 +202,11 @@ def nuts_init_values(spec: PriorSpec, n_curves: int | None = None) -> dict:
     return out
 
 
-def population_factor(values: Mapping, spec: PriorSpec, population, site: str = "population_prior") -> None:
+#: The factor site through which a phase-3 model adds its population prior (the one a TMCMC from phase 1 tempers).
+POPULATION_SITE = "population_prior"
+
+
+def population_factor(values: Mapping, spec: PriorSpec, population, site: str = POPULATION_SITE) -> None:
     """Add the phase-3 factor log mean_s p(θ | ψ_s) − log p0(θ) over the pooled parameters in ``values``.
 
     Parameters

@@ -19,14 +19,15 @@ from bubblecal.surrogates.resonance_law import LAW_FORMS
 from bubblecal.workflows.calibrate.config import (
     DEVICES,
     NETWORKS,
+    PHASE3_STARTS,
     PHASE3_TARGETS,
     SAMPLERS,
     SURROGATE_CHOICES,
     WORKFLOWS,
 )
 
-__all__ = ["ALL_AGENTS", "Agent", "AgentOrAll", "Workflow", "Sampler", "JaxDevice", "Phase3", "Networks", "Surrogates",
-           "Tier", "RingdownTier", "LoadingProtocol", "Units", "LawFormName", "choice_value"]
+__all__ = ["ALL_AGENTS", "Agent", "AgentOrAll", "Workflow", "Sampler", "JaxDevice", "Phase3", "Phase3Start", "Networks",
+           "Surrogates", "Tier", "RingdownTier", "LoadingProtocol", "Units", "LawFormName", "choice_value"]
 
 #: ``--agent`` value selecting every agent.
 ALL_AGENTS = "all"
@@ -49,6 +50,7 @@ Sampler = _choices("Sampler", SAMPLERS)
 JaxDevice = _choices("JaxDevice", DEVICES)
 #: The phase-3 target of the staged calibration.
 Phase3 = _choices("Phase3", PHASE3_TARGETS)
+Phase3Start = _choices("Phase3Start", PHASE3_STARTS)
 #: Networks over the diameter (``calibrate --networks``).
 Networks = _choices("Networks", NETWORKS)
 #: Which surrogates serve the published study (``calibrate --surrogates``).

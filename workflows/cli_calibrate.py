@@ -28,6 +28,7 @@ from bubblecal.workflows.choices import (
     JaxDevice,
     Networks,
     Phase3,
+    Phase3Start,
     Sampler,
     Surrogates,
     Tier,
@@ -119,6 +120,10 @@ def calibrate(
     phase3: Phase3 = typer.Option(_D.phase3, "--phase3", help="published (Korali: population prior over p(psi | D), "
                                "which holds the curve's own data) | exact (leave-one-out psi weights: the joint "
                                "model's per-bubble marginal)."),
+    phase3_start: Phase3Start = typer.Option(_D.phase3_start, "--phase3-start", help="phase1 (phase 3 starts from "
+                                             "the curve's phase-1 draws and tempers only the population prior) | "
+                                             "prior (from the uniform prior, as Korali): the same posterior and "
+                                             "evidence."),
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
                                "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
 ) -> None:
@@ -128,8 +133,8 @@ def calibrate(
     OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
     from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
 
-    agent, workflow, sampler, device, phase3, networks, surrogates = (
-        choice_value(o) for o in (agent, workflow, sampler, device, phase3, networks, surrogates))
+    agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates = (
+        choice_value(o) for o in (agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates))
     if workflow is None:
         workflow = _D.workflow if data is None or acoustic is not None else "reduced"
     _compilation_cache(cache)
@@ -142,7 +147,7 @@ def calibrate(
                                    networks=networks, surrogates=surrogates, curves=tuple(curve or ()),
                                    phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
                                    nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
-                                   netcdf=netcdf, figures=figures, phase3=phase3)
+                                   netcdf=netcdf, figures=figures, phase3=phase3, phase3_start=phase3_start)
         plan = make_plan(config)
     except CalibrationError as exc:
         raise fail(str(exc)) from None

@@ -8,6 +8,10 @@ The split is by site type, from a trace of the model with the latent values subs
 - likelihood = Σ log p(observed sample sites), which includes every user ``numpyro.factor`` site
   (a factor is an observed ``Unit`` site).
 
+With ``tempered`` (names of observed or factor sites) only those sites form the likelihood that TMCMC
+tempers; every other observed site joins the base density with the prior (a run then starts from draws
+of that base, e.g. an earlier posterior: :meth:`bubblecal.inference.tmcmc.TMCMC.run`).
+
 Site ``scale`` (plates with subsampling, ``numpyro.handlers.scale``) and masks are honoured as in
 ``numpyro.infer.util.log_density``.
 
@@ -141,16 +145,20 @@ class FlatModel:
         behaviour on box priors); the prior is −∞ outside each site's support.
     rng_key : jax.Array or None
         Key of the prototype draw that gives the sites and shapes (default ``PRNGKey(0)``).
+    tempered : sequence of str or None
+        Observed or factor sites that form the tempered likelihood; the other observed sites count with
+        the prior (the base density). None (default): every observed and factor site is likelihood.
 
     Raises
     ------
     ValueError
-        For an unknown ``space``, a discrete latent site, no continuous latent site, or (constrained
-        space) a support with event dimensions.
+        For an unknown ``space``, a discrete latent site, no continuous latent site, (constrained
+        space) a support with event dimensions, or a ``tempered`` name that is no observed or factor site.
     """
 
     def __init__(
-        self, model: Callable, model_args=(), model_kwargs=None, space="unconstrained", rng_key=None
+        self, model: Callable, model_args=(), model_kwargs=None, space="unconstrained", rng_key=None,
+        tempered=None,
     ):
         if space not in ("unconstrained", "constrained"):
             raise ValueError(f"space must be 'unconstrained' or 'constrained', got {space!r}")
@@ -161,6 +169,7 @@ class FlatModel:
         self.args = tuple(model_args)
         self.kwargs = dict(model_kwargs)
         self.space = space
+        self.tempered = None if tempered is None else tuple(tempered)
         rng_key = jax.random.PRNGKey(0) if rng_key is None else rng_key
         # The prototype draw that gives the sites, supports and shapes is traced abstractly: run
         # eagerly, every new array shape of the model (each curve length, network) would compile
@@ -174,8 +183,15 @@ class FlatModel:
             flat0, self._unravel = ravel_pytree(self._to_flat_space(proto_values))
         else:
             proto_values, flat0 = proto
+        if self.tempered is not None:
+            unknown = [k for k in self.tempered if k not in self.observed]
+            if unknown or not self.tempered:
+                raise ValueError(f"model {self.label!r}: tempered sites {unknown or list(self.tempered)} are not "
+                                 f"among its observed and factor sites {self.observed}")
         self.dim = int(flat0.shape[0])
         self.dtype = flat0.dtype
+        #: shape of one draw of each latent site
+        self.latent_shapes = {k: tuple(jnp.shape(proto_values[k])) for k in self.latent}
         self._split_arguments(traced=True)
         if self.data and not self._traceable(flat0):
             self._split_arguments(traced=False)
@@ -190,6 +206,7 @@ class FlatModel:
             tuple(_fingerprint(self.scales[k]) for k in self.latent),
             tuple(self.event_dims[k] for k in self.latent),
             tuple(self.deterministic),
+            self.tempered,
         )
 
     def _read_sites(self, trace) -> None:
@@ -199,10 +216,13 @@ class FlatModel:
         self.scales = {}
         self.event_dims = {}
         self.deterministic: list[str] = []
+        self.observed: list[str] = []
         space = self.space
         for name, site in trace.items():
             if site["type"] == "deterministic":
                 self.deterministic.append(name)
+            if site["type"] == "sample" and site["is_observed"]:
+                self.observed.append(name)
             if site["type"] != "sample" or site["is_observed"]:
                 continue
             if site["infer"].get("is_auxiliary"):
@@ -310,7 +330,8 @@ class FlatModel:
         return handlers.trace(model).get_trace(*args, **kwargs)
 
     def log_terms(self, x: jax.Array, data=None) -> tuple[jax.Array, jax.Array]:
-        """(log prior in the flat space, log likelihood) of one flat vector (``data``: see :meth:`arguments`)."""
+        """(log prior in the flat space, log likelihood) of one flat vector (``data``: see :meth:`arguments`);
+        with ``tempered``, (log base density, log tempered likelihood)."""
         params = self._unravel(x)
         if self.space == "constrained":
             values = params
@@ -335,7 +356,9 @@ class FlatModel:
             if site["type"] != "sample":
                 continue
             lp = _site_log_prob(site)
-            if site["is_observed"]:
+            if site["is_observed"] and (self.tempered is not None and name not in self.tempered):
+                log_prior = log_prior + lp
+            elif site["is_observed"]:
                 log_lik = log_lik + lp
             elif name in self.transforms:
                 if self.space == "constrained":

@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from bubblecal.inference.tmcmc import core
 from bubblecal.inference.tmcmc._flat_model import FlatModel, _static_key
@@ -69,6 +70,7 @@ class _ModelPrograms(NamedTuple):
     evaluate: Callable  # (position, data) -> (log prior, log L) of (N, d) particles
     sites: Callable  # (position, data) -> {site: (N, ...) constrained values and deterministic sites}
     pointwise: Callable  # (draws, data) -> {observed site: (n, obs...) log likelihood} of constrained draws
+    flatten: Callable  # ({latent site: (n, ...) constrained values}) -> (n, d) flat positions
 
 
 class _FusedPrograms(NamedTuple):
@@ -140,9 +142,48 @@ def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
             evaluate=jax.jit(evaluate),
             sites=jax.jit(sites),
             pointwise=jax.jit(pointwise),
+            flatten=jax.jit(jax.vmap(flat.flatten)),
         )
 
     return _cached_programs(("model", flat.signature, chunk_size), build)
+
+
+def start_positions(programs: _ModelPrograms, flat: FlatModel, samples, num: int):
+    """The (num, d) flat positions of the constrained draws ``samples`` ({site: (num, ...)}) of ``flat``'s latents.
+
+    Raises
+    ------
+    ValueError
+        If a latent site is missing or holds another number of draws or another shape per draw.
+    """
+    missing = [k for k in flat.latent if k not in samples]
+    if missing:
+        raise ValueError(f"init_samples lacks the latent sites {missing} of model {flat.label!r}")
+    values = {}
+    for k in flat.latent:
+        v = np.asarray(samples[k], dtype=flat.dtype)
+        if v.shape != (num, *flat.latent_shapes[k]):
+            raise ValueError(f"init_samples[{k!r}] of model {flat.label!r} must have shape "
+                             f"{(num, *flat.latent_shapes[k])} (num_particles draws), got {v.shape}")
+        values[k] = jax.device_put(v)
+    return programs.flatten(values)
+
+
+def start_program(move: Any) -> Callable:
+    """Jitted ``(position, log prior, log likelihood) -> TMCMCState`` at β = 0 with ``move``'s initial parameters."""
+    return _cached_programs(("start", type(move), _static_key(move)),
+                            lambda: jax.jit(lambda position, lp, ll: initial_state(position, lp, ll, move)))
+
+
+def offset_evidence(init_fn: Callable, log_evidence: float) -> Callable:
+    """``init_fn`` whose initial state starts the log evidence at ``log_evidence`` (the base's normaliser)."""
+
+    def init(key):
+        state = init_fn(key)
+        value = np.asarray(log_evidence, dtype=np.dtype(state.log_evidence.dtype))
+        return state._replace(log_evidence=jax.device_put(value))
+
+    return init
 
 
 def _fused_programs(flat: FlatModel, move: Any, config: TMCMCConfig, max_stages: int) -> _FusedPrograms:
@@ -208,3 +249,9 @@ def _split_stage(stages: _StagePrograms, evaluate: Callable, move: RandomWalk, c
         lp_p, ll_p = evaluate(prop)
         carry = stages.accept(k_acc, carry, prop, lp_p, ll_p, plan.beta)
     return stages.end(state, plan, carry, log_s0, float(config.min_delta))
+
+
+def _on_device(data) -> tuple:
+    """The model's arrays on the default device, as ``jnp.asarray`` gives them (float64 as float32 without x64);
+    host arrays go through ``jax.device_put``, which unlike ``jnp.asarray`` compiles no program per shape."""
+    return tuple(jax.device_put(v) if isinstance(v, np.ndarray) else jnp.asarray(v) for v in data)

@@ -250,6 +250,7 @@ class _Initial(NamedTuple):
     """What the stage table's row 0 reads of a run's initial state."""
 
     log_likelihood: np.ndarray
+    log_evidence: float = 0.0  # batched runs start from exact prior draws
 
 
 def _replica_result(sampler: TMCMC, label: str, replica: int, state, rows: list, infos, status: int,

@@ -55,7 +55,7 @@ class TMCMCResults:
 
     @staticmethod
     def _initial_row(state, seconds):
-        """Row 0 of the stage table: the prior draws."""
+        """Row 0 of the stage table: the initial particles (prior draws, or the base density's draws)."""
         ll = np.asarray(state.log_likelihood)
         fin = np.isfinite(ll)
         return {
@@ -65,7 +65,7 @@ class TMCMCResults:
             "cov": float("nan"),
             "ess": float(len(ll)),
             "log_z_increment": 0.0,
-            "log_evidence": 0.0,
+            "log_evidence": float(state.log_evidence),
             "acceptance": float("nan"),
             "unique_fraction": 1.0,
             "scale": float("nan"),

@@ -44,9 +44,13 @@ from bubblecal.inference.tmcmc._flat_model import FlatModel
 from bubblecal.inference.tmcmc._programs import (
     _fused_programs,
     _model_programs,
+    _on_device,
     _split_stage,
     _splittable,
     _stage_programs,
+    offset_evidence,
+    start_positions,
+    start_program,
 )
 from bubblecal.inference.tmcmc.evaluator import resolve_chunk_size
 from bubblecal.inference.tmcmc.moves import Move, RandomWalk
@@ -57,32 +61,14 @@ from bubblecal.inference.tmcmc.state import (
     STATUS_NAMES,
     STATUS_RUNNING,
     TMCMCConfig,
+    _check_int,
+    _check_positive,
 )
 
 __all__ = ["TMCMC", "PRESETS"]
 
 #: The presets of :class:`TMCMC`.
 PRESETS = ("robust", "korali")
-
-
-def _check_int(name, value, minimum):
-    """``value`` as an int >= ``minimum``, else ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value}")
-    return int(value)
-
-
-def _check_positive(name, value):
-    """``value`` as a positive finite float, else ValueError naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return v
 
 
 class TMCMC(TMCMCResults):
@@ -129,6 +115,12 @@ class TMCMC(TMCMCResults):
         Report each stage (stage, β, ESS, acceptance, log Z so far): False (default) nothing, True a rich
         line, or a reporter ``report(replica, row)`` called with each stage-table row
         (:mod:`bubblecal.inference.tmcmc.progress`). The draws do not depend on it.
+    tempered : sequence of str or None
+        Observed or factor sites to temper; the model's other observed sites join the prior in the base
+        density, whose draws :meth:`run` then needs (``init_samples``). None (default): every observed and
+        factor site is tempered and the run starts from exact prior draws. The results' ``log_prior`` and
+        ``log_likelihood`` are the model's own split either way; the stage table's ``max_log_likelihood``
+        is over the tempered sites.
 
     Raises
     ------
@@ -152,6 +144,7 @@ class TMCMC(TMCMCResults):
         min_delta: float = 1e-9,
         compiled: bool = False,
         progress: bool | StageReporter = False,
+        tempered: tuple[str, ...] | list[str] | None = None,
     ):
         if not callable(model):
             raise ValueError(f"model must be a callable NumPyro model, got {model!r}")
@@ -179,6 +172,9 @@ class TMCMC(TMCMCResults):
         if not (isinstance(progress, bool) or callable(progress)):
             raise ValueError(f"progress must be True, False or a callable report(replica, row), got {progress!r}")
         self.progress = progress
+        if tempered is not None and (isinstance(tempered, str) or not tempered):
+            raise ValueError(f"tempered must be a non-empty sequence of site names, got {tempered!r}")
+        self.tempered = None if tempered is None else tuple(tempered)
         if preset == "korali":
             if num_mcmc_steps not in (None, 1):
                 raise ValueError(
@@ -243,7 +239,7 @@ class TMCMC(TMCMCResults):
         position = model.draws(rng_key, data, self.num_particles)
         return np.asarray(model.evaluate(position, data)[1])
 
-    def run(self, rng_key, *args, **kwargs) -> TMCMC:
+    def run(self, rng_key, *args, init_samples=None, init_log_evidence: float = 0.0, **kwargs) -> TMCMC:
         """Run ``num_replicas`` independent TMCMC runs of ``model(*args, **kwargs)``.
 
         Parameters
@@ -252,6 +248,14 @@ class TMCMC(TMCMCResults):
             PRNG key (split into one key per replica).
         *args, **kwargs
             Arguments of the model; its numeric arrays become traced data of the compiled programs.
+        init_samples : mapping of str to array_like or None
+            Equal-weight draws of the base density, ``num_particles`` per latent site (constrained values; other
+            keys are ignored), as the population at β = 0 of every replica; required with ``tempered`` (e.g. the
+            posterior of the model without its tempered sites), and without it they must be exact prior draws.
+            None: exact prior draws.
+        init_log_evidence : float
+            Log normalising constant of the base density (0 for the prior; with ``tempered`` the log evidence of
+            the model without its tempered sites), added to every log evidence of the run.
 
         Returns
         -------
@@ -261,10 +265,14 @@ class TMCMC(TMCMCResults):
         Raises
         ------
         ValueError
-            If the model has a discrete or no latent site, or every prior draw has a non-finite log
-            likelihood or log prior.
+            If the model has a discrete or no latent site, every initial particle has a non-finite log
+            likelihood or log prior, ``tempered`` names no observed or factor site, or ``init_samples`` is
+            missing (with ``tempered``) or lacks a latent site or holds another number of draws.
         """
-        flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
+        if self.tempered is not None and init_samples is None:
+            raise ValueError(f"TMCMC with tempered={list(self.tempered)} needs init_samples: draws of the model "
+                             "without those sites (e.g. its posterior), from which the tempering starts")
+        flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key, tempered=self.tempered)
         self._flat = flat
         self._model_args = (args, dict(kwargs))  # for the pointwise log likelihood of the export
         self._samples_cache = None
@@ -273,6 +281,10 @@ class TMCMC(TMCMCResults):
         data = self._data = _on_device(flat.data)
         model = _model_programs(flat, cfg.chunk_size)
 
+        init_log_evidence = float(init_log_evidence)
+        if not math.isfinite(init_log_evidence):
+            raise ValueError(f"init_log_evidence must be finite, got {init_log_evidence!r}")
+        start = None if init_samples is None else start_positions(model, flat, init_samples, n)
         if not self.compiled and _splittable(move):
             # host-driven stages: the model-free pieces are compiled once per process and shared by
             # every model; only the prior draws and the evaluator belong to this model's structure
@@ -282,7 +294,7 @@ class TMCMC(TMCMCResults):
                 return model.evaluate(position, data)
 
             def init_fn(key):
-                position = model.draws(key, data, n)
+                position = model.draws(key, data, n) if start is None else start
                 return stages.initial_state(position, *evaluate(position))
 
             def step_fn(key, st):
@@ -293,6 +305,8 @@ class TMCMC(TMCMCResults):
             fused = _fused_programs(flat, move, cfg, self.max_stages)
 
             def init_fn(key):
+                if start is not None:
+                    return start_program(move)(start, *model.evaluate(start, data))
                 return fused.init(key, data, n)
 
             def run_fn(key, st):
@@ -301,12 +315,20 @@ class TMCMC(TMCMCResults):
             def step_fn(key, st):
                 return fused.step(key, st, data)
 
+        if init_log_evidence:
+            init_fn = offset_evidence(init_fn, init_log_evidence)
         self._results = []
         report, close_report = stage_reporter(self.progress, f"TMCMC {flat.label}", self.num_replicas)
         try:
             self._run_replicas(rng_key, flat, n, init_fn, step_fn, run_fn, report)
         finally:
             close_report()
+        if self.tempered is not None:  # the results keep the model's own prior / likelihood split
+            plain = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
+            evaluate_plain = _model_programs(plain, cfg.chunk_size).evaluate
+            for res in self._results:
+                lp, ll = evaluate_plain(res["state"].position, data)
+                res["state"] = res["state"]._replace(log_prior=lp, log_likelihood=ll)
         return self
 
     def _run_replicas(self, rng_key, flat, n, init_fn, step_fn, run_fn, report):
@@ -319,7 +341,7 @@ class TMCMC(TMCMCResults):
             t_init = time.perf_counter() - t0
             if not finite.any():
                 raise ValueError(
-                    f"TMCMC: all {n} prior draws of model {flat.label!r} have a non-finite log likelihood "
+                    f"TMCMC: all {n} initial particles (prior draws or init_samples) of model {flat.label!r} have a non-finite log likelihood "
                     "or log prior (every particle is -inf): check the observed data, the likelihood's "
                     "support and any numpyro.factor terms"
                 )
@@ -373,9 +395,3 @@ class TMCMC(TMCMCResults):
                     "seconds": float(sum(row["seconds"] for row in rows)),
                 }
             )
-
-
-def _on_device(data) -> tuple:
-    """The model's arrays on the default device, as ``jnp.asarray`` gives them (float64 as float32 without x64);
-    host arrays go through ``jax.device_put``, which unlike ``jnp.asarray`` compiles no program per shape."""
-    return tuple(jax.device_put(v) if isinstance(v, np.ndarray) else jnp.asarray(v) for v in data)

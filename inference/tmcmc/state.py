@@ -7,10 +7,12 @@ fixed at compile time.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from bubblecal.inference.tmcmc.moves import Move
 
@@ -113,3 +115,23 @@ def initial_state(position: Array, log_prior: Array, log_likelihood: Array, move
         stage=jnp.zeros((), jnp.int32),
         num_evaluations=jnp.asarray(n, jnp.int32),
     )
+
+
+def _check_int(name, value, minimum):
+    """``value`` as an int >= ``minimum``, else ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+    return int(value)
+
+
+def _check_positive(name, value):
+    """``value`` as a positive finite float, else ValueError naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive number, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return v

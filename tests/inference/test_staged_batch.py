@@ -78,7 +78,7 @@ def fake_runs(monkeypatch):
             callback(i, s)
         return out
 
-    def fake_phase(name, model, args, kwargs, key, options):
+    def fake_phase(name, model, args, kwargs, key, options, start=None):
         calls["single"].append(name)
         return hierarchical._phase_result(name, FakeSampler(name), 2.0)
 

@@ -9,7 +9,7 @@ from a known population ψ (truncated normals). Both routes use the package's mo
   :func:`bubblecal.models.phase2_model` (phase 2) and ``mechanical_model(population=...)`` (phase 3);
 - joint: :func:`bubblecal.models.hierarchical_model` (non-centred) sampled by NUTS;
 
-and :func:`bubblecal.inference.hierarchical.compare_staged_joint` reports the agreement of ψ and of
+and :func:`bubblecal.inference.compare_staged_joint` reports the agreement of ψ and of
 every Θ_i. The priors are a reduced Definity workflow whose τ hyperpriors start above 0 (a population
 narrower than a single curve's posterior cannot be represented by importance sampling of phase-1
 draws, the known limit of the staged route; the joint model has no such limit).

@@ -49,6 +49,7 @@ from bubblecal.workflows.calibrate.config import (
     PAPER_POPULATION,
     PARTICLES_PER_DIMENSION,
     PHASE2_DRAW_BUDGET,
+    PHASE3_STARTS,
     PHASE3_TARGETS,
     SAMPLERS,
     SURROGATE_CHOICES,
@@ -99,8 +100,8 @@ from bubblecal.workflows.calibrate.writer import (
 )
 
 __all__ = [
-    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES", "DEFAULT_POPULATION",
-    "PAPER_POPULATION", "PAPER_COV",
+    "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "PHASE3_STARTS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
+    "DEFAULT_POPULATION", "PAPER_POPULATION", "PAPER_COV",
     "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
     "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
     "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bubblecal.data import AGENTS
 
-__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
+__all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "PHASE3_STARTS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
            "DEFAULT_POPULATION", "PAPER_POPULATION",
            "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
            "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
@@ -26,6 +26,9 @@ WORKFLOWS = ("reduced-acoustic", "reduced", "full")
 SAMPLERS = ("tmcmc", "nuts")
 #: Phase 3 of the staged hierarchy: the published (Korali) target or the joint model's marginal.
 PHASE3_TARGETS = ("published", "exact")
+#: Where phase 3 starts: the dataset's phase-1 draws, tempering only the population prior (default), or the
+#: uniform prior, tempering the likelihood and the population prior together (Korali's path); same target.
+PHASE3_STARTS = ("phase1", "prior")
 #: JAX devices.
 DEVICES = ("cpu", "gpu")
 #: Networks over the diameter a bundle may hold per protocol: 'fast' (smaller, for many bubbles on CPU cores)
@@ -137,6 +140,9 @@ class CalibrationConfig:
     phase3 : str
         'published' (the Korali phase 3: population prior over p(ψ | D), which holds the dataset's own
         data) or 'exact' (over p(ψ | D_{-i}) by leave-one-out weights: Θ_i is the joint model's marginal).
+    phase3_start : str
+        'phase1' (phase 3 starts from the dataset's phase-1 draws and tempers only the population prior) or
+        'prior' (from the uniform prior, as Korali's): the same posterior and evidence (:data:`PHASE3_STARTS`).
     """
 
     agents: tuple[str, ...] = AGENTS
@@ -168,6 +174,7 @@ class CalibrationConfig:
     figures: bool = True
     summaries: bool = True
     phase3: str = "published"
+    phase3_start: str = "phase1"
 
     def __post_init__(self) -> None:
         # integer settings: (field, lowest, highest, may be None); checked here so the library refuses what

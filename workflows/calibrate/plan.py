@@ -18,6 +18,7 @@ from bubblecal.workflows.calibrate.config import (
     MIN_PARTICLES,
     NETWORKS,
     PARTICLES_PER_DIMENSION,
+    PHASE3_STARTS,
     PHASE3_TARGETS,
     SAMPLERS,
     SURROGATE_CHOICES,
@@ -168,6 +169,9 @@ def _check_choices(config: CalibrationConfig) -> None:
                                f"{config.surrogates!r}")
     if config.phase3 not in PHASE3_TARGETS:
         raise CalibrationError(f"--phase3 must be one of {', '.join(PHASE3_TARGETS)}, got {config.phase3!r}")
+    if config.phase3_start not in PHASE3_STARTS:
+        raise CalibrationError(f"--phase3-start must be one of {', '.join(PHASE3_STARTS)}, "
+                               f"got {config.phase3_start!r}")
     if config.device not in DEVICES:
         raise CalibrationError(f"--device must be one of {', '.join(DEVICES)}, got {config.device!r}")
     check_device(config.device)  # the integer settings' ranges: CalibrationConfig, on construction

@@ -198,6 +198,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     key = jax.random.PRNGKey(agent_seed(config.seed, ap.agent))
 
     if config.sampler == "tmcmc":
+        from bubblecal.models import POPULATION_SITE
+
         phase2_model_factory, phase3_factory, datasets = _phase_models(ap, config)
         store.exports.update(phase_exports(ap, datasets))
 
@@ -232,7 +234,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
                 staged = run_staged(datasets, phase2_factory, phase3_factory, key, phase1_options=o1,
                                     phase2_options=o23, phase3_options=o23,
                                     phase2_max_samples=phase2_samples(config, len(datasets)), load=load,
-                                    save=store.save, progress=say, phase3_reweight=reweight)
+                                    save=store.save, progress=say, phase3_reweight=reweight,
+                                    phase3_tempered=(POPULATION_SITE,) if config.phase3_start == "phase1" else None)
             finally:  # a failing phase still leaves the finished ones on disk and in the manifest
                 store.flush()
             if staged.phase3_ess:

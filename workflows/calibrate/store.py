@@ -84,6 +84,8 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
             # the leave-one-out weights come from the stacked phase-2 terms (equal to float round-off to the
             # per-dataset sum they replaced): files of the earlier computation are not reused
             h3["loo_weights"] = "stacked"
+        if config.phase3_start != "prior":  # other draws than the path from the prior (the hashes before it)
+            h3["phase3_start"] = config.phase3_start
         hashes[f"phase3_{n}"] = config_hash(h3)
     return hashes
 

@@ -137,7 +137,7 @@ def test_all_particles_minus_inf_names_the_model():
 
     with pytest.raises(
         ValueError,
-        match=r"all 50 prior draws of model "
+        match=r"all 50 initial particles \(prior draws or init_samples\) of model "
         r"'test_all_particles_minus_inf_names_the_model.<locals>.model_impossible'.*non-finite",
     ):
         TMCMC(model_impossible, num_particles=50).run(jax.random.PRNGKey(0))

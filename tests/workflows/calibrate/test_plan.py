@@ -70,7 +70,7 @@ def test_population_too_small_and_other_fields(tmp_path, synthetic_bundle):
     assert r.exit_code == 1 and "--population 50 is too small" in r.output and "phase" in r.output
     assert not _phase_files(tmp_path / "out")
     for kwargs, match in (({"workflow": "medium"}, "--workflow"), ({"sampler": "hmc"}, "--sampler"),
-                          ({"phase3": "joint"}, "--phase3"),
+                          ({"phase3": "joint"}, "--phase3"), ({"phase3_start": "phase2"}, "--phase3-start"),
                           ({"agents": ("optison",)}, "--agent"), ({"bundle": tmp_path}, "manifest.json")):
         base = {"agents": ("definity",), "bundle": synthetic_bundle, "population": 200, "out": tmp_path / "o"}
         with pytest.raises(CalibrationError, match=match):

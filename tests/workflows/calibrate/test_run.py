@@ -115,6 +115,23 @@ def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
     assert all(exact[k]["config_hash"] == h_old[k] for k in h_old if not k.startswith("phase3"))
     assert all(exact[k]["config_hash"] != h_old[k] for k in h_old if k.startswith("phase3"))
 
+    # phase 3 started from phase 1's draws (the default): its stage 0 holds phase 1's log evidence; with
+    # --phase3-start prior (Korali's path from the uniform prior) it starts at 0, and phase 3 alone reruns
+    def first_log_z(phase):
+        import arviz as az
+
+        return float(az.from_netcdf(run_dir / f"{phase}.nc").sample_stats["stage_log_evidence"].values.ravel()[0])
+
+    for k in (k for k in exact if k.startswith("phase3")):
+        assert first_log_z(k) == pytest.approx(exact[k.replace("phase3", "phase1")]["log_evidence"], abs=1e-4)
+    r = _cli(*args, "--phase3-start", "prior")
+    assert r.exit_code == 0, r.output
+    korali = json.loads((run_dir / "manifest.json").read_text())["phases"]
+    assert all(korali[k]["config_hash"] == h_old[k] for k in h_old if not k.startswith("phase3"))
+    assert all(korali[k]["config_hash"] not in (h_old[k], exact[k]["config_hash"]) for k in h_old
+               if k.startswith("phase3"))
+    assert all(first_log_z(k) == 0.0 for k in korali if k.startswith("phase3"))
+
 
 def _check_arviz_groups(run_dir, diameters):
     """Every phase file: the ArviZ groups, named dims, units, versions; az.loo runs on it."""
