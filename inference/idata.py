@@ -118,12 +118,17 @@ def observed_sites(model: Callable, samples: Mapping[str, np.ndarray], args: tup
                 if site["type"] == "sample" and site["is_observed"] and not isinstance(site["fn"], Unit)}
 
     # run eagerly, every operation of the model would be a program of its own (dozens per dataset shape): staged,
-    # an observation passed in as data comes out as it went in, and one computed from the data (a dtype cast)
-    # takes one compiled program
+    # an observation passed in as data comes out as it went in, one computed from the data alone (a dtype cast) is
+    # a constant of the staged program, and only one computed from the latent values takes a compiled program
     found: dict = {}
-    jax.make_jaxpr(lambda: found.update(observed()))()
+    closed, shapes = jax.make_jaxpr(lambda: found.update(observed()) or dict(found), return_shape=True)()
     if any(isinstance(v, jax.core.Tracer) for v in found.values()):
-        found = jax.jit(observed)()
+        consts = dict(zip(closed.jaxpr.constvars, closed.consts, strict=True))
+        leaves = [v.val if hasattr(v, "val") else consts.get(v) for v in closed.jaxpr.outvars]
+        staged = jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(shapes), leaves)
+        found = {k: staged[k] if isinstance(v, jax.core.Tracer) else v for k, v in found.items()}
+        if any(v is None for v in found.values()):
+            found = jax.jit(observed)()
     return {name: np.asarray(v) for name, v in found.items()}
 
 

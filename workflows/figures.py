@@ -23,6 +23,7 @@ import numpy as np
 from bubblecal.data import DEFAULT_UNITS
 from bubblecal.workflows.figures_fits import fit_figure
 from bubblecal.workflows.figures_population import diameter_figure, forest_figure
+from bubblecal.workflows.host_programs import frequency_program
 from bubblecal.workflows.plotting import COLOURS, figure_title, new_figure, save_figure, styled
 
 __all__ = ["agent_figures", "ka_kb_figure", "population_figure", "acoustic_figure"]
@@ -187,7 +188,7 @@ def acoustic_figure(result, plan, path: Path) -> Path | None:
     diam_grid = diam_grid[(diam_grid >= lo_d) & (diam_grid <= hi_d)]
     if pop is not None and "ka" in pop and diam_grid.size:
         ka = pop["ka"][:2000]
-        f = np.asarray(ap.f_res.f_res(ka[:, None], diam_grid[None, :]))
+        f = frequency_program(ap.f_res)(ka[:, None], diam_grid[None, :])
         q = np.quantile(f, [0.05, 0.5, 0.95], axis=0)
         ax.fill_between(diam_grid, q[0], q[2], color=COLOURS[0], alpha=0.2, lw=0,
                         label="$f_{res}(D)$, population-predictive $k_a$ (90 %)")

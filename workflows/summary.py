@@ -271,8 +271,8 @@ def summarise_agent(result, config) -> None:
     import pandas as pd
 
     from bubblecal.inference import map_index
-    from bubblecal.models import mechanical_prediction, sample_population_predictive
-    from bubblecal.models.acoustic import acoustic_prediction
+    from bubblecal.models import mechanical_prediction
+    from bubblecal.workflows.host_programs import acoustic_prediction_program, population_predictive_draws
 
     # one compiled prediction per agent: curves of one network shape (and point bucket) share its program
     predict = jax.jit(lambda values, surrogate, x, y_scale: mechanical_prediction(values, surrogate, ap.spec, x,
@@ -296,8 +296,8 @@ def summarise_agent(result, config) -> None:
             if kind == "acoustic":
                 diam = np.asarray(obj.diameter_um, dtype=float)
                 f = np.asarray(obj.frequency_MHz, dtype=float)
-                mu, sd = acoustic_prediction(thin["ka"], thin["sigma_ac"], ap.f_res, diam, f_scale=float(np.max(f)))
-                pool.submit(name, np.asarray(mu, dtype=float), np.asarray(sd, dtype=float), f)
+                mu, sd = acoustic_prediction_program(ap.f_res)(thin["ka"], thin["sigma_ac"], diam, float(np.max(f)))
+                pool.submit(name, mu, sd, f)
                 contexts[name] = {"kind": kind, "x": diam, "y": f, "sigma_mean": float(np.mean(thin["sigma_ac"])),
                                   "names": ["ka", "sigma_ac"], "samples": samples, "imap": imap,
                                   "diameter": float(np.mean(diam)) if diam.size == 1 else math.nan}
@@ -340,9 +340,8 @@ def summarise_agent(result, config) -> None:
     pop = None
     if m:
         bounds = {k: spec.parameters[k].prior.as_tuple() for k in m}
-        pop = sample_population_predictive(jax.random.PRNGKey(config.seed + 7), m, tau, bounds,
-                                           config.predictive_samples)
-        pop = {k: np.asarray(v) for k, v in pop.items()}
+        pop = population_predictive_draws(jax.random.PRNGKey(config.seed + 7), m, tau, bounds,
+                                          config.predictive_samples)
         base = {"agent": ap.agent, "workflow": ap.workflow, "dataset": POPULATION_ROW, "kind": "population",
                 "diameter_um": math.nan, "n_points": 0, "coverage_90": math.nan, "crps": math.nan, "crps_sd": math.nan,
                 "crps_unit": ""}

@@ -39,6 +39,8 @@ from numpyro.distributions.transforms import biject_to
 from numpyro.distributions.util import is_identically_one, sum_rightmost
 from numpyro.infer import Predictive
 
+from bubblecal.inference.tmcmc._keys import _aval_key, _fingerprint, _static_key
+
 # Uniform draws can land exactly on a bound in float32; the bijection then maps them to ±inf.
 # Such (rare) draws are moved to this finite unconstrained value (a point within ~1e-9 of the bound).
 _UNCONSTRAINED_CLIP = 20.0
@@ -68,45 +70,9 @@ def _elementwise(support):
 _DATA = object()
 
 
-class _Identity:
-    """Hashable stand-in of an unhashable fixed argument: equal only to the same object (kept alive)."""
-
-    __slots__ = ("obj",)
-
-    def __init__(self, obj):
-        self.obj = obj
-
-    def __eq__(self, other):
-        return isinstance(other, _Identity) and other.obj is self.obj
-
-    def __hash__(self):
-        return id(self.obj)
-
-
-def _static_key(value):
-    """Cache key of a fixed argument: the value itself when hashable, else its identity."""
-    try:
-        hash(value)
-    except TypeError:
-        return _Identity(value)
-    return (type(value), value)  # the type keeps 1 / 1.0 / True apart
-
-
 def _is_data(leaf) -> bool:
     """Numeric arrays are data (traced arguments); scalars, strings and objects stay fixed."""
     return isinstance(leaf, (np.ndarray, jax.Array)) and np.dtype(leaf.dtype).kind in "biuf"
-
-
-def _fingerprint(tree):
-    """Hashable value of a pytree of concrete arrays (e.g. a bijection with its bounds)."""
-    leaves, treedef = jax.tree_util.tree_flatten(tree)
-    return treedef, tuple((np.shape(v), str(np.asarray(v).dtype), np.asarray(v).tobytes()) for v in leaves)
-
-
-def _aval_key(value):
-    """(shape, dtype as jit sees it, weak type) of a data leaf."""
-    dtype = jax.dtypes.canonicalize_dtype(np.dtype(value.dtype))
-    return tuple(np.shape(value)), str(dtype), bool(getattr(value, "weak_type", False))
 
 
 def _has_tracer(tree) -> bool:
@@ -329,43 +295,56 @@ class FlatModel:
         args, kwargs = self.arguments(data)
         return handlers.trace(model).get_trace(*args, **kwargs)
 
+    def _values_and_jacobian(self, x: jax.Array) -> tuple[dict, jax.Array]:
+        """Constrained latent values of one flat vector and log|J| of the map to them (0 in constrained space)."""
+        params = self._unravel(x)
+        log_jac = jnp.zeros((), self.dtype)
+        if self.space == "constrained":
+            return params, log_jac
+        values = {}
+        for k, u in params.items():
+            t = self.transforms[k]
+            v = t(u)
+            values[k] = v
+            ld = t.log_abs_det_jacobian(u, v)
+            ld = sum_rightmost(ld, jnp.ndim(ld) - jnp.ndim(v) + self.event_dims[k])
+            scale = self.scales[k]
+            if scale is not None and not is_identically_one(scale):
+                ld = scale * ld
+            log_jac = log_jac + jnp.sum(ld)
+        return values, log_jac
+
+    def _latent_log_prob(self, site) -> jax.Array:
+        """Log density of a latent site (−∞ outside its support in constrained space)."""
+        lp = _site_log_prob(site)
+        if self.space == "constrained":
+            lp = jnp.where(jnp.all(site["fn"].support(site["value"])), lp, -jnp.inf)
+        return lp
+
     def log_terms(self, x: jax.Array, data=None) -> tuple[jax.Array, jax.Array]:
         """(log prior in the flat space, log likelihood) of one flat vector (``data``: see :meth:`arguments`);
         with ``tempered``, (log base density, log tempered likelihood)."""
-        params = self._unravel(x)
-        if self.space == "constrained":
-            values = params
-            log_jac = jnp.zeros((), self.dtype)
-        else:
-            values = {}
-            log_jac = jnp.zeros((), self.dtype)
-            for k, u in params.items():
-                t = self.transforms[k]
-                v = t(u)
-                values[k] = v
-                ld = t.log_abs_det_jacobian(u, v)
-                ld = sum_rightmost(ld, jnp.ndim(ld) - jnp.ndim(v) + self.event_dims[k])
-                scale = self.scales[k]
-                if scale is not None and not is_identically_one(scale):
-                    ld = scale * ld
-                log_jac = log_jac + jnp.sum(ld)
-        tr = self._trace(values, data)
-        log_prior = log_jac
+        values, log_prior = self._values_and_jacobian(x)
         log_lik = jnp.zeros((), self.dtype)
-        for name, site in tr.items():
+        for name, site in self._trace(values, data).items():
             if site["type"] != "sample":
                 continue
-            lp = _site_log_prob(site)
             if site["is_observed"] and (self.tempered is not None and name not in self.tempered):
-                log_prior = log_prior + lp
+                log_prior = log_prior + _site_log_prob(site)
             elif site["is_observed"]:
-                log_lik = log_lik + lp
+                log_lik = log_lik + _site_log_prob(site)
             elif name in self.transforms:
-                if self.space == "constrained":
-                    inside = jnp.all(site["fn"].support(site["value"]))
-                    lp = jnp.where(inside, lp, -jnp.inf)
-                log_prior = log_prior + lp
+                log_prior = log_prior + self._latent_log_prob(site)
         return log_prior, log_lik
+
+    def model_log_prior(self, x: jax.Array, data=None) -> jax.Array:
+        """Log prior of one flat vector in the flat space: the latent sites only, also with ``tempered`` (the
+        likelihood's arrays are traced but unused, so the compiler drops them)."""
+        values, log_prior = self._values_and_jacobian(x)
+        for name, site in self._trace(values, data).items():
+            if site["type"] == "sample" and not site["is_observed"] and name in self.transforms:
+                log_prior = log_prior + self._latent_log_prob(site)
+        return log_prior
 
     def log_prior(self, x, data=None):
         """Log prior of one flat vector, in the flat space (see :meth:`log_terms`)."""

@@ -28,7 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from bubblecal.inference.tmcmc import core
-from bubblecal.inference.tmcmc._flat_model import FlatModel, _static_key
+from bubblecal.inference.tmcmc._flat_model import FlatModel
+from bubblecal.inference.tmcmc._keys import _static_key
 from bubblecal.inference.tmcmc.evaluator import Evaluator, chunked_vmap
 from bubblecal.inference.tmcmc.moves import RandomWalk
 from bubblecal.inference.tmcmc.state import TMCMCConfig, initial_state
@@ -71,6 +72,7 @@ class _ModelPrograms(NamedTuple):
     sites: Callable  # (position, data) -> {site: (N, ...) constrained values and deterministic sites}
     pointwise: Callable  # (draws, data) -> {observed site: (n, obs...) log likelihood} of constrained draws
     flatten: Callable  # ({latent site: (n, ...) constrained values}) -> (n, d) flat positions
+    untemper: Callable  # (position, log base, log tempered, data) -> the model's (log prior, log likelihood)
 
 
 class _FusedPrograms(NamedTuple):
@@ -137,12 +139,18 @@ def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
             args, kwargs = flat.arguments(data)
             return log_likelihood(flat.model, draws, *args, parallel=True, **kwargs)
 
+        def untemper(position, base, tempered, data):
+            # the prior alone costs little to compile: the likelihood's arrays are unused and dropped
+            prior = chunked_vmap(functools.partial(flat.model_log_prior, data=data), chunk_size)(position)
+            return prior, base - prior + tempered
+
         return _ModelPrograms(
             draws=jax.jit(lambda key, data, num: flat.prior_draws(key, num, data), static_argnums=2),
             evaluate=jax.jit(evaluate),
             sites=jax.jit(sites),
             pointwise=jax.jit(pointwise),
             flatten=jax.jit(jax.vmap(flat.flatten)),
+            untemper=jax.jit(untemper),
         )
 
     return _cached_programs(("model", flat.signature, chunk_size), build)

@@ -30,7 +30,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from bubblecal.inference.tmcmc._flat_model import FlatModel, _aval_key, _is_data, _static_key, _unpartial
+from bubblecal.inference.tmcmc._flat_model import FlatModel, _is_data, _unpartial
+from bubblecal.inference.tmcmc._keys import _aval_key, _static_key
 from bubblecal.inference.tmcmc._programs import _batched_programs
 from bubblecal.inference.tmcmc.progress import stage_reporter
 from bubblecal.inference.tmcmc.sampler import TMCMC

@@ -324,11 +324,10 @@ class TMCMC(TMCMCResults):
         finally:
             close_report()
         if self.tempered is not None:  # the results keep the model's own prior / likelihood split
-            plain = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
-            evaluate_plain = _model_programs(plain, cfg.chunk_size).evaluate
             for res in self._results:
-                lp, ll = evaluate_plain(res["state"].position, data)
-                res["state"] = res["state"]._replace(log_prior=lp, log_likelihood=ll)
+                st = res["state"]
+                lp, ll = model.untemper(st.position, st.log_prior, st.log_likelihood, data)
+                res["state"] = st._replace(log_prior=lp, log_likelihood=ll)
         return self
 
     def _run_replicas(self, rng_key, flat, n, init_fn, step_fn, run_fn, report):
@@ -341,9 +340,9 @@ class TMCMC(TMCMCResults):
             t_init = time.perf_counter() - t0
             if not finite.any():
                 raise ValueError(
-                    f"TMCMC: all {n} initial particles (prior draws or init_samples) of model {flat.label!r} have a non-finite log likelihood "
-                    "or log prior (every particle is -inf): check the observed data, the likelihood's "
-                    "support and any numpyro.factor terms"
+                    f"TMCMC: all {n} initial particles (prior draws or init_samples) of model {flat.label!r} have "
+                    "a non-finite log likelihood or log prior (every particle is -inf): check the observed data, "
+                    "the likelihood's support and any numpyro.factor terms"
                 )
             rows = [self._initial_row(state, t_init)]
             report(r, rows[0])
