@@ -67,17 +67,21 @@ def frequency_program(f_res) -> Callable:
     Returns
     -------
     callable
-        ``(ka, diameter_um) -> MHz`` on broadcasting host arrays, as a NumPy array.
+        ``(ka, diameter_um) -> MHz`` on broadcasting host arrays, as a NumPy array; the diameters are constants of
+        the program (surrogates fitted per diameter look them up), one program per set of diameters and shapes.
     """
     import jax
 
     from bubblecal.models.acoustic import as_fres
 
-    def build():
-        fn = jax.jit(as_fres(f_res))
-        return lambda ka, diameter_um: np.asarray(fn(np.asarray(ka), np.asarray(diameter_um)))
+    def call(ka, diameter_um):
+        ka = np.asarray(ka)
+        d = np.asarray(diameter_um, dtype=float)
+        key = ("frequency", id(f_res), ka.shape, ka.dtype.str, d.shape, d.tobytes())
+        fn = _program(key, f_res, lambda: jax.jit(lambda k: as_fres(f_res)(k, d)))
+        return np.asarray(fn(ka))
 
-    return _program(("frequency", id(f_res)), f_res, build)
+    return call
 
 
 def population_predictive_draws(rng_key, m_samples: Mapping, tau_samples: Mapping, bounds: Mapping,

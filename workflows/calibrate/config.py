@@ -14,11 +14,10 @@ from pathlib import Path
 from bubblecal.data import AGENTS
 
 __all__ = ["WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "PHASE3_STARTS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
-           "DEFAULT_POPULATION", "PAPER_POPULATION",
-           "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION", "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES",
-           "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES",
-           "CalibrationError", "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples",
-           "min_population", "agent_seed", "priors_fit_problems"]
+           "DEFAULT_POPULATION", "PAPER_POPULATION", "PAPER_COV", "PAPER_COV_SCALE", "PARTICLES_PER_DIMENSION",
+           "MIN_PARTICLES", "DEFAULT_PHASE2_SAMPLES", "PHASE2_DRAW_BUDGET", "MIN_PHASE2_SAMPLES", "CalibrationError",
+           "CalibrationConfig", "config_from_agents", "phase_tmcmc_options", "phase2_samples", "min_population",
+           "agent_seed", "priors_fit_problems"]
 
 #: Workflows: each names one priors TOML per agent (``priors/<agent>_<workflow>.toml``).
 WORKFLOWS = ("reduced-acoustic", "reduced", "full")
@@ -26,8 +25,7 @@ WORKFLOWS = ("reduced-acoustic", "reduced", "full")
 SAMPLERS = ("tmcmc", "nuts")
 #: Phase 3 of the staged hierarchy: the published (Korali) target or the joint model's marginal.
 PHASE3_TARGETS = ("published", "exact")
-#: Where phase 3 starts: the dataset's phase-1 draws, tempering only the population prior (default), or the
-#: uniform prior, tempering the likelihood and the population prior together (Korali's path); same target.
+#: Where phase 3 starts: the dataset's phase-1 draws (only the population prior tempered) or the uniform prior (Korali).
 PHASE3_STARTS = ("phase1", "prior")
 #: JAX devices.
 DEVICES = ("cpu", "gpu")
@@ -98,17 +96,16 @@ class CalibrationConfig:
         the file, or ``'*'`` for every agent without its own (default: the shipped priors of the published agent
         of the agent's protocol).
     data_dir : Path or None
-        Folder of curve CSVs in DPD units named like the shipped ones (``<agent>_<kind>_<D>um_dpd.csv``)
-        and/or ``acoustic_observations_published.csv``, replacing them.
+        Folder of curve CSVs in DPD units named like the shipped ones (``<agent>_<kind>_<D>um_dpd.csv``) and/or
+        ``acoustic_observations_published.csv``, replacing them.
     data : Path or None
         A tidy curves file of measured bubbles (nm, nN, any diameter in the bundle's range;
         docs/data-formats.md, "Tidy bubble files"): one hierarchy per agent label replaces the published study.
     acoustic_data : Path or None
         A tidy resonance file (MHz) for the agents of ``data``: one acoustic dataset per row.
     networks : str
-        Which network over the diameter serves a curve when the networks over the diameter do (the bubbles of
-        ``data``, and the published curves with ``surrogates`` 'over-diameter'): 'fast' or 'accurate'
-        (:data:`NETWORKS`; a bundle without a fast network answers with its accurate one).
+        Network over the diameter serving a curve (the bubbles of ``data``, the published curves with ``surrogates``
+        'over-diameter'): 'fast' or 'accurate' (a bundle without a fast network answers with its accurate one).
     surrogates : str or None
         Surrogates of the published study (:data:`SURROGATE_CHOICES`): 'over-diameter' (the networks over the
         diameter, role ``networks``, and the acoustic laws; the per-diameter file where none covers a diameter)
@@ -117,14 +114,12 @@ class CalibrationConfig:
     curves : tuple of str
         Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
     phase2_samples : int or None
-        Phase-1 draws per dataset used by the phase-2 importance sums, and phase-2 ψ draws used by the
-        phase-3 population prior (None: min(N, :data:`DEFAULT_PHASE2_SAMPLES`), and for phase 2 at most
-        :data:`PHASE2_DRAW_BUDGET` over all datasets; see :func:`phase2_samples`).
+        Phase-1 draws per dataset in the phase-2 importance sums, and ψ draws in the phase-3 population prior
+        (None: :func:`phase2_samples`).
     num_mcmc_steps : int
         Random-walk Metropolis steps per TMCMC stage.
     chunk_size : int or None
-        TMCMC evaluates the densities this many particles at a time (GPU memory at N = 50,000); None: TMCMC's
-        'auto' (:data:`~bubblecal.inference.tmcmc.evaluator.CPU_CHUNK_SIZE` on a CPU, all at once on a GPU).
+        Particles per TMCMC density evaluation (GPU memory at N = 50,000); None: TMCMC's 'auto'.
     predictive_samples : int
         Posterior draws used by the predictive bands, CRPS and the population predictive.
     crps_replicates : int
@@ -141,8 +136,7 @@ class CalibrationConfig:
         'published' (the Korali phase 3: population prior over p(ψ | D), which holds the dataset's own
         data) or 'exact' (over p(ψ | D_{-i}) by leave-one-out weights: Θ_i is the joint model's marginal).
     phase3_start : str
-        'phase1' (phase 3 starts from the dataset's phase-1 draws and tempers only the population prior) or
-        'prior' (from the uniform prior, as Korali's): the same posterior and evidence (:data:`PHASE3_STARTS`).
+        One of :data:`PHASE3_STARTS`: the same posterior and evidence (``docs/inference.md`` section 4).
     """
 
     agents: tuple[str, ...] = AGENTS
