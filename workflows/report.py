@@ -260,6 +260,8 @@ def write_report(result, plan) -> Path:
                   "The numbers below are NOT physical results.", ""]
     phase3 = ("published Korali phase 3: population prior over p(ψ | all data)" if config.phase3 == "published"
               else "exact phase 3: population prior over p(ψ | the other datasets), the joint model's marginal")
+    phase3 += ("; tempered from each dataset's phase-1 draws" if config.phase3_start == "phase1"
+               else "; tempered from the uniform prior")
     o_sampler = (f"staged TMCMC (phases 1 → 2 → 3; {phase3})" if config.sampler == "tmcmc" else
                  f"joint model, NUTS ({config.nuts_chains} chains × {config.nuts_samples} draws, "
                  f"{config.nuts_warmup} warm-up)")

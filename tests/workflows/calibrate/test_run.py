@@ -71,6 +71,8 @@ def test_staged_run_crash_resume_and_outputs(tmp_path, synthetic_bundle, which):
     assert len(ess) == len(diameters) and (ess["ess_median"] >= 1).all()
     report = (run_dir / "report.md").read_text()
     assert "SYNTHETIC" in report and "ess.csv" in report and "figures/fit.png" in report
+    assert "published Korali phase 3: population prior over p(ψ | all data); tempered from each dataset's phase-1 " \
+           "draws" in report
     # the default asks for the networks over the diameter; the synthetic bundle has none, so its file served
     assert "- surrogates: the networks over the diameter (fast)" in report
     assert "  - definity_compression_2.1um: per-diameter file compression_2.1um.npz" in report
