@@ -180,16 +180,15 @@ def _read_phase(path: Path):
     from bubblecal.inference.hierarchical import PhaseResult
 
     if path.suffix == ".nc":
-        import arviz as az
+        import xarray as xr
 
-        idata = az.from_netcdf(str(path))
-        post = idata.posterior
-        meta = dict(post.attrs)
-        # a TMCMC file's chains are replicas and the result is the first; the joint run's are NUTS chains
-        pick = _all_chains if meta.get("phase_result_chains") == "all" else (lambda v: np.asarray(v.values[0]))
-        samples = {k: pick(post[k]) for k in post.data_vars}
-        loglik = (pick(idata.sample_stats["loglik"])
-                  if "sample_stats" in idata.groups() and "loglik" in idata.sample_stats else None)
+        # the two groups a result needs, not every group of the file (az.from_netcdf opens them all)
+        with xr.open_dataset(path, group="posterior", engine="h5netcdf") as post:
+            meta = dict(post.attrs)
+            # a TMCMC file's chains are replicas and the result is the first; the joint run's are NUTS chains
+            pick = _all_chains if meta.get("phase_result_chains") == "all" else (lambda v: np.asarray(v.values[0]))
+            samples = {k: pick(post[k]) for k in post.data_vars}
+        loglik = _sample_stat(path, "loglik", pick)
     else:
         with np.load(path, allow_pickle=False) as npz:
             samples = {k[len("sample__"):]: npz[k] for k in npz.files if k.startswith("sample__")}
@@ -206,6 +205,18 @@ def _read_phase(path: Path):
                          log_evidence=_f(meta.get("log_evidence")), log_evidence_se=_f(meta.get("log_evidence_se")),
                          status=str(meta.get("status", "converged")), seconds=_f(meta.get("seconds")))
     return result, loglik
+
+
+def _sample_stat(path: Path, name: str, pick) -> np.ndarray | None:
+    """``pick`` of the sample statistic ``name`` of a NetCDF phase file (None without the group or the variable)."""
+    import h5py
+    import xarray as xr
+
+    with h5py.File(path, "r") as f:
+        if "sample_stats" not in f or name not in f["sample_stats"]:
+            return None
+    with xr.open_dataset(path, group="sample_stats", engine="h5netcdf") as stats:
+        return pick(stats[name])
 
 
 def _all_chains(var) -> np.ndarray:
