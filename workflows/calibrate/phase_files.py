@@ -209,14 +209,13 @@ def _read_phase(path: Path):
 
 def _sample_stat(path: Path, name: str, pick) -> np.ndarray | None:
     """``pick`` of the sample statistic ``name`` of a NetCDF phase file (None without the group or the variable)."""
-    import h5py
     import xarray as xr
 
-    with h5py.File(path, "r") as f:
-        if "sample_stats" not in f or name not in f["sample_stats"]:
-            return None
-    with xr.open_dataset(path, group="sample_stats", engine="h5netcdf") as stats:
-        return pick(stats[name])
+    try:
+        with xr.open_dataset(path, group="sample_stats", engine="h5netcdf") as stats:
+            return pick(stats[name]) if name in stats.data_vars else None
+    except OSError:  # no sample_stats group (the posterior, read first, names a damaged file)
+        return None
 
 
 def _all_chains(var) -> np.ndarray:
