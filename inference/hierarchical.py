@@ -150,7 +150,7 @@ def _num_draws(result: PhaseResult) -> int:
 
 
 def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key, tmcmc_options: Mapping,
-              start: Mapping | None = None) -> PhaseResult:
+              start: Callable[[int], Mapping] | None = None) -> PhaseResult:
     """Run TMCMC on one phase's model.
 
     Parameters

@@ -77,7 +77,7 @@ def frequency_program(f_res) -> Callable:
     def call(ka, diameter_um):
         ka = np.asarray(ka)
         d = np.asarray(diameter_um, dtype=float)
-        key = ("frequency", id(f_res), ka.shape, ka.dtype.str, d.shape, d.tobytes())
+        key = ("frequency", id(f_res), d.shape, d.tobytes())  # jit keeps one executable per shape of ka
         fn = _program(key, f_res, lambda: jax.jit(lambda k: as_fres(f_res)(k, d)))
         return np.asarray(fn(ka))
 

@@ -106,7 +106,7 @@ def _stage_programs(move: RandomWalk, config: TMCMCConfig) -> _StagePrograms:
             return core.finish_stage(state, plan, move.result(carry, log_s0), settings(1.0, min_delta))
 
         return _StagePrograms(
-            initial_state=jax.jit(lambda position, lp, ll: initial_state(position, lp, ll, move)),
+            initial_state=start_program(move),
             begin=jax.jit(begin),
             propose=jax.jit(move.propose),
             accept=jax.jit(move.accept),
