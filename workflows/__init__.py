@@ -2,7 +2,8 @@
 
 Pipelines: :mod:`~bubblecal.workflows.calibrate` (the main job: config, plan, phase store, run),
 :mod:`~bubblecal.workflows.summary` (posterior tables, predictive checks; their bands and CRPS on threads in
-:mod:`~bubblecal.workflows.summary_stats`), :mod:`~bubblecal.workflows.report`
+:mod:`~bubblecal.workflows.summary_stats`; their JAX evaluations on host data, one compiled program each, in
+:mod:`~bubblecal.workflows.host_programs`), :mod:`~bubblecal.workflows.report`
 (console table, ``report.md``), :mod:`~bubblecal.workflows.figures` (with
 :mod:`~bubblecal.workflows.figures_fits` and :mod:`~bubblecal.workflows.figures_population`),
 :mod:`~bubblecal.workflows.evidence`
