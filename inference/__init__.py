@@ -48,8 +48,10 @@ from bubblecal.inference.tmcmc import (
     BatchStructureError,
     KernelMove,
     RandomWalk,
+    RunSpec,
     TMCMCKernel,
     clear_program_cache,
+    compile_ahead,
     hmc_move,
     nuts_move,
     run_batched,
@@ -58,7 +60,7 @@ from bubblecal.inference.tmcmc import (
 __all__ = [
     # TMCMC
     "TMCMC", "TMCMCKernel", "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "clear_program_cache",
-    "run_batched", "BatchStructureError",
+    "run_batched", "BatchStructureError", "compile_ahead", "RunSpec",
     # NUTS and sampler comparison
     "run_nuts", "NUTSResult", "compare_posteriors", "Comparison",
     # staged hierarchy

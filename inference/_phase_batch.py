@@ -1,16 +1,18 @@
-"""The per-dataset phases of a staged hierarchy run batched: one compiled program per group of one structure.
+"""The per-dataset phases of a staged hierarchy: reused, run one by one, or batched.
 
-Private helper of :func:`bubblecal.inference.hierarchical.run_staged` (``batch=True``): the phases already
-stored are reused, the others are grouped by model structure (:func:`bubblecal.inference.tmcmc.batch_groups`)
-and each group of two or more runs through :func:`bubblecal.inference.tmcmc.run_batched`; a lone dataset (or a
-group whose models turn out not to share one program) runs one by one as without ``batch``.
+Private helper of :func:`bubblecal.inference.hierarchical.run_staged`: the phases already stored are reused;
+the phases that run one by one have their programs compiled together first (several at a time,
+:func:`bubblecal.inference.tmcmc.compile_ahead`); with ``batch=True`` the others are grouped by model structure
+(:func:`bubblecal.inference.tmcmc.batch_groups`) and each group of two or more runs through
+:func:`bubblecal.inference.tmcmc.run_batched`; a lone dataset (or a group whose models turn out not to share one
+program) runs one by one as without ``batch``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 
-from bubblecal.inference.tmcmc import BatchStructureError, batch_groups, run_batched
+from bubblecal.inference.tmcmc import TMCMC, BatchStructureError, RunSpec, batch_groups, compile_ahead, run_batched
 
 
 def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, batch_size: int | None,
@@ -55,14 +57,14 @@ def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, b
         If a phase's TMCMC did not reach β = 1 (after its group ran; its converged members are saved).
     """
     options = dict(options or {})
-    results: list = []
-    for job in jobs:  # in order, as one by one: a stored phase is reused, the next one runs
-        cached = load(job[0]) if load is not None else None
+    results: list = [load(job[0]) if load is not None else None for job in jobs]
+    for job, cached in zip(jobs, results, strict=True):
         if cached is not None:
             say(f"{job[0]}: reused (log Z = {cached.log_evidence:.3f})")
-        elif not batch or job[5] is not None:
-            cached = run_one(*job, options)
-        results.append(cached)
+    alone = [j for j, r in enumerate(results) if r is None and (not batch or jobs[j][5] is not None)]
+    _compile_ahead([jobs[j] for j in alone], options)
+    for j in alone:  # in order, one by one
+        results[j] = run_one(*jobs[j], options)
     pending = [j for j, r in enumerate(results) if r is None]
     groups = batch_groups([jobs[j][1] for j in pending], [jobs[j][2] for j in pending],
                           [jobs[j][3] for j in pending])
@@ -77,6 +79,17 @@ def run_phases(jobs: Sequence[tuple], options: Mapping | None, *, batch: bool, b
         for j in members:
             results[j] = run_one(*jobs[j], options)
     return results
+
+
+def _compile_ahead(jobs: Sequence[tuple], options: Mapping) -> None:
+    """Compile the programs of the one-by-one ``jobs`` (and of their exports) together, several at a time
+    (:func:`~bubblecal.inference.tmcmc.compile_ahead`): their runs then compile nothing."""
+    specs = []
+    for _name, model, args, kwargs, key, start in jobs:
+        sampler = TMCMC(model, **options)
+        init = start(sampler.num_particles)["init_samples"] if start is not None else None
+        specs.append(RunSpec(sampler, key, args, kwargs, init))
+    compile_ahead(specs)
 
 
 def _run_group(jobs, members, options, batch_size, results, result_of, check, save, say) -> None:

@@ -137,7 +137,7 @@ def calibrate(
         choice_value(o) for o in (agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates))
     if workflow is None:
         workflow = _D.workflow if data is None or acoustic is not None else "reduced"
-    _compilation_cache(cache)
+    _compilation_cache(cache, device)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     priors_map = _priors_map(list(priors or ()), agents, data)
     try:
@@ -205,8 +205,13 @@ def _priors_map(entries: list[str], agents: tuple[str, ...], data: Path | None) 
     return out
 
 
-def _compilation_cache(on: bool) -> None:
-    """Switch the persistent compilation cache on (``--cache``); its problems print as one warning line."""
+def _compilation_cache(on: bool, device: str) -> None:
+    """Switch the persistent compilation cache on (``--cache``; its problems print as one warning line) and, on a
+    GPU, XLA's heuristic matmul kernels (:func:`~bubblecal.workflows.compile_cache.skip_gpu_autotuning`)."""
+    if device == "gpu":
+        from bubblecal.workflows.compile_cache import skip_gpu_autotuning
+
+        skip_gpu_autotuning()
     if on:
         from bubblecal.workflows.compile_cache import enable_compilation_cache
 
@@ -272,7 +277,7 @@ def evidence(
 
     agent, device, surrogates, networks = (choice_value(o) for o in (agent, device, surrogates, networks))
     lookup = CalibrationConfig(surrogates=surrogates, networks=networks).surrogate_lookup()
-    _compilation_cache(cache)
+    _compilation_cache(cache, device)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
     if population < 100 or replicas < 2:
         raise fail(f"--population must be >= 100 and --replicas >= 2 (for an error bar), got {population}, {replicas}")

@@ -14,6 +14,9 @@ the folder (:func:`enable_compilation_cache`), and entries that do not decompres
 the next run writes them afresh (entries younger than a minute are spared: another run may be writing them).
 A folder that cannot be used at all (a file, not writable) gives one warning line and the run goes on
 without the cache. Nothing the cache does touches the run's own outputs.
+
+On a GPU the commands also let XLA pick matmul kernels by heuristics rather than by timing them
+(:func:`skip_gpu_autotuning`), which takes most of the time out of compiling there.
 """
 
 from __future__ import annotations
@@ -25,10 +28,12 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["CACHE_ENV", "default_cache_dir", "enable_compilation_cache"]
+__all__ = ["CACHE_ENV", "GPU_AUTOTUNE_FLAG", "default_cache_dir", "enable_compilation_cache", "skip_gpu_autotuning"]
 
 #: Environment variable naming the compilation cache folder (instead of the user's cache folder).
 CACHE_ENV = "BUBBLECAL_CACHE_DIR"
+#: The ``XLA_FLAGS`` entry with which XLA picks GPU matmul kernels by cuBLAS's heuristics instead of timing them.
+GPU_AUTOTUNE_FLAG = "--xla_gpu_autotune_level=0"
 
 # the messages JAX warns with when an entry cannot be read or written (jax._src.compiler)
 _JAX_CACHE_WARNINGS = ("Error reading persistent compilation cache entry",
@@ -52,6 +57,27 @@ def default_cache_dir() -> Path:
         base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
         return base / "bubblecal" / "jax"
     return Path(user_cache_dir("bubblecal")) / "jax"
+
+
+def skip_gpu_autotuning() -> bool:
+    """Let XLA pick GPU matmul kernels by heuristics, not by timing candidates while it compiles.
+
+    Appends :data:`GPU_AUTOTUNE_FLAG` to the environment's ``XLA_FLAGS`` unless they already set an autotune
+    level (the user's choice stays). Timing candidate kernels is most of a GPU compilation of the calibration's
+    programs, and the heuristic kernels evaluate the surrogates as fast (``benchmarks/RESULTS.md``, "The main
+    job"); the choice then no longer depends on timings, so two runs compile the same kernels. Takes effect only
+    when called before JAX starts its GPU backend: the commands call it first, never ``import bubblecal``.
+
+    Returns
+    -------
+    bool
+        True when the flag was added.
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_gpu_autotune_level" in flags:
+        return False
+    os.environ["XLA_FLAGS"] = f"{flags} {GPU_AUTOTUNE_FLAG}".strip()
+    return True
 
 
 def _usable(folder: Path) -> str | None:

@@ -227,31 +227,39 @@ _GRID_POINTS = 80
 _POINT_BUCKET = 64
 
 
-def _curve_predictions(predict, thin: Mapping, samples: Mapping, imap: int | None, surrogate, spec, x, grid,
-                       y_scale: float):
-    """Predictive (mean, sd) at the data and on the grid, and the MAP model curve on the grid, in one call.
+def _curve_arguments(thin: Mapping, samples: Mapping, imap: int | None, surrogate, spec, x, grid, y_scale: float):
+    """Arguments of the prediction program of one curve: ``(values, surrogate, points, y_scale)``.
 
-    The thinned draws and the MAP draw are evaluated together at the data and grid points (padded to a
-    multiple of :data:`_POINT_BUCKET` with the last grid point), through ``predict`` with the surrogate as
-    a :class:`~bubblecal.models.TracedSurrogate` (its weights are arguments, not constants).
-    Returns numpy arrays ``(mu, sd)`` (S, len(x)), ``(gmu, gsd)`` (S, len(grid)), and the MAP curve
-    (len(grid),) or None without a MAP index.
+    The thinned draws and the MAP draw (the first draw without a MAP index) are evaluated together at the data
+    and grid points, padded to a multiple of :data:`_POINT_BUCKET` with the last grid point; the surrogate
+    goes as a :class:`~bubblecal.models.TracedSurrogate` (its weights are arguments, not constants) where it can.
+    """
+    from bubblecal.models import TracedSurrogate
+
+    names = [*spec.parameters, spec.mechanical_noise_name]
+    best = imap if imap is not None else 0
+    values = {k: np.append(np.asarray(thin[k]), np.asarray(samples[k])[best]) for k in names}
+    points = np.concatenate([x, grid])
+    points = np.pad(points, (0, -len(points) % _POINT_BUCKET), mode="edge")
+    return values, TracedSurrogate.wrap(surrogate), points, y_scale
+
+
+def _curve_predictions(predict, arguments, spec, n: int, m: int, imap: int | None):
+    """Predictive (mean, sd) at the ``n`` data points and on the ``m`` grid points, and the MAP model curve on
+    the grid, from one call of ``predict`` on :func:`_curve_arguments`.
+
+    Returns numpy arrays ``(mu, sd)`` (S, n), ``(gmu, gsd)`` (S, m), and the MAP curve (m,) or None without a
+    MAP index.
     """
     from bubblecal.models import TracedSurrogate, mechanical_prediction
 
-    names = [*spec.parameters, spec.mechanical_noise_name]
-    s = len(np.asarray(thin[names[0]]))
-    best = imap if imap is not None else 0
-    values = {k: np.append(np.asarray(thin[k]), np.asarray(samples[k])[best]) for k in names}
-    n, m = len(x), len(grid)
-    points = np.concatenate([x, grid])
-    points = np.pad(points, (0, -len(points) % _POINT_BUCKET), mode="edge")
-    wrapped = TracedSurrogate.wrap(surrogate)
-    if isinstance(wrapped, TracedSurrogate):
-        mu, sd = predict(values, wrapped, points, y_scale)
+    values, surrogate, points, y_scale = arguments
+    if isinstance(surrogate, TracedSurrogate):
+        mu, sd = predict(*arguments)
     else:  # another callable (e.g. a closed-form law) cannot be an argument of a program: evaluated as is
         mu, sd = mechanical_prediction(values, surrogate, spec, points, y_scale=y_scale)
     mu, sd = np.asarray(mu, dtype=float), np.asarray(sd, dtype=float)
+    s = mu.shape[0] - 1
     map_curve = mu[s, n:n + m] if imap is not None else None
     return mu[:s, :n], sd[:s, :n], mu[:s, n:n + m], sd[:s, n:n + m], map_curve
 
@@ -271,7 +279,8 @@ def summarise_agent(result, config) -> None:
     import pandas as pd
 
     from bubblecal.inference import map_index
-    from bubblecal.models import mechanical_prediction
+    from bubblecal.inference.tmcmc import compile_lowered
+    from bubblecal.models import TracedSurrogate, mechanical_prediction
     from bubblecal.workflows.host_programs import acoustic_prediction_program, population_predictive_draws
 
     # one compiled prediction per agent: curves of one network shape (and point bucket) share its program
@@ -286,31 +295,41 @@ def summarise_agent(result, config) -> None:
     post = dataset_posteriors(result)
     rng = np.random.default_rng(config.seed)
     contexts = {}
-    # predictions on this thread (one compiled program), bands and CRPS on the pool's threads
+    calls = {}
+    for name, d in post.items():
+        samples, obj = d["samples"], d["obj"]
+        ll = d["loglik"]
+        imap = map_index(ll) if ll is not None and np.size(ll) == next(iter(samples.values())).shape[0] else None
+        thin = _thin(samples, config.predictive_samples)
+        if d["kind"] == "acoustic":
+            diam = np.asarray(obj.diameter_um, dtype=float)
+            f = np.asarray(obj.frequency_MHz, dtype=float)
+            arguments = (thin["ka"], thin["sigma_ac"], diam, float(np.max(f)))
+            calls[name] = (acoustic_prediction_program(ap.f_res), arguments)
+            contexts[name] = {"kind": "acoustic", "x": diam, "y": f, "sigma_mean": float(np.mean(thin["sigma_ac"])),
+                              "names": ["ka", "sigma_ac"], "samples": samples, "imap": imap,
+                              "diameter": float(np.mean(diam)) if diam.size == 1 else math.nan}
+        else:
+            x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
+            grid = np.linspace(0.0, float(x.max()) * 1.02, _GRID_POINTS)
+            arguments = _curve_arguments(thin, samples, imap, d["surrogate"], spec, x, grid, float(np.max(np.abs(y))))
+            calls[name] = (predict, arguments)
+            contexts[name] = {"kind": d["kind"], "x": x, "y": y, "grid": grid, "names": [*spec.parameters, noise],
+                              "samples": samples, "imap": imap, "diameter": float(obj.diameter_um)}
+    # the curves' prediction programs lowered here, compiled several at a time; their calls then compile nothing
+    compile_lowered([predict.lower(*arguments) for program, arguments in calls.values()
+                     if program is predict and isinstance(arguments[1], TracedSurrogate)])
+    # predictions on this thread, bands and CRPS on the pool's threads
     with StatisticsPool(rng, config.crps_replicates) as pool:
-        for name, d in post.items():
-            samples, obj, kind = d["samples"], d["obj"], d["kind"]
-            ll = d["loglik"]
-            imap = map_index(ll) if ll is not None and np.size(ll) == next(iter(samples.values())).shape[0] else None
-            thin = _thin(samples, config.predictive_samples)
-            if kind == "acoustic":
-                diam = np.asarray(obj.diameter_um, dtype=float)
-                f = np.asarray(obj.frequency_MHz, dtype=float)
-                mu, sd = acoustic_prediction_program(ap.f_res)(thin["ka"], thin["sigma_ac"], diam, float(np.max(f)))
-                pool.submit(name, mu, sd, f)
-                contexts[name] = {"kind": kind, "x": diam, "y": f, "sigma_mean": float(np.mean(thin["sigma_ac"])),
-                                  "names": ["ka", "sigma_ac"], "samples": samples, "imap": imap,
-                                  "diameter": float(np.mean(diam)) if diam.size == 1 else math.nan}
+        for name, (program, arguments) in calls.items():
+            c = contexts[name]
+            if c["kind"] == "acoustic":
+                mu, sd = program(*arguments)
+                pool.submit(name, mu, sd, c["y"])
             else:
-                x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
-                y_scale = float(np.max(np.abs(y)))
-                grid = np.linspace(0.0, float(x.max()) * 1.02, _GRID_POINTS)
-                mu, sd, gmu, gsd, map_curve = _curve_predictions(predict, thin, samples, imap, d["surrogate"], spec,
-                                                                 x, grid, y_scale)
-                pool.submit(name, mu, sd, y, gmu, gsd)
-                contexts[name] = {"kind": kind, "x": x, "y": y, "grid": grid, "map_curve": map_curve,
-                                  "names": [*spec.parameters, noise], "samples": samples, "imap": imap,
-                                  "diameter": float(obj.diameter_um)}
+                mu, sd, gmu, gsd, c["map_curve"] = _curve_predictions(predict, arguments, spec, len(c["x"]),
+                                                                      len(c["grid"]), c["imap"])
+                pool.submit(name, mu, sd, c["y"], gmu, gsd)
         stats = pool.results()
     for name, c in contexts.items():
         st, kind = stats[name], c["kind"]

@@ -16,6 +16,8 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
   :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`;
 - :mod:`~bubblecal.inference.tmcmc.progress`: the per-stage reporter (``TMCMC(..., progress=True)`` or a
   callable ``report(replica, row)``), :class:`StageDisplay` and :func:`stage_text`;
+- :mod:`~bubblecal.inference.tmcmc.ahead`: :func:`compile_ahead`, the programs of runs (:class:`RunSpec`)
+  compiled before they run, several at a time (:func:`compile_lowered` for any lowered programs);
 - :mod:`~bubblecal.inference.tmcmc.evaluator`: :class:`Evaluator`, the densities over a population, and
   :func:`resolve_chunk_size` / :data:`CPU_CHUNK_SIZE` (how many particles at a time);
 - private: ``_flat_model`` (a NumPyro model as flat prior / likelihood functions) and ``_programs``
@@ -23,6 +25,7 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 """
 
 from bubblecal.inference.tmcmc._programs import clear_program_cache
+from bubblecal.inference.tmcmc.ahead import RunSpec, compile_ahead, compile_lowered, compile_workers
 from bubblecal.inference.tmcmc.batched import BatchStructureError, batch_groups, run_batched, structure_key
 from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
 from bubblecal.inference.tmcmc.evaluator import CPU_CHUNK_SIZE, Evaluator, resolve_chunk_size
@@ -38,5 +41,6 @@ __all__ = [
     "TMCMCState", "StageInfo", "run_batched", "batch_groups", "structure_key", "BatchStructureError",
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
     "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "CPU_CHUNK_SIZE",
-    "resolve_chunk_size", "POINTWISE_CPU_CHUNK", "StageDisplay", "StageReporter", "stage_text",
+    "resolve_chunk_size", "POINTWISE_CPU_CHUNK", "StageDisplay", "StageReporter", "stage_text", "RunSpec",
+    "compile_ahead", "compile_lowered", "compile_workers",
 ]

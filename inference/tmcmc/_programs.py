@@ -13,7 +13,8 @@ key and kept here (least recently used entries beyond ``_PROGRAM_CACHE_SIZE`` ar
 - ``("batched", FlatModel.signature, type(move), move key, config, max_stages, data axes)``: init and whole
   run vmapped over datasets of one structure (:class:`_BatchedPrograms`, :mod:`bubblecal.inference.tmcmc.batched`).
 
-Under each key, jit keeps one executable per argument shape (N, d, data shapes).
+Under each key, jit keeps one executable per argument shape (N, d, data shapes). The flat models themselves are
+kept per model and argument objects (:func:`flat_model`).
 """
 
 from __future__ import annotations
@@ -52,6 +53,32 @@ def _cached_programs(key, build: Callable):
 def clear_program_cache() -> None:
     """Forget every cached compiled TMCMC program (the next runs trace and compile again)."""
     _program_cache.clear()
+    _flat_cache.clear()
+
+
+_FLAT_CACHE_SIZE = 32
+_flat_cache: collections.OrderedDict = collections.OrderedDict()
+
+
+def flat_model(model: Callable, args, kwargs, *, space: str, rng_key, tempered=None) -> FlatModel:
+    """The :class:`FlatModel` of ``model(*args, **kwargs)``, built once per model and argument objects.
+
+    A run compiled ahead and the run itself, or the likelihood preflight and phase 1, pass the same objects and
+    share one flat model (building one traces the model). The cache keeps the argument objects themselves, so
+    a hit is the same objects, never equal ones; the probe key only seeds that trace, so it is no part of the key.
+    """
+    leaves, treedef = jax.tree_util.tree_flatten((tuple(args), dict(kwargs or {})))
+    key = (model, space, None if tempered is None else tuple(tempered), treedef, tuple(id(v) for v in leaves),
+           bool(jax.config.jax_enable_x64))
+    hit = _flat_cache.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], leaves, strict=True)):
+        _flat_cache.move_to_end(key)
+        return hit[1]
+    flat = FlatModel(model, args, kwargs, space=space, rng_key=rng_key, tempered=tempered)
+    _flat_cache[key] = (leaves, flat)
+    while len(_flat_cache) > _FLAT_CACHE_SIZE:
+        _flat_cache.popitem(last=False)
+    return flat
 
 
 class _StagePrograms(NamedTuple):
@@ -122,13 +149,18 @@ def _densities(flat: FlatModel, data) -> tuple[Callable, Callable]:
     return functools.partial(flat.log_prior, data=data), functools.partial(flat.log_likelihood, data=data)
 
 
+def _evaluator(flat: FlatModel, data, chunk_size: int | None) -> Evaluator:
+    """The population evaluator of ``flat``'s structure, both densities from one pass through the model."""
+    return Evaluator(*_densities(flat, data), chunk_size, functools.partial(flat.log_terms, data=data))
+
+
 def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
     """Prior draws, evaluator and sites of ``flat``'s structure; ``flat`` (the first model seen with
     this signature) serves as the template, every later model of equal signature passes its own data."""
 
     def build():
         def evaluate(position, data):
-            return Evaluator(*_densities(flat, data), chunk_size)(position)
+            return _evaluator(flat, data, chunk_size)(position)
 
         def sites(position, data):
             return chunked_vmap(functools.partial(flat.sites, data=data), chunk_size)(position)

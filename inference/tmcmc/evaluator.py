@@ -38,8 +38,9 @@ def resolve_chunk_size(chunk_size: int | str | None, num_particles: int) -> int 
     Parameters
     ----------
     chunk_size : int, 'auto' or None
-        An explicit chunk; None (all particles in one vmap); or 'auto': :data:`CPU_CHUNK_SIZE` when the
-        default device is a CPU and the population is larger, else None (a GPU wants all particles at once).
+        An explicit chunk; None (all particles in one vmap); or 'auto': on a CPU and a population larger than
+        twice :data:`CPU_CHUNK_SIZE`, the largest chunk of at most :data:`CPU_CHUNK_SIZE` and at least half of it
+        that divides the population (else :data:`CPU_CHUNK_SIZE`), else None (a GPU wants all particles at once).
     num_particles : int
         Particles of the population.
 
@@ -55,8 +56,19 @@ def resolve_chunk_size(chunk_size: int | str | None, num_particles: int) -> int 
     if isinstance(chunk_size, str):
         if chunk_size != "auto":
             raise ValueError(f"chunk_size must be a positive integer, None or 'auto', got {chunk_size!r}")
-        return CPU_CHUNK_SIZE if _default_platform() == "cpu" and num_particles > 2 * CPU_CHUNK_SIZE else None
+        if _default_platform() != "cpu" or num_particles <= 2 * CPU_CHUNK_SIZE:
+            return None
+        return _dividing_chunk(num_particles, CPU_CHUNK_SIZE)
     return chunk_size
+
+
+def _dividing_chunk(n: int, cap: int) -> int:
+    """The largest chunk in [cap / 2, cap] that divides ``n`` (else ``cap``): ``lax.map`` then traces and compiles
+    one chunk body, not a second one for a remainder."""
+    for size in range(cap, cap // 2 - 1, -1):
+        if n % size == 0:
+            return size
+    return cap
 
 
 @dataclass(frozen=True)
@@ -72,6 +84,10 @@ class Evaluator:
     chunk_size : int or None
         Evaluate this many particles at a time (``lax.map`` over chunks of a vmapped evaluation), so
         memory scales with the chunk rather than with N; None evaluates all particles in one vmap.
+    log_terms_fn : callable or None
+        ``x -> (log p(x), log L(x))`` of one flat vector, both densities from one pass through the model; when
+        given, :meth:`one` uses it (the model is traced once per program, not once per density), else the two
+        functions above.
 
     Notes
     -----
@@ -83,9 +99,13 @@ class Evaluator:
     log_prior_fn: Callable[[Array], Array]
     log_likelihood_fn: Callable[[Array], Array]
     chunk_size: int | None = None
+    log_terms_fn: Callable[[Array], tuple[Array, Array]] | None = None
 
     def one(self, x: Array) -> tuple[Array, Array]:
         """(log prior, log likelihood) of one flat vector ``x`` (d,), as arrays."""
+        if self.log_terms_fn is not None:
+            lp, ll = self.log_terms_fn(x)
+            return jnp.asarray(lp), jnp.asarray(ll)
         return jnp.asarray(self.log_prior_fn(x)), jnp.asarray(self.log_likelihood_fn(x))
 
     def __call__(self, position: Array) -> tuple[Array, Array]:

@@ -40,8 +40,7 @@ from jax.flatten_util import ravel_pytree
 from numpyro.infer.mcmc import MCMCKernel
 from numpyro.util import is_prng_key
 
-from bubblecal.inference.tmcmc._programs import _densities
-from bubblecal.inference.tmcmc.evaluator import Evaluator
+from bubblecal.inference.tmcmc._programs import _evaluator
 from bubblecal.inference.tmcmc.moves import KernelMove, RandomWalk
 from bubblecal.inference.tmcmc.sampler import TMCMC
 from bubblecal.inference.tmcmc.tempering import weighted_moments
@@ -236,7 +235,7 @@ class TMCMCKernel(MCMCKernel):
         key, k_move, k_order = jax.random.split(state.rng_key, 3)
         n = state.population.shape[0]
         _, cov = weighted_moments(state.population, jnp.full((n,), -math.log(n), state.population.dtype))
-        evaluate = Evaluator(*_densities(self._flat, self._data), self.tmcmc.config.chunk_size)
+        evaluate = _evaluator(self._flat, self._data, self.tmcmc.config.chunk_size)
         res = _frozen(self.tmcmc.move)(
             k_move, state.population, state.log_prior, state.log_likelihood, state.beta, cov,
             state.move_params, evaluate,

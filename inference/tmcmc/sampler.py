@@ -48,6 +48,7 @@ from bubblecal.inference.tmcmc._programs import (
     _split_stage,
     _splittable,
     _stage_programs,
+    flat_model,
     offset_evidence,
     start_positions,
     start_program,
@@ -233,7 +234,7 @@ class TMCMC(TMCMCResults):
         ValueError
             If the model has a discrete or no latent site.
         """
-        flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key)
+        flat = flat_model(self.model, args, kwargs, space=self.space, rng_key=rng_key)
         data = _on_device(flat.data)
         model = _model_programs(flat, self.config.chunk_size)
         position = model.draws(rng_key, data, self.num_particles)
@@ -272,7 +273,7 @@ class TMCMC(TMCMCResults):
         if self.tempered is not None and init_samples is None:
             raise ValueError(f"TMCMC with tempered={list(self.tempered)} needs init_samples: draws of the model "
                              "without those sites (e.g. its posterior), from which the tempering starts")
-        flat = FlatModel(self.model, args, kwargs, space=self.space, rng_key=rng_key, tempered=self.tempered)
+        flat = flat_model(self.model, args, kwargs, space=self.space, rng_key=rng_key, tempered=self.tempered)
         self._flat = flat
         self._model_args = (args, dict(kwargs))  # for the pointwise log likelihood of the export
         self._samples_cache = None

@@ -163,3 +163,15 @@ def test_calibrate_with_an_unusable_cache_warns_once_and_keeps_its_phases(tmp_pa
     assert result.exit_code == 0, result.output
     assert not absent.exists() and "compilation cache" not in result.output
     assert sorted(p.name for p in (tmp_path / "out" / "definity" / "reduced").glob("phase*")) == phases
+
+
+def test_gpu_autotuning_is_skipped_unless_the_user_set_a_level(monkeypatch):
+    from bubblecal.workflows.compile_cache import GPU_AUTOTUNE_FLAG, skip_gpu_autotuning
+
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    assert skip_gpu_autotuning() and os.environ["XLA_FLAGS"] == GPU_AUTOTUNE_FLAG
+    assert not skip_gpu_autotuning() and os.environ["XLA_FLAGS"] == GPU_AUTOTUNE_FLAG  # added once
+    monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/d")
+    assert skip_gpu_autotuning() and os.environ["XLA_FLAGS"] == f"--xla_dump_to=/tmp/d {GPU_AUTOTUNE_FLAG}"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_gpu_autotune_level=4")
+    assert not skip_gpu_autotuning() and os.environ["XLA_FLAGS"] == "--xla_gpu_autotune_level=4"  # the user's

@@ -5,7 +5,8 @@ non-finite") after the surrogates were compiled; evaluating it at :data:`PREFLIG
 seed names the dataset (curve or acoustic table, and its file) before any phase runs. The draws are made and
 evaluated by phase 1's own compiled programs (:meth:`bubblecal.inference.TMCMC.prior_log_likelihood`: a batch
 of the phase's population, of which the first :data:`PREFLIGHT_DRAWS` are judged), so the check compiles
-nothing that phase 1 would not compile anyway.
+nothing that phase 1 would not compile anyway. Every phase-1 program of every agent is compiled here, several at
+a time (:func:`bubblecal.inference.tmcmc.compile_ahead`).
 """
 
 from __future__ import annotations
@@ -44,22 +45,27 @@ def preflight(plan, n_draws: int = PREFLIGHT_DRAWS, seed: int = PREFLIGHT_SEED) 
     """
     import jax
 
-    from bubblecal.inference.tmcmc import TMCMC
+    from bubblecal.inference.tmcmc import TMCMC, RunSpec, compile_ahead
     from bubblecal.workflows.calibrate.config import phase_tmcmc_options
     from bubblecal.workflows.calibrate.device import on_device
     from bubblecal.workflows.calibrate.run import _dataset_objects, _pad_curves
 
     options = phase_tmcmc_options(plan.config)[0]
     options["num_particles"] = max(options["num_particles"], n_draws)
+    key = jax.random.PRNGKey(seed)
     with on_device(plan.config.device):
+        # the datasets as phase 1 sees them (same padding): their programs are phase 1's
+        datasets = {ap.agent: _dataset_objects(ap, _pad_curves(plan.config)) for ap in plan.agents}
+        # every agent's phase-1 programs, several compiling at once; the phases then find them compiled
+        compile_ahead([RunSpec(TMCMC(d.model, **options), key, d.args, d.kwargs)
+                       for ds in datasets.values() for d in ds])
         for ap in plan.agents:
             table = plan.config.data_dir and Path(plan.config.data_dir) / "acoustic_observations_published.csv"
             table = table if table and table.is_file() else "the shipped acoustic table"
             files = [c.path or c.source for c in ap.curves] + [table] * len(ap.acoustic)
-            # the datasets as phase 1 sees them (same padding): their programs are phase 1's
-            for dataset, where in zip(_dataset_objects(ap, _pad_curves(plan.config)), files, strict=True):
+            for dataset, where in zip(datasets[ap.agent], files, strict=True):
                 sampler = TMCMC(dataset.model, **options)
-                ll = sampler.prior_log_likelihood(jax.random.PRNGKey(seed), *dataset.args, **dataset.kwargs)[:n_draws]
+                ll = sampler.prior_log_likelihood(key, *dataset.args, **dataset.kwargs)[:n_draws]
                 if not np.all(np.isfinite(ll)):
                     shown = ", ".join(f"{v:.4g}" for v in ll)
                     raise CalibrationError(

@@ -218,7 +218,10 @@ def test_auto_chunk_size_is_the_cpu_chunk_on_a_cpu_and_none_for_small_population
     with jax.default_device(jax.devices("cpu")[0]):
         assert resolve_chunk_size("auto", 4 * CPU_CHUNK_SIZE) == CPU_CHUNK_SIZE
         assert resolve_chunk_size("auto", 2 * CPU_CHUNK_SIZE) is None  # a small population: plain vmap
-        assert TMCMC(model_simple, num_particles=2000).config.chunk_size == CPU_CHUNK_SIZE
+        # a chunk that divides the population (no remainder body), at least half the CPU chunk
+        assert TMCMC(model_simple, num_particles=2000).config.chunk_size == 500
+        assert resolve_chunk_size("auto", 50_000) == 500
+        assert resolve_chunk_size("auto", 1201) == CPU_CHUNK_SIZE  # 1201 is prime: chunks with a remainder
     assert resolve_chunk_size(None, 10**6) is None and resolve_chunk_size(64, 10**6) == 64
     with pytest.raises(ValueError, match="'auto'"):
         resolve_chunk_size("fast", 100)
@@ -227,7 +230,7 @@ def test_auto_chunk_size_is_the_cpu_chunk_on_a_cpu_and_none_for_small_population
 
 
 def test_auto_chunk_matches_one_vmap():
-    """The default ('auto', chunks of 512 on a CPU) and one vmap over all 2,000 particles give the same run."""
+    """The default ('auto', chunks of 500 on a CPU) and one vmap over all 2,000 particles give the same run."""
     with jax.default_device(jax.devices("cpu")[0]):
         auto = TMCMC(model_simple, num_particles=2000).run(jax.random.PRNGKey(3))
         whole = TMCMC(model_simple, num_particles=2000, chunk_size=None).run(jax.random.PRNGKey(3))

@@ -1,0 +1,157 @@
+"""Compiling the programs of TMCMC runs ahead of the runs, several at a time.
+
+A run compiles its programs one after the other as it first calls them (prior draws, evaluator, the stage
+pieces, the exports' sites and pointwise log likelihood); each compilation is single-threaded XLA work of
+0.3-3 s. :func:`compile_ahead` lowers the programs of one or more runs in the calling thread (tracing a NumPyro
+model is not thread-safe: its handler stack is global), then compiles them on a pool of threads (XLA releases
+the GIL), so a host with k cores compiles up to k programs at once. jit keeps what was compiled: the runs then
+call their programs without compiling, and their draws are the same as without the compilation ahead.
+
+Covered: the host-driven random-walk stages (``compiled=False``, the default) with exact prior draws or
+``init_samples``, a tempered model's prior split, and the exports' programs
+(:meth:`~bubblecal.inference.tmcmc.TMCMC.get_samples`, :meth:`~bubblecal.inference.tmcmc.TMCMC.inference_parts`
+with its default chunk). Other runs (a fused or batched run, a kernel move) compile as they run.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, NamedTuple
+
+import jax
+
+from bubblecal.inference.tmcmc._programs import _model_programs, _on_device, _splittable, _stage_programs, flat_model
+from bubblecal.inference.tmcmc.evaluator import _default_platform
+
+__all__ = ["RunSpec", "compile_ahead", "compile_lowered", "compile_workers"]
+
+
+class RunSpec(NamedTuple):
+    """A TMCMC run to compile ahead: ``sampler.run(rng_key, *args, init_samples=init_samples, **kwargs)``.
+
+    Parameters
+    ----------
+    sampler : bubblecal.inference.tmcmc.TMCMC
+        The sampler that will run (its model, particles, move, chunk, tempered sites).
+    rng_key : jax.Array
+        The run's PRNG key (its shape and type, not its value, matter).
+    args : tuple
+        Positional arguments of the model.
+    kwargs : mapping
+        Keyword arguments of the model.
+    init_samples : mapping or None
+        The run's ``init_samples`` (None: exact prior draws).
+    """
+
+    sampler: Any
+    rng_key: Any
+    args: tuple = ()
+    kwargs: Mapping = {}
+    init_samples: Mapping | None = None
+
+
+def compile_workers() -> int:
+    """Threads that compile at once: the cores this process may use (its CPU affinity where the platform has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # no affinity on this platform
+        return max(1, os.cpu_count() or 1)
+
+
+def compile_ahead(runs: Iterable[RunSpec], workers: int | None = None, exports: bool = True) -> int:
+    """Compile the programs of ``runs`` (and of their exports) ahead, up to ``workers`` at a time.
+
+    Parameters
+    ----------
+    runs : iterable of RunSpec
+        The runs whose programs to compile; runs of one model structure share programs (compiled once).
+    workers : int or None
+        Compilations at once; None: :func:`compile_workers`.
+    exports : bool
+        Also the programs of the runs' exports (sites of the draws, the pointwise log likelihood).
+
+    Returns
+    -------
+    int
+        Programs lowered and handed to the compiler (those compiled before return at once from jit's cache).
+
+    Raises
+    ------
+    ValueError
+        As :meth:`~bubblecal.inference.tmcmc.TMCMC.run` would for a model it cannot run (nothing is compiled).
+    """
+    lowered = []
+    for spec in runs:
+        lowered.extend(_run_lowerings(spec, exports))
+    compile_lowered(lowered, workers)
+    return len(lowered)
+
+
+def compile_lowered(lowered: Sequence, workers: int | None = None) -> None:
+    """Compile lowered programs (``jax.jit(f).lower(...)``), up to ``workers`` at a time.
+
+    The executables land in jit's cache (and in the persistent compilation cache when it is on): calling the
+    jitted functions with arguments of the lowered shapes then compiles nothing.
+
+    Parameters
+    ----------
+    lowered : sequence of jax.stages.Lowered
+        Programs lowered on the calling thread.
+    workers : int or None
+        Compilations at once; None: :func:`compile_workers`.
+    """
+    workers = compile_workers() if workers is None else max(1, int(workers))
+    if workers == 1 or len(lowered) < 2:
+        for program in lowered:
+            program.compile()
+        return
+    with ThreadPoolExecutor(max_workers=min(workers, len(lowered)), thread_name_prefix="compile") as pool:
+        for _ in pool.map(lambda program: program.compile(), lowered):
+            pass
+
+
+def _run_lowerings(spec: RunSpec, exports: bool) -> list:
+    """The lowered programs of one run, as its host-driven random-walk stages call them."""
+    sampler = spec.sampler
+    move, cfg, n = sampler.move, sampler.config, sampler.num_particles
+    if sampler.compiled or not _splittable(move):
+        return []
+    flat = flat_model(sampler.model, spec.args, spec.kwargs, space=sampler.space, rng_key=spec.rng_key,
+                      tempered=sampler.tempered)
+    data = _on_device(flat.data)
+    model = _model_programs(flat, cfg.chunk_size)
+    stages = _stage_programs(move, cfg)
+    key = jax.eval_shape(lambda k: jax.random.split(k)[0], spec.rng_key)
+    position = jax.ShapeDtypeStruct((n, flat.dim), flat.dtype)
+    out = []
+    if spec.init_samples is None:
+        out.append(model.draws.lower(key, data, n))
+    lp, ll = jax.eval_shape(model.evaluate, position, data)
+    out += [model.evaluate.lower(position, data), stages.initial_state.lower(position, lp, ll)]
+    state = jax.eval_shape(stages.initial_state, position, lp, ll)
+    seen = []
+    while state not in seen:  # the first stage's state and the one every stage returns
+        seen.append(state)
+        target_cov, min_delta = float(cfg.target_cov), float(cfg.min_delta)
+        plan, chol, log_s0, carry = jax.eval_shape(stages.begin, key, state, target_cov)
+        _, k_acc, proposal = jax.eval_shape(stages.propose, plan.key_move, carry[0], chol, carry[3])
+        out += [stages.begin.lower(key, state, target_cov),
+                stages.propose.lower(plan.key_move, carry[0], chol, carry[3]),
+                stages.accept.lower(k_acc, carry, proposal, lp, ll, plan.beta),
+                stages.end.lower(state, plan, carry, log_s0, min_delta)]
+        state, _ = jax.eval_shape(stages.end, state, plan, carry, log_s0, min_delta)
+    if sampler.tempered is not None:
+        out.append(model.untemper.lower(position, lp, ll, data))
+    if exports:
+        sites = jax.eval_shape(model.sites, position, data)
+        out.append(model.sites.lower(position, data))
+    if exports and flat.observed:  # a model without observed sites gets its pointwise values from its caller
+        from bubblecal.inference.tmcmc.results import POINTWISE_CPU_CHUNK
+
+        total = sampler.num_replicas * n
+        size = min(POINTWISE_CPU_CHUNK, total) if _default_platform() == "cpu" else total
+        chunk = {k: jax.ShapeDtypeStruct((size,) + v.shape[1:], v.dtype) for k, v in sites.items()}
+        out.append(model.pointwise.lower(chunk, data))
+    return out
