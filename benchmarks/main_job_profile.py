@@ -4,10 +4,13 @@
     python benchmarks/main_job_profile.py --out /tmp/prof --paper --device gpu --npz
 
 Every argument goes to ``bubblecal calibrate``. Sections: imports, the plan (bundle load, data and prior checks,
-domain warnings), the likelihood preflight, each TMCMC phase, summaries, figures, report.md, and the rest
-(printing, phase files). JAX logs every XLA compilation (``jax_log_compiles``); each one's seconds are charged to
-the section that was running, so "run s" = wall - compile. A program read back from the persistent compilation
-cache counts as a cache hit (its load seconds still count as compile seconds). Prints a table and one JSON line.
+domain warnings), the likelihood preflight (with every phase-1 program compiled ahead), the programs of each later
+phase compiled ahead, each TMCMC phase, each phase's export (pointwise log likelihood, handing the file to the writer)
+and the wait for the writer, summaries, figures, report.md, and the rest (printing). JAX logs every XLA
+compilation (``jax_log_compiles``); each one's seconds are charged to the section that was running, so "run s" =
+wall - compile (negative where several programs compiled at once). A program read back from the persistent
+compilation cache counts as a cache hit (its load seconds still count as compile seconds). Prints a table and one
+JSON line.
 """
 
 from __future__ import annotations
@@ -80,6 +83,7 @@ def main(argv=None) -> dict:
     import jax
 
     jax.config.update("jax_log_compiles", True)
+    import bubblecal.inference._phase_batch as phase_batch
     import bubblecal.inference.hierarchical as hierarchical
     import bubblecal.workflows.calibrate as calibrate
     import bubblecal.workflows.calibrate.plan as plan_module
@@ -92,6 +96,9 @@ def main(argv=None) -> dict:
     prof.wrap(calibrate, "make_plan", "plan (bundle, checks)")
     prof.wrap(plan_module, "preflight", "preflight")
     prof.wrap(hierarchical, "run_phase", lambda name, *a, **k: name)
+    prof.wrap(phase_batch, "_compile_ahead", "compile ahead (phases)")
+    prof.wrap(calibrate.PhaseStore, "save", "phase files (export)")
+    prof.wrap(calibrate.PhaseStore, "flush", "phase files (wait)")
     prof.wrap(summary, "summarise_agent", "summaries")
     prof.wrap(figures, "agent_figures", "figures")
     prof.wrap(report, "write_report", "report")

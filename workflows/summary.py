@@ -227,7 +227,8 @@ _GRID_POINTS = 80
 _POINT_BUCKET = 64
 
 
-def _curve_arguments(thin: Mapping, samples: Mapping, imap: int | None, surrogate, spec, x, grid, y_scale: float):
+def _prediction_arguments(thin: Mapping, samples: Mapping, imap: int | None, surrogate, spec, x, grid,
+                          y_scale: float):
     """Arguments of the prediction program of one curve: ``(values, surrogate, points, y_scale)``.
 
     The thinned draws and the MAP draw (the first draw without a MAP index) are evaluated together at the data
@@ -246,7 +247,7 @@ def _curve_arguments(thin: Mapping, samples: Mapping, imap: int | None, surrogat
 
 def _curve_predictions(predict, arguments, spec, n: int, m: int, imap: int | None):
     """Predictive (mean, sd) at the ``n`` data points and on the ``m`` grid points, and the MAP model curve on
-    the grid, from one call of ``predict`` on :func:`_curve_arguments`.
+    the grid, from one call of ``predict`` on :func:`_prediction_arguments`.
 
     Returns numpy arrays ``(mu, sd)`` (S, n), ``(gmu, gsd)`` (S, m), and the MAP curve (m,) or None without a
     MAP index.
@@ -312,7 +313,8 @@ def summarise_agent(result, config) -> None:
         else:
             x, y = np.asarray(obj.x, dtype=float), np.asarray(obj.y, dtype=float)
             grid = np.linspace(0.0, float(x.max()) * 1.02, _GRID_POINTS)
-            arguments = _curve_arguments(thin, samples, imap, d["surrogate"], spec, x, grid, float(np.max(np.abs(y))))
+            y_scale = float(np.max(np.abs(y)))
+            arguments = _prediction_arguments(thin, samples, imap, d["surrogate"], spec, x, grid, y_scale)
             calls[name] = (predict, arguments)
             contexts[name] = {"kind": d["kind"], "x": x, "y": y, "grid": grid, "names": [*spec.parameters, noise],
                               "samples": samples, "imap": imap, "diameter": float(obj.diameter_um)}

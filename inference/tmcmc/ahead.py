@@ -25,7 +25,7 @@ import jax
 from bubblecal.inference.tmcmc._programs import _model_programs, _on_device, _splittable, _stage_programs, flat_model
 from bubblecal.inference.tmcmc.evaluator import _default_platform
 
-__all__ = ["RunSpec", "compile_ahead", "compile_lowered", "compile_workers"]
+__all__ = ["MAX_COMPILE_WORKERS", "RunSpec", "compile_ahead", "compile_lowered", "compile_workers"]
 
 
 class RunSpec(NamedTuple):
@@ -52,12 +52,18 @@ class RunSpec(NamedTuple):
     init_samples: Mapping | None = None
 
 
+#: Most compilations at once (each holds its own working memory of up to a few hundred MB).
+MAX_COMPILE_WORKERS = 16
+
+
 def compile_workers() -> int:
-    """Threads that compile at once: the cores this process may use (its CPU affinity where the platform has one)."""
+    """Threads that compile at once: the cores this process may use (its CPU affinity where the platform has one),
+    at most :data:`MAX_COMPILE_WORKERS`."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # no affinity on this platform
-        return max(1, os.cpu_count() or 1)
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, MAX_COMPILE_WORKERS))
 
 
 def compile_ahead(runs: Iterable[RunSpec], workers: int | None = None, exports: bool = True) -> int:

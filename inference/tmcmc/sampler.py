@@ -101,9 +101,9 @@ class TMCMC(TMCMCResults):
         Stage cap (status 'max_stages' when hit).
     chunk_size : int, 'auto' or None
         Evaluate the densities this many particles at a time (memory, and on a CPU speed); None: all at once;
-        'auto' (default): :data:`~bubblecal.inference.tmcmc.evaluator.CPU_CHUNK_SIZE` particles on a CPU,
-        all at once on a GPU, decided by the default device when the run starts
-        (:func:`~bubblecal.inference.tmcmc.evaluator.resolve_chunk_size`). The draws do not depend on it
+        'auto' (default): at most :data:`~bubblecal.inference.tmcmc.evaluator.CPU_CHUNK_SIZE` particles on a CPU
+        (one that divides N where one exists), all at once on a GPU, decided by the default device when the run
+        starts (:func:`~bubblecal.inference.tmcmc.evaluator.resolve_chunk_size`). The draws do not depend on it
         beyond floating-point round-off.
     space : {'unconstrained', 'constrained'} or None
         Sampling space; None: 'unconstrained' (robust) or 'constrained' (korali).

@@ -12,6 +12,7 @@ import pytest
 
 from bubblecal.inference.tmcmc import TMCMC, RunSpec, compile_ahead, compile_workers, hmc_move
 from bubblecal.inference.tmcmc import _programs as tm
+from bubblecal.inference.tmcmc.ahead import MAX_COMPILE_WORKERS
 
 # the programs of a run (prior draws, evaluator, stage pieces, exports); eager one-operation programs
 # (key splits, isfinite) are not run programs
@@ -106,7 +107,7 @@ def test_runs_of_one_structure_are_compiled_once_and_other_runs_are_left_to_comp
                                   (x,), {"y": y})]) == 0
     assert compile_ahead([RunSpec(TMCMC(line_model, num_particles=400, move=hmc_move()), jax.random.PRNGKey(0),
                                   (x,), {"y": y})]) == 0
-    assert compile_workers() >= 1
+    assert 1 <= compile_workers() <= MAX_COMPILE_WORKERS
 
 
 def test_a_model_that_cannot_run_fails_ahead_as_it_would_in_run():
