@@ -5,8 +5,9 @@ non-finite") after the surrogates were compiled; evaluating it at :data:`PREFLIG
 seed names the dataset (curve or acoustic table, and its file) before any phase runs. The draws are made and
 evaluated by phase 1's own compiled programs (:meth:`bubblecal.inference.TMCMC.prior_log_likelihood`: a batch
 of the phase's population, of which the first :data:`PREFLIGHT_DRAWS` are judged), so the check compiles
-nothing that phase 1 would not compile anyway. Every phase-1 program of every agent is compiled here, several at
-a time (:func:`bubblecal.inference.tmcmc.compile_ahead`).
+nothing that phase 1 would not compile anyway. Before a staged TMCMC run, every phase-1 program of every agent (and of
+its exports, for NetCDF phase files) is compiled here, several at a time
+(:func:`bubblecal.inference.tmcmc.compile_ahead`).
 """
 
 from __future__ import annotations
@@ -56,9 +57,9 @@ def preflight(plan, n_draws: int = PREFLIGHT_DRAWS, seed: int = PREFLIGHT_SEED) 
     with on_device(plan.config.device):
         # the datasets as phase 1 sees them (same padding): their programs are phase 1's
         datasets = {ap.agent: _dataset_objects(ap, _pad_curves(plan.config)) for ap in plan.agents}
-        # every agent's phase-1 programs, several compiling at once; the phases then find them compiled
-        compile_ahead([RunSpec(TMCMC(d.model, **options), key, d.args, d.kwargs)
-                       for ds in datasets.values() for d in ds])
+        if plan.config.sampler == "tmcmc":  # every agent's phase-1 programs, several at once (NetCDF: with exports)
+            compile_ahead([RunSpec(TMCMC(d.model, **options), key, d.args, d.kwargs)
+                           for ds in datasets.values() for d in ds], exports=plan.config.netcdf)
         for ap in plan.agents:
             table = plan.config.data_dir and Path(plan.config.data_dir) / "acoustic_observations_published.csv"
             table = table if table and table.is_file() else "the shipped acoustic table"
