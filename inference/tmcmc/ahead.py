@@ -137,10 +137,10 @@ def _run_lowerings(spec: RunSpec, exports: bool) -> list:
     lp, ll = jax.eval_shape(model.evaluate, position, data)
     out += [model.evaluate.lower(position, data), stages.initial_state.lower(position, lp, ll)]
     state = jax.eval_shape(stages.initial_state, position, lp, ll)
+    target_cov, min_delta = float(cfg.target_cov), float(cfg.min_delta)  # Python floats, as _split_stage passes
     seen = []
     while state not in seen:  # the first stage's state and the one every stage returns
         seen.append(state)
-        target_cov, min_delta = float(cfg.target_cov), float(cfg.min_delta)
         plan, chol, log_s0, carry = jax.eval_shape(stages.begin, key, state, target_cov)
         _, k_acc, proposal = jax.eval_shape(stages.propose, plan.key_move, carry[0], chol, carry[3])
         out += [stages.begin.lower(key, state, target_cov),

@@ -55,18 +55,17 @@ def preflight(plan, n_draws: int = PREFLIGHT_DRAWS, seed: int = PREFLIGHT_SEED) 
     options["num_particles"] = max(options["num_particles"], n_draws)
     key = jax.random.PRNGKey(seed)
     with on_device(plan.config.device):
-        # the datasets as phase 1 sees them (same padding): their programs are phase 1's
-        datasets = {ap.agent: _dataset_objects(ap, _pad_curves(plan.config)) for ap in plan.agents}
+        # the datasets as phase 1 sees them (same padding), each with its sampler: their programs are phase 1's
+        runs = {ap.agent: [(d, RunSpec(TMCMC(d.model, **options), key, d.args, d.kwargs))
+                           for d in _dataset_objects(ap, _pad_curves(plan.config))] for ap in plan.agents}
         if plan.config.sampler == "tmcmc":  # every agent's phase-1 programs, several at once (NetCDF: with exports)
-            compile_ahead([RunSpec(TMCMC(d.model, **options), key, d.args, d.kwargs)
-                           for ds in datasets.values() for d in ds], exports=plan.config.netcdf)
+            compile_ahead([spec for pairs in runs.values() for _, spec in pairs], exports=plan.config.netcdf)
         for ap in plan.agents:
             table = plan.config.data_dir and Path(plan.config.data_dir) / "acoustic_observations_published.csv"
             table = table if table and table.is_file() else "the shipped acoustic table"
             files = [c.path or c.source for c in ap.curves] + [table] * len(ap.acoustic)
-            for dataset, where in zip(datasets[ap.agent], files, strict=True):
-                sampler = TMCMC(dataset.model, **options)
-                ll = sampler.prior_log_likelihood(key, *dataset.args, **dataset.kwargs)[:n_draws]
+            for (dataset, spec), where in zip(runs[ap.agent], files, strict=True):
+                ll = spec.sampler.prior_log_likelihood(key, *dataset.args, **dataset.kwargs)[:n_draws]
                 if not np.all(np.isfinite(ll)):
                     shown = ", ".join(f"{v:.4g}" for v in ll)
                     raise CalibrationError(
