@@ -25,7 +25,13 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
 """
 
 from bubblecal.inference.tmcmc._programs import clear_program_cache
-from bubblecal.inference.tmcmc.ahead import RunSpec, compile_ahead, compile_lowered, compile_workers
+from bubblecal.inference.tmcmc.ahead import (
+    MAX_COMPILE_WORKERS,
+    RunSpec,
+    compile_ahead,
+    compile_lowered,
+    compile_workers,
+)
 from bubblecal.inference.tmcmc.batched import BatchStructureError, batch_groups, run_batched, structure_key
 from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
 from bubblecal.inference.tmcmc.evaluator import CPU_CHUNK_SIZE, Evaluator, resolve_chunk_size
@@ -42,5 +48,5 @@ __all__ = [
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
     "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "CPU_CHUNK_SIZE",
     "resolve_chunk_size", "POINTWISE_CPU_CHUNK", "StageDisplay", "StageReporter", "stage_text", "RunSpec",
-    "compile_ahead", "compile_lowered", "compile_workers",
+    "compile_ahead", "compile_lowered", "compile_workers", "MAX_COMPILE_WORKERS",
 ]

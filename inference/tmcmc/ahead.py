@@ -1,8 +1,8 @@
 """Compiling the programs of TMCMC runs ahead of the runs, several at a time.
 
 A run compiles its programs one after the other as it first calls them (prior draws, evaluator, the stage
-pieces, the exports' sites and pointwise log likelihood); each compilation is single-threaded XLA work of
-0.3-3 s. :func:`compile_ahead` lowers the programs of one or more runs in the calling thread (tracing a NumPyro
+pieces, the exports' sites and pointwise log likelihood), each compilation largely sequential XLA work.
+:func:`compile_ahead` lowers the programs of one or more runs in the calling thread (tracing a NumPyro
 model is not thread-safe: its handler stack is global), then compiles them on a pool of threads (XLA releases
 the GIL), so a host with k cores compiles up to k programs at once. jit keeps what was compiled: the runs then
 call their programs without compiling, and their draws are the same as without the compilation ahead.
@@ -52,7 +52,7 @@ class RunSpec(NamedTuple):
     init_samples: Mapping | None = None
 
 
-#: Most compilations at once (each holds its own working memory of up to a few hundred MB).
+#: Most compilations at once (each holds its own working memory while it compiles).
 MAX_COMPILE_WORKERS = 16
 
 

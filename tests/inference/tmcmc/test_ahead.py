@@ -10,9 +10,8 @@ import numpyro
 import numpyro.distributions as dist
 import pytest
 
-from bubblecal.inference.tmcmc import TMCMC, RunSpec, compile_ahead, compile_workers, hmc_move
+from bubblecal.inference.tmcmc import MAX_COMPILE_WORKERS, TMCMC, RunSpec, compile_ahead, compile_workers, hmc_move
 from bubblecal.inference.tmcmc import _programs as tm
-from bubblecal.inference.tmcmc.ahead import MAX_COMPILE_WORKERS
 
 # the programs of a run (prior draws, evaluator, stage pieces, exports); eager one-operation programs
 # (key splits, isfinite) are not run programs
