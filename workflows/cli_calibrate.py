@@ -18,9 +18,13 @@ from bubblecal.data import AGENTS
 from bubblecal.workflows.calibrate import (
     DEFAULT_PHASE2_SAMPLES,
     DEFAULT_POPULATION,
+    MAX_AUTO_JOBS,
     PAPER_POPULATION,
     PHASE2_DRAW_BUDGET,
     CalibrationConfig,
+    CalibrationError,
+    agent_jobs,
+    gpu_memory_shared,
 )
 from bubblecal.workflows.choices import (
     ALL_AGENTS,
@@ -35,41 +39,13 @@ from bubblecal.workflows.choices import (
     Workflow,
     choice_value,
 )
+from bubblecal.workflows.cli_agents import run_agents
 from bubblecal.workflows.confirm import DEFAULT_TIER
 from bubblecal.workflows.console import console, fail
 from bubblecal.workflows.evidence import DEFAULT_REPLICAS, PARETO_K_LIMIT
 
 #: The defaults of ``calibrate`` (and of the options ``evidence`` shares with it): one source of truth.
 _D = CalibrationConfig()
-
-
-class _PhaseProgress:
-    """A rich progress bar over the phases of one agent, fed by run_staged's progress messages, and a line
-    for the running TMCMC phase's stages (stage, beta, ESS, acceptance, log Z so far; the bar is beta)."""
-
-    def __init__(self, progress, total: int, label: str):
-        """Add a task of ``total`` phases labelled ``label`` to the rich ``progress``."""
-        self.progress = progress
-        self.task = progress.add_task(label, total=total)
-        self.stage_task = None
-        self.label = label
-        self.t0 = time.perf_counter()
-
-    def stage(self, replica: int, row) -> None:
-        """Show one TMCMC stage row (the reporter of ``TMCMC(progress=...)``)."""
-        from bubblecal.inference.tmcmc import stage_text
-
-        if self.stage_task is None:
-            self.stage_task = self.progress.add_task("", total=1.0)
-        self.progress.update(self.stage_task, completed=min(float(row["beta"]), 1.0),
-                             description=f"  TMCMC {escape(stage_text(row))}")
-
-    def __call__(self, message: str) -> None:
-        """Show ``message``; a message that ends a phase advances the bar and is printed."""
-        done = not message.endswith(("running TMCMC", "draws)")) and ": running" not in message
-        self.progress.update(self.task, description=f"{self.label}: {message}", advance=1 if done else 0)
-        if done:
-            self.progress.console.print(f"  {message}", highlight=False)
 
 
 def calibrate(
@@ -126,19 +102,27 @@ def calibrate(
                                              "evidence."),
     cache: bool = typer.Option(True, "--cache/--no-cache", help="Keep compiled programs in the user's cache "
                                "folder for later runs (or $BUBBLECAL_CACHE_DIR)."),
+    jobs: int = typer.Option(None, "--jobs", help="Agents calibrated at once, each group in its own process "
+                             "(default: one per agent, up to the usable cores and "
+                             f"{MAX_AUTO_JOBS}; 1: one after the other). The results do not depend on it.",
+                             show_default=False),
 ) -> None:
     """Calibrate the shell parameters of your bubbles (--data CURVES.csv [--acoustic FREQS.csv], one hierarchy per
     agent label) or of the published study (Definity and/or SonoVue on the shipped curves): staged hierarchical
     TMCMC (or joint NUTS); writes NetCDF per phase, summary.csv, figures and report.md under
     OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
-    from bubblecal.workflows.calibrate import CalibrationError, make_plan, run_lock
+    from bubblecal.workflows.calibrate import make_plan, run_lock
 
     agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates = (
         choice_value(o) for o in (agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates))
     if workflow is None:
         workflow = _D.workflow if data is None or acoustic is not None else "reduced"
-    _compilation_cache(cache, device)
     agents = AGENTS if agent == ALL_AGENTS else (agent,)
+    try:  # before JAX starts: the processes that may share the GPU (--data: its labels are not read yet)
+        gpu_memory_shared(device, agent_jobs(jobs, len(agents) if data is None else MAX_AUTO_JOBS))
+    except CalibrationError as exc:
+        raise fail(str(exc)) from None
+    _compilation_cache(cache, device)
     priors_map = _priors_map(list(priors or ()), agents, data)
     try:
         config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
@@ -148,7 +132,7 @@ def calibrate(
                                    phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
                                    nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
                                    netcdf=netcdf, figures=figures, phase3=phase3, phase3_start=phase3_start)
-        plan = make_plan(config)
+        plan = make_plan(config, check_likelihoods=False)  # every input checked; the preflight runs per process
     except CalibrationError as exc:
         raise fail(str(exc)) from None
     if plan.synthetic_bundle:
@@ -176,7 +160,7 @@ def calibrate(
                                                                                 highlight=False)))
         except CalibrationError as exc:
             raise fail(str(exc)) from None
-        _run_agents(plan, sampler, figures)
+        run_agents(plan, sampler, figures, agent_jobs(jobs, len(plan.agents)), cache)
     console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
 
 
@@ -216,36 +200,6 @@ def _compilation_cache(on: bool, device: str) -> None:
         from bubblecal.workflows.compile_cache import enable_compilation_cache
 
         enable_compilation_cache(say=lambda m: console.print(f"[yellow]warning:[/] {escape(m)}", highlight=False))
-
-
-def _run_agents(plan, sampler: str, figures: bool) -> None:
-    """Run every agent of ``plan`` with a progress bar, then print its summary (exit 1 when a phase fails)."""
-    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    from bubblecal.workflows.calibrate import run_agent
-    from bubblecal.workflows.figures import agent_figures
-    from bubblecal.workflows.report import summary_table, write_report
-
-    for ap in plan.agents:
-        n_phases = 2 * len(ap.dataset_names) + 1 if sampler == "tmcmc" else 1
-        with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
-                      "{task.total} phases"), TimeElapsedColumn(), console=console, transient=True) as progress:
-            reporter = _PhaseProgress(progress, n_phases, ap.agent)
-            try:
-                result = run_agent(plan, ap, progress=reporter, stages=reporter.stage)
-            except RuntimeError as exc:
-                raise fail(f"{ap.agent}: {exc} (finished phases are kept in {ap.out_dir})") from None
-        if figures:
-            result.figures = agent_figures(result, plan)
-            result.report = write_report(result, plan)
-        console.print(summary_table(result))
-        if result.ess is not None:
-            console.print("phase-2 IS-ESS (median per dataset): " + ", ".join(
-                f"{r.dataset} {r.ess_median:.0f}" for r in result.ess.itertuples()), highlight=False)
-        console.print(f"{ap.agent}: wrote {ap.out_dir} (summary.csv"
-                      + (", figures/, report.md" if figures else "") + f"); reused phases: "
-                      f"{', '.join(result.reused) or 'none'}; {result.seconds['sampling_total']:.1f} s sampling",
-                      highlight=False)
 
 
 def evidence(

@@ -14,7 +14,8 @@ Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.user_data` (measured bubbles from tidy files: ``data=CURVES.csv``),
 :mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one
 run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws),
-:mod:`~bubblecal.workflows.calibrate.served` (which surrogate served each dataset, in words).
+:mod:`~bubblecal.workflows.calibrate.served` (which surrogate served each dataset, in words),
+:mod:`~bubblecal.workflows.calibrate.parallel` (agents calibrated at once in worker processes).
 
 Measured bubbles: ``CalibrationConfig(data=Path("curves.csv"), acoustic_data=Path("resonance.csv"))`` runs one
 hierarchy per agent label of the file (``out/<label>/<workflow>/``).
@@ -71,6 +72,15 @@ from bubblecal.workflows.calibrate.export import (
     phase_exports,
 )
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
+from bubblecal.workflows.calibrate.parallel import (
+    MAX_AUTO_JOBS,
+    AgentOutcome,
+    AgentProcesses,
+    agent_groups,
+    agent_jobs,
+    gpu_memory_shared,
+    outcome_of,
+)
 from bubblecal.workflows.calibrate.phase_files import (
     PhaseFileError,
     phase_format,
@@ -114,4 +124,6 @@ __all__ = [
     "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
     "PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES",
+    "AgentOutcome", "AgentProcesses", "agent_groups", "agent_jobs", "gpu_memory_shared", "outcome_of",
+    "MAX_AUTO_JOBS",
 ]

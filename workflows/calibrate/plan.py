@@ -250,7 +250,8 @@ def _check_out(out: Path) -> None:
         raise CalibrationError(f"--out {out}: the folder cannot be made ({exc.strerror})") from None
 
 
-def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True) -> Plan:
+def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True,
+              agents: tuple[str, ...] | None = None) -> Plan:
     """Validate the whole configuration and load every input, before any sampling starts.
 
     Parameters
@@ -259,6 +260,9 @@ def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True) -> P
     check_likelihoods : bool
         Evaluate every dataset's log likelihood at a few prior draws (the preflight); off to only rebuild the
         inputs of a finished run.
+    agents : tuple of str or None
+        Keep only these agents (labels) of the run, in run order, after every agent's inputs were checked (a
+        worker process of :mod:`~bubblecal.workflows.calibrate.parallel` plans its own); None: all.
 
     Returns
     -------
@@ -272,11 +276,14 @@ def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True) -> P
         surrogate, missing acoustic data or surrogate, a population too small for a phase, an output
         folder that cannot be made or written, or a dataset whose log likelihood is not finite at a few prior
         draws (:func:`~bubblecal.workflows.calibrate.preflight.preflight`).
+    ValueError
+        ``agents`` names an agent the run does not plan.
     """
     from bubblecal.surrogates import SurrogateFormatError, load_bundle
     from bubblecal.surrogates.acoustic import AcousticFormatError
     from bubblecal.surrogates.synthetic_bundle import is_synthetic_bundle
 
+    only = None if agents is None else tuple(agents)
     _check_choices(config)
     _check_out(Path(config.out))
     bundle_path = resolve_bundle(config.bundle)
@@ -293,6 +300,11 @@ def make_plan(config: CalibrationConfig, *, check_likelihoods: bool = True) -> P
         from bubblecal.workflows.calibrate.published import published_agent_plans
 
         agents = published_agent_plans(config, bundle, bundle_path)
+    if only is not None:
+        unknown = sorted(set(only) - {ap.agent for ap in agents})
+        if unknown:
+            raise ValueError(f"make_plan(agents=...): the run plans no agent {', '.join(unknown)}")
+        agents = [ap for ap in agents if ap.agent in only]
     for ap in agents:
         _check_population(config, ap)
     plan = Plan(config=config, bundle=bundle, bundle_path=bundle_path,
