@@ -7,7 +7,8 @@ pre-tension σ = Δp R / 2), which the quasi-static and implicit tiers, balanced
 water also fills a closed periodic box, so a shrinking bubble lowers the water pressure: a volume stiffness
 K / V_water (K = ρ dp/dρ ≈ 175 from the same equation of state) beside the gas's p0 / V0.
 
-For design points of one level of the compression design over the diameter this script runs
+For design points of one level of a design over the diameter (``--campaign``: compression by default, or the
+indentation design, whose pole forces also shrink the bubble) this script runs
 
 * ``balanced``     the quasi-static tier as the campaign ran it;
 * ``overpressure`` the same with the explicit tier's reference imbalance (tier setting ``overpressure``);
@@ -25,6 +26,9 @@ Usage::
     python benchmarks/studies/reference_pressure.py --diameter 7.0 --points 13 \\
         --explicit benchmarks/figures/gate_diameter/curves_definity_compression_1.5-8um_7um_explicit.csv \\
         [--variants balanced,overpressure,reservoir,both,implicit] [--device cpu]
+    python benchmarks/studies/reference_pressure.py --campaign sonovue_indentation_1.5-8um_mirheo --diameter 7.0 \\
+        --points 8,22 --explicit benchmarks/figures/gate_diameter/curves_sonovue_indentation_1.5-8um_mirheo_7um.csv \\
+        --variants balanced,reservoir
 
 Prints one line per variant and point and one JSON line (``{"study": "reference_pressure", ...}``).
 """
@@ -62,16 +66,17 @@ def explicit_box(radius: float) -> tuple[float, float, float]:
     return (2 * radius + 5, 2 * radius + 5, 2 * radius + 10)
 
 
-def run_variant(variant: str, diameter_um: float, points: list[int], device: str, scale: float) -> np.ndarray:
-    """Both-plate forces [R, P] of one variant (DPD force)."""
+def run_variant(variant: str, diameter_um: float, points: list[int], device: str, scale: float,
+                campaign: str = CAMPAIGN) -> np.ndarray:
+    """The observable [R, P] of one variant: both-plate forces (DPD force) or indentation depths (DPD length)."""
     from bubblecal.campaigns import design_points, load_campaign_file
     from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.engine import mesh_for_diameter
     from bubblecal.sim.tiers import CurveRequest, get_tier
 
-    cfg = load_campaign_file(CAMPAIGN).config
+    cfg = load_campaign_file(campaign).config
     design = design_points(cfg)
-    request = CurveRequest(protocol="compression", diameter_um=diameter_um, grid=tuple(cfg.grid_for(diameter_um)),
+    request = CurveRequest(protocol=cfg.protocol, diameter_um=diameter_um, grid=tuple(cfg.grid_for(diameter_um)),
                            params={k: np.asarray(design[k][points]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][points]), subdivisions=cfg.subdivisions)
     if variant == "implicit":
@@ -91,6 +96,7 @@ def run_variant(variant: str, diameter_um: float, points: list[int], device: str
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--campaign", default=CAMPAIGN, help="shipped campaign over the diameter")
     ap.add_argument("--diameter", type=float, default=7.0, help="diameter level of the design [um]")
     ap.add_argument("--points", default="13", help="design point indices (comma-separated)")
     ap.add_argument("--explicit", required=True, help="the explicit tier's gate curves of the level (CSV)")
@@ -101,12 +107,12 @@ def main() -> None:
     points, variants = parse_selection(args.points, args.variants, VARIANTS)
     from bubblecal.campaigns import load_campaign_file
 
-    n_points = len(load_campaign_file(CAMPAIGN).config.grid_for(args.diameter))
+    n_points = len(load_campaign_file(args.campaign).config.grid_for(args.diameter))
     explicit = dict(zip(points, stored_reference(args.explicit, points, n_points)["y"], strict=True))
     rows, curves = [], {}
     for v in variants:
         t0 = time.perf_counter()
-        force = run_variant(v, args.diameter, points, args.device, args.scale)
+        force = run_variant(v, args.diameter, points, args.device, args.scale, args.campaign)
         seconds = time.perf_counter() - t0
         curves[v] = force.tolist()
         for i, y in zip(points, force, strict=True):
@@ -114,8 +120,8 @@ def main() -> None:
             rel = float(np.linalg.norm(y - ref) / np.linalg.norm(ref))
             rows.append({"variant": v, "point": i, "rel_l2": rel, "seconds": seconds})
             print(f"{v:<13s} point {i}: rel L2 vs explicit {100 * rel:5.1f} %  ({seconds:.0f} s)  "
-                  + " ".join(f"{f:.0f}" for f in y), flush=True)
-    print(json.dumps({"study": "reference_pressure", "campaign": CAMPAIGN, "diameter_um": args.diameter,
+                  + " ".join(f"{f:.4g}" for f in y), flush=True)
+    print(json.dumps({"study": "reference_pressure", "campaign": args.campaign, "diameter_um": args.diameter,
                       "points": points, "overpressure": P_BACK + P_GAS - P_WATER,
                       "water_bulk_modulus": water_bulk_modulus(), "rows": rows, "curves": curves}))
 
