@@ -30,8 +30,8 @@ def summary_table(result):
 
     Parameters
     ----------
-    result : bubblecal.workflows.calibrate.AgentResult
-        A summarised run (``result.summary`` set).
+    result : bubblecal.workflows.calibrate.AgentResult or bubblecal.workflows.calibrate.AgentOutcome
+        A summarised run (``result.summary`` set; a worker process's outcome when agents run at once).
 
     Returns
     -------

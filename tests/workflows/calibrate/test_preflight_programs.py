@@ -21,14 +21,19 @@ def _config(bundle, out):
 
 
 class _Compiles(logging.Handler):
+    """Names of the programs built in this process: compiled, or read back from the session's persistent cache
+    (an earlier test of the same structure leaves its programs there)."""
+
     def __init__(self):
-        super().__init__(logging.WARNING)
+        super().__init__(logging.DEBUG)
         self.names = []
 
     def emit(self, record):
         msg = record.getMessage()
         if msg.startswith("Finished XLA compilation of "):
             self.names.append(msg.split()[4])
+        elif msg.startswith("Persistent compilation cache hit for '"):
+            self.names.append(msg.split("'")[1])
 
 
 def test_phase1_after_the_preflight_compiles_no_model_program(tmp_path, synthetic_bundle):
@@ -43,9 +48,15 @@ def test_phase1_after_the_preflight_compiles_no_model_program(tmp_path, syntheti
         with jax.log_compiles(True), on_device(config.device):  # as run_agent runs the phases
             run_phase("phase1", dataset.model, dataset.args, dataset.kwargs, jax.random.PRNGKey(0),
                       phase_tmcmc_options(config)[0])
+            probe = np.float32(np.random.default_rng().random())  # a program no test built before
+
+            def capture_probe(x):
+                return x * probe + 1
+
+            jax.jit(capture_probe)(np.float32(2.0)).block_until_ready()
     finally:
         logger.removeHandler(handler)
-    assert handler.names, "no compilation seen: the log capture does not work"
+    assert any("capture_probe" in n for n in handler.names), f"the log capture does not work: {handler.names}"
     # the evaluator was compiled by the preflight (the prior draws too); only the stage pieces and sites remain
     assert "jit(evaluate)" not in handler.names, handler.names
 
