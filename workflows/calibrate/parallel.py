@@ -159,6 +159,14 @@ def _stage_row(row: Mapping) -> dict:
 
 def _worker(config: CalibrationConfig, agents: tuple[str, ...], index: int, cache: bool, queue, go) -> None:
     """A worker process: plan and preflight its agents, report ready, wait for ``go``, run them one by one."""
+    try:
+        _work(config, agents, index, cache, queue, go)
+    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the caller reports it, once
+        return
+
+
+def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, cache: bool, queue, go) -> None:
+    """The body of :func:`_worker`."""
     def say(message: str) -> None:
         queue.put(("warning", index, message))
 
