@@ -44,18 +44,15 @@ class _PhaseProgress:
             self.progress.console.print(f"  {escape(self.prefix + message)}", highlight=False)
 
 
-def run_agents(plan, sampler: str, figures: bool, jobs: int, cache: bool) -> None:
+def run_agents(plan, jobs: int, cache: bool) -> None:
     """Run the agents of a validated plan under one progress display, each agent's summary printed as it finishes.
 
     Parameters
     ----------
     plan : bubblecal.workflows.calibrate.Plan
         Checked without its preflight (``make_plan(config, check_likelihoods=False)``): each process runs the
-        preflight of its own agents, and none samples before all passed.
-    sampler : str
-        'tmcmc' or 'nuts' (the number of phases a progress bar counts).
-    figures : bool
-        Draw each agent's figures and ``report.md``.
+        preflight of its own agents, and none samples before all passed. Its configuration's sampler sets the
+        phases a bar counts, its ``figures`` whether each agent's figures and ``report.md`` are drawn.
     jobs : int
         Processes (:func:`~bubblecal.workflows.calibrate.agent_jobs`); above 1, groups of agents run in worker
         processes and the costliest group in this one.
@@ -72,9 +69,16 @@ def run_agents(plan, sampler: str, figures: bool, jobs: int, cache: bool) -> Non
 
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    from bubblecal.workflows.calibrate import AgentProcesses, CalibrationError, agent_groups, outcome_of, run_agent
+    from bubblecal.workflows.calibrate import (
+        AgentProcesses,
+        CalibrationError,
+        agent_groups,
+        outcome_of,
+        run_agent_with_report,
+    )
     from bubblecal.workflows.calibrate.preflight import preflight
 
+    figures, sampler = plan.config.figures, plan.config.sampler
     groups = agent_groups({ap.agent: len(ap.curves) + len(ap.acoustic) for ap in plan.agents}, jobs)
     own = dataclasses.replace(plan, agents=[ap for ap in plan.agents if ap.agent in groups[0]])
     workers = AgentProcesses(plan.config, groups[1:], cache=cache) if len(groups) > 1 else None
@@ -104,18 +108,13 @@ def run_agents(plan, sampler: str, figures: bool, jobs: int, cache: bool) -> Non
                                           on_warning=warn, on_done=lambda a, o: _print_outcome(o, figures))
             for ap in own.agents:
                 try:
-                    result = run_agent(plan, ap, progress=reporters[ap.agent], stages=reporters[ap.agent].stage)
+                    result = run_agent_with_report(plan, ap, progress=reporters[ap.agent],
+                                                   stages=reporters[ap.agent].stage)
                 except RuntimeError as exc:
                     failures[ap.agent] = str(exc)
                     if workers is None:
                         break  # one after the other: the first failure ends the run, as it always did
                     continue
-                if figures:
-                    from bubblecal.workflows.figures import agent_figures
-                    from bubblecal.workflows.report import write_report
-
-                    result.figures = agent_figures(result, plan)
-                    result.report = write_report(result, plan)
                 _print_outcome(outcome_of(result), figures)
             if listener is not None:
                 listener.join()

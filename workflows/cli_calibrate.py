@@ -160,7 +160,7 @@ def calibrate(
                                                                                 highlight=False)))
         except CalibrationError as exc:
             raise fail(str(exc)) from None
-        run_agents(plan, sampler, figures, agent_jobs(jobs, len(plan.agents)), cache)
+        run_agents(plan, agent_jobs(jobs, len(plan.agents)), cache)
     console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
 
 

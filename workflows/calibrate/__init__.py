@@ -91,7 +91,7 @@ from bubblecal.workflows.calibrate.phase_files import (
     write_phase,
 )
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle, run_config, run_plan
-from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_calibration
+from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_agent_with_report, run_calibration
 from bubblecal.workflows.calibrate.served import acoustic_label, served_lines, surrogate_label
 from bubblecal.workflows.calibrate.store import (
     PhaseStore,
@@ -120,7 +120,8 @@ __all__ = [
     "PhaseStore", "PhaseFileError", "phase_dependencies",
     "write_phase", "phase_inference_data", "phase_inference_parts", "read_phase", "read_pointwise", "phase_format",
     "config_hash", "array_hash", "phase_hashes", "bundle_hashes",
-    "AgentResult", "agent_seed", "run_agent", "run_calibration", "PRIORS_FOR_ALL", "user_agent_plans",
+    "AgentResult", "agent_seed", "run_agent", "run_agent_with_report", "run_calibration", "PRIORS_FOR_ALL",
+    "user_agent_plans",
     "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
     "PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES",

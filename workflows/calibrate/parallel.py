@@ -186,18 +186,13 @@ def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, cache:
         return
     queue.put(("ready", index, None))
     go.wait()
-    from bubblecal.workflows.calibrate.run import run_agent
+    from bubblecal.workflows.calibrate.run import run_agent_with_report
 
     for ap in plan.agents:
         try:
-            result = run_agent(plan, ap, progress=lambda m, a=ap.agent: queue.put(("progress", a, m)),
-                               stages=lambda r, row, a=ap.agent: queue.put(("stage", a, (r, _stage_row(row)))))
-            if config.figures:
-                from bubblecal.workflows.figures import agent_figures
-                from bubblecal.workflows.report import write_report
-
-                result.figures = agent_figures(result, plan)
-                result.report = write_report(result, plan)
+            result = run_agent_with_report(
+                plan, ap, progress=lambda m, a=ap.agent: queue.put(("progress", a, m)),
+                stages=lambda r, row, a=ap.agent: queue.put(("stage", a, (r, _stage_row(row)))))
             queue.put(("done", ap.agent, outcome_of(result)))
         except Exception as exc:  # noqa: BLE001 - one agent's failure is reported, the next agent still runs
             text = str(exc) if isinstance(exc, RuntimeError) else f"{type(exc).__name__}: {exc}"

@@ -27,7 +27,7 @@ from bubblecal.workflows.calibrate.joint import run_joint
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
 from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes
 
-__all__ = ["AgentResult", "run_agent", "run_calibration"]
+__all__ = ["AgentResult", "run_agent", "run_agent_with_report", "run_calibration"]
 
 
 @dataclass
@@ -316,15 +316,35 @@ def run_calibration(plan: Plan, *, progress: Callable[[str], None] | None = None
     """
     from bubblecal.workflows.calibrate.lock import run_lock
 
-    results = []
     with run_lock(Path(plan.config.out), say=progress):
-        for ap in plan.agents:
-            result = run_agent(plan, ap, progress=progress, inject=inject)
-            if plan.config.figures:
-                from bubblecal.workflows.figures import agent_figures
-                from bubblecal.workflows.report import write_report
+        return [run_agent_with_report(plan, ap, progress=progress, inject=inject) for ap in plan.agents]
 
-                result.figures = agent_figures(result, plan)
-                result.report = write_report(result, plan)
-            results.append(result)
-    return results
+
+def run_agent_with_report(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | None = None,
+                          inject: Callable[[str], None] | None = None,
+                          stages: Callable[[int, Mapping], None] | None = None) -> AgentResult:
+    """:func:`run_agent`, then the agent's figures and ``report.md`` when ``plan.config.figures`` is on.
+
+    Parameters
+    ----------
+    plan, ap, progress, inject, stages
+        As in :func:`run_agent`.
+
+    Returns
+    -------
+    AgentResult
+        With ``figures`` and ``report`` set when drawn.
+
+    Raises
+    ------
+    RuntimeError
+        A phase failed (see :func:`run_agent`).
+    """
+    result = run_agent(plan, ap, progress=progress, inject=inject, stages=stages)
+    if plan.config.figures:
+        from bubblecal.workflows.figures import agent_figures
+        from bubblecal.workflows.report import write_report
+
+        result.figures = agent_figures(result, plan)
+        result.report = write_report(result, plan)
+    return result

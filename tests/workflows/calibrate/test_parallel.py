@@ -180,14 +180,14 @@ def test_a_failed_agent_does_not_stop_the_other_and_is_named(synthetic_bundle, t
     still finishes; exit status 1 names Definity and its folder."""
     import bubblecal.workflows.calibrate as calibrate
 
-    real = calibrate.run_agent
+    real = calibrate.run_agent_with_report
 
-    def run_agent(plan, ap, **kwargs):
+    def run_agent_with_report(plan, ap, **kwargs):
         if ap.agent == "definity":
             raise RuntimeError("injected failure in phase 1")
         return real(plan, ap, **kwargs)
 
-    monkeypatch.setattr(calibrate, "run_agent", run_agent)
+    monkeypatch.setattr(calibrate, "run_agent_with_report", run_agent_with_report)
     out = tmp_path / "cal"
     r = CliRunner().invoke(app, ["calibrate", "--bundle", str(synthetic_bundle), "--workflow", "reduced",
                                  "--curve", "definity_compression_2.1um", "--curve", "sonovue_indentation_3.2um",
