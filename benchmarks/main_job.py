@@ -9,7 +9,8 @@ cache), the later ones warm. ``JAX_LOG_COMPILES=1`` makes JAX log every compilat
 cache is logged as a hit, so "compiled" = XLA compilations minus cache hits. Prints a table and one JSON line per
 run set: process wall [s], its CPU time [s] (less sensitive to a shared machine's load), calibrate's own
 "done in" [s] (sampling, summaries, figures; after the plan and its preflight), programs compiled, cache hits,
-seconds in XLA compilation or cache loads, and the load average.
+seconds in XLA compilation or cache loads, entries added to the TMCMC program store (``programs/`` of the cache
+folder; a warm run that adds none read all of its TMCMC programs back without tracing them), and the load average.
 ``--no-cache-run`` adds a run with ``--no-cache`` (the cost of the cache's writes).
 """
 
@@ -59,6 +60,11 @@ def run_once(label: str, calibrate_args: list[str], out: Path, cache: Path, extr
             "load_before": round(load, 2), "load_after": round(os.getloadavg()[0], 2)}
 
 
+def _stored(cache: Path) -> int:
+    """Entries of the TMCMC program store under the cache folder (a warm run that adds none read every one back)."""
+    return len(list((cache / "programs").glob("*.jaxprog"))) if cache.exists() else 0
+
+
 def main(argv=None) -> list[dict]:
     """Run the cold and warm main jobs; print the table and a JSON line; returns the rows."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -78,14 +84,17 @@ def main(argv=None) -> list[dict]:
         plan.append(("no-cache", ["--no-cache"]))
     rows = []
     for label, extra in plan:
+        before = _stored(cache)
         row = run_once(label, calibrate_args, root / label, cache, extra)
+        row["programs_stored"] = _stored(cache) - before
         rows.append(row)
         print(f"{label}: wall {row['wall_s']} s, cpu {row['cpu_s']} s, done in {row['done_in_s']} s, "
-              f"{row['compiled']} compiled, {row['cache_hits']} cache hits "
+              f"{row['compiled']} compiled, {row['cache_hits']} cache hits, {row['programs_stored']} programs stored "
               f"(load {row['load_before']} -> {row['load_after']})", flush=True)
     cache_mb = sum(f.stat().st_size for f in cache.rglob("*") if f.is_file()) / 2**20 if cache.exists() else 0.0
     columns = [("run", "run", 9), ("wall s", "wall_s", 8), ("cpu s", "cpu_s", 8), ("done in s", "done_in_s", 10),
-               ("compiled", "compiled", 9), ("hits", "cache_hits", 6), ("compile s", "compile_or_load_s", 10),
+               ("compiled", "compiled", 9), ("hits", "cache_hits", 6), ("stored", "programs_stored", 7),
+               ("compile s", "compile_or_load_s", 10),
                ("load before", "load_before", 12), ("load after", "load_after", 11)]
     print("\n" + " ".join(f"{h:>{w}}" for h, _, w in columns))
     for r in rows:

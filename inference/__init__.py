@@ -6,7 +6,8 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
 
 - :class:`TMCMC` — transitional MCMC with log evidence (``docs/inference.md`` section 5), its moves
   (:class:`RandomWalk`, :class:`KernelMove`, :func:`hmc_move`, :func:`nuts_move`) and
-  :func:`clear_program_cache`; :class:`TMCMCKernel`, the same algorithm as a ``numpyro.infer.MCMC``
+  :func:`clear_program_cache`, :func:`compile_ahead` and :func:`enable_program_store` (compiled programs read
+  back from disk by later processes); :class:`TMCMCKernel`, the same algorithm as a ``numpyro.infer.MCMC``
   kernel (``MCMC(TMCMCKernel(model), ...)`` in place of ``MCMC(NUTS(model), ...)``); :func:`run_batched`, the
   runs of many datasets of one model structure in one compiled program; the pure core is in
   :mod:`bubblecal.inference.tmcmc`;
@@ -52,6 +53,7 @@ from bubblecal.inference.tmcmc import (
     TMCMCKernel,
     clear_program_cache,
     compile_ahead,
+    enable_program_store,
     hmc_move,
     nuts_move,
     run_batched,
@@ -60,7 +62,7 @@ from bubblecal.inference.tmcmc import (
 __all__ = [
     # TMCMC
     "TMCMC", "TMCMCKernel", "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "clear_program_cache",
-    "run_batched", "BatchStructureError", "compile_ahead", "RunSpec",
+    "run_batched", "BatchStructureError", "compile_ahead", "RunSpec", "enable_program_store",
     # NUTS and sampler comparison
     "run_nuts", "NUTSResult", "compare_posteriors", "Comparison",
     # staged hierarchy

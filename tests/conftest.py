@@ -82,13 +82,16 @@ def synthetic_bundle(tmp_path_factory) -> Path:
 @pytest.fixture(autouse=True, scope="session")
 def _private_compilation_cache(tmp_path_factory):
     """Commands run in-process (``calibrate``, ``evidence``) switch the persistent compilation cache on: in
-    the tests it is a folder of the session, never the user's."""
-    from bubblecal.workflows.compile_cache import CACHE_ENV
+    the tests it is a folder of the session, never the user's. The program store stays off in the session (a
+    program stored by one test would not follow another test's monkeypatch); its own tests switch it on."""
+    from bubblecal.workflows.compile_cache import CACHE_ENV, PROGRAMS_ENV
 
-    saved = os.environ.get(CACHE_ENV)
+    saved = {k: os.environ.get(k) for k in (CACHE_ENV, PROGRAMS_ENV)}
     os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("jax_cache"))
+    os.environ[PROGRAMS_ENV] = "off"
     yield
-    if saved is None:
-        os.environ.pop(CACHE_ENV, None)
-    else:
-        os.environ[CACHE_ENV] = saved
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value

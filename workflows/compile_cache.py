@@ -12,6 +12,8 @@ same inputs. JAX writes an entry as one compressed file (no lock, not atomic); a
 deserialisation and JAX compiles the program again. Such failures reach the user as one warning line naming
 the folder (:func:`enable_compilation_cache`), and entries that do not decompress are then deleted so that
 the next run writes them afresh (entries younger than a minute are spared: another run may be writing them).
+The subfolder ``programs`` holds the TMCMC program store (:mod:`bubblecal.inference.tmcmc.executables`):
+executables keyed by what built them and by bubblecal's source, read back without tracing or lowering.
 A folder that cannot be used at all (a file, not writable) gives one warning line and the run goes on
 without the cache. Nothing the cache does touches the run's own outputs.
 
@@ -28,10 +30,15 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["CACHE_ENV", "GPU_AUTOTUNE_FLAG", "default_cache_dir", "enable_compilation_cache", "skip_gpu_autotuning"]
+__all__ = ["CACHE_ENV", "GPU_AUTOTUNE_FLAG", "PROGRAMS_ENV", "PROGRAMS_SUBFOLDER", "default_cache_dir",
+           "enable_compilation_cache", "skip_gpu_autotuning"]
 
 #: Environment variable naming the compilation cache folder (instead of the user's cache folder).
 CACHE_ENV = "BUBBLECAL_CACHE_DIR"
+#: Subfolder of the cache folder holding the TMCMC program store (executables keyed without tracing).
+PROGRAMS_SUBFOLDER = "programs"
+#: Environment variable that keeps the program store off ("off" or "0") while the compilation cache stays on.
+PROGRAMS_ENV = "BUBBLECAL_PROGRAM_STORE"
 #: The ``XLA_FLAGS`` entry with which XLA picks GPU matmul kernels by cuBLAS's heuristics instead of timing them.
 GPU_AUTOTUNE_FLAG = "--xla_gpu_autotune_level=0"
 
@@ -140,6 +147,11 @@ def enable_compilation_cache(folder: Path | None = None, *, say: Callable[[str],
                              ) -> Path | None:
     """Keep compiled JAX programs in ``folder`` for later runs (every program, however small or quick).
 
+    Also keeps the TMCMC runs' executables in its subfolder :data:`PROGRAMS_SUBFOLDER`
+    (:func:`~bubblecal.inference.tmcmc.enable_program_store`), which later runs read without tracing them, unless
+    :data:`PROGRAMS_ENV` is ``off``: keyed by value and by bubblecal's source, they would not follow code patched
+    at run time (a test's monkeypatch, a notebook's edited module global).
+
     Parameters
     ----------
     folder : pathlib.Path or None
@@ -161,10 +173,17 @@ def enable_compilation_cache(folder: Path | None = None, *, say: Callable[[str],
     if why is not None:
         say(f"compilation cache {folder}: {why}; running without it (pass --no-cache to silence this)")
         return None
+    from bubblecal.inference.tmcmc import enable_program_store
+
     jax.config.update("jax_compilation_cache_dir", str(folder))
     # our programs compile in well under JAX's default thresholds on a GPU, yet there are hundreds of them
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+    if os.environ.get(PROGRAMS_ENV, "").strip().lower() in ("0", "off", "no", "false"):
+        pass  # the compilation cache alone
+    elif enable_program_store(folder / PROGRAMS_SUBFOLDER) is None:
+        say(f"compilation cache {folder / PROGRAMS_SUBFOLDER}: it cannot be written; TMCMC programs are lowered "
+            "on every run (pass --no-cache to silence this)")
     _state.update(folder=folder, say=say)
     if warnings.showwarning is not _show_warning:
         _state["previous"] = warnings.showwarning

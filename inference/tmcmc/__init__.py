@@ -18,6 +18,8 @@ subpackage holds the whole algorithm (``docs/inference.md`` section 5):
   callable ``report(replica, row)``), :class:`StageDisplay` and :func:`stage_text`;
 - :mod:`~bubblecal.inference.tmcmc.ahead`: :func:`compile_ahead`, the programs of runs (:class:`RunSpec`)
   compiled before they run, several at a time (:func:`compile_lowered` for any lowered programs);
+- :mod:`~bubblecal.inference.tmcmc.executables`: the program store, compiled programs kept on disk and read
+  back by later processes without tracing (:func:`enable_program_store`, :func:`store_counts`);
 - :mod:`~bubblecal.inference.tmcmc.evaluator`: :class:`Evaluator`, the densities over a population, and
   :func:`resolve_chunk_size` / :data:`CPU_CHUNK_SIZE` (how many particles at a time);
 - private: ``_flat_model`` (a NumPyro model as flat prior / likelihood functions) and ``_programs``
@@ -35,6 +37,12 @@ from bubblecal.inference.tmcmc.ahead import (
 from bubblecal.inference.tmcmc.batched import BatchStructureError, batch_groups, run_batched, structure_key
 from bubblecal.inference.tmcmc.core import TMCMCAlgorithm, init, run, step, tmcmc
 from bubblecal.inference.tmcmc.evaluator import CPU_CHUNK_SIZE, Evaluator, resolve_chunk_size
+from bubblecal.inference.tmcmc.executables import (
+    disable_program_store,
+    enable_program_store,
+    program_store_folder,
+    store_counts,
+)
 from bubblecal.inference.tmcmc.kernel import TMCMCKernel, TMCMCKernelState
 from bubblecal.inference.tmcmc.moves import KernelMove, Move, MoveResult, RandomWalk, hmc_move, nuts_move
 from bubblecal.inference.tmcmc.progress import StageDisplay, StageReporter, stage_text
@@ -48,5 +56,6 @@ __all__ = [
     "TMCMCConfig", "STATUS_NAMES", "TMCMCAlgorithm", "init", "step", "run", "tmcmc", "Move", "MoveResult",
     "RandomWalk", "KernelMove", "hmc_move", "nuts_move", "Evaluator", "CPU_CHUNK_SIZE",
     "resolve_chunk_size", "POINTWISE_CPU_CHUNK", "StageDisplay", "StageReporter", "stage_text", "RunSpec",
-    "compile_ahead", "compile_lowered", "compile_workers", "MAX_COMPILE_WORKERS",
+    "compile_ahead", "compile_lowered", "compile_workers", "MAX_COMPILE_WORKERS", "enable_program_store",
+    "disable_program_store", "program_store_folder", "store_counts",
 ]

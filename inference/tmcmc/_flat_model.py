@@ -39,7 +39,7 @@ from numpyro.distributions.transforms import biject_to
 from numpyro.distributions.util import is_identically_one, sum_rightmost
 from numpyro.infer import Predictive
 
-from bubblecal.inference.tmcmc._keys import _aval_key, _fingerprint, _static_key
+from bubblecal.inference.tmcmc._keys import DATA, _aval_key, _fingerprint, _static_key
 
 # Uniform draws can land exactly on a bound in float32; the bijection then maps them to ±inf.
 # Such (rare) draws are moved to this finite unconstrained value (a point within ~1e-9 of the bound).
@@ -66,8 +66,8 @@ def _elementwise(support):
     return support
 
 
-#: placeholder of a traced argument among the fixed leaves of the model's arguments
-_DATA = object()
+#: placeholder of a traced argument among the fixed leaves of the model's arguments (an enum: a stable key)
+_DATA = DATA
 
 
 def _is_data(leaf) -> bool:

@@ -2,8 +2,20 @@
 
 from __future__ import annotations
 
+import enum
+
 import jax
 import numpy as np
+
+
+class _DataSlot(enum.Enum):
+    """Marks the place of a traced array among a model's fixed arguments (a value with a stable key)."""
+
+    DATA = "data"
+
+
+#: The one marker of a traced array's place.
+DATA = _DataSlot.DATA
 
 
 class _Identity:

@@ -32,6 +32,7 @@ from bubblecal.inference.tmcmc import core
 from bubblecal.inference.tmcmc._flat_model import FlatModel
 from bubblecal.inference.tmcmc._keys import _static_key
 from bubblecal.inference.tmcmc.evaluator import Evaluator, chunked_vmap
+from bubblecal.inference.tmcmc.executables import Program
 from bubblecal.inference.tmcmc.moves import RandomWalk
 from bubblecal.inference.tmcmc.state import TMCMCConfig, initial_state
 
@@ -132,12 +133,13 @@ def _stage_programs(move: RandomWalk, config: TMCMCConfig) -> _StagePrograms:
         def end(state, plan, carry, log_s0, min_delta):
             return core.finish_stage(state, plan, move.result(carry, log_s0), settings(1.0, min_delta))
 
+        # each function's closure (the move, the resampling) is its stored identity
         return _StagePrograms(
             initial_state=start_program(move),
-            begin=jax.jit(begin),
-            propose=jax.jit(move.propose),
-            accept=jax.jit(move.accept),
-            end=jax.jit(end),
+            begin=Program(begin, identity=begin),
+            propose=Program(move.propose, identity=move.propose),
+            accept=Program(move.accept, identity=move.accept),
+            end=Program(end, identity=end),
         )
 
     # the type is part of the key: NamedTuples of equal fields compare equal across classes
@@ -176,13 +178,17 @@ def _model_programs(flat: FlatModel, chunk_size: int | None) -> _ModelPrograms:
             prior = chunked_vmap(functools.partial(flat.model_log_prior, data=data), chunk_size)(position)
             return prior, base - prior + tempered
 
+        def identity(role):  # the model's part of a stored program's key: the in-process key, by value
+            return ("model", role, flat.signature, chunk_size)
+
         return _ModelPrograms(
-            draws=jax.jit(lambda key, data, num: flat.prior_draws(key, num, data), static_argnums=2),
-            evaluate=jax.jit(evaluate),
-            sites=jax.jit(sites),
-            pointwise=jax.jit(pointwise),
+            draws=Program(lambda key, data, num: flat.prior_draws(key, num, data), identity("draws"),
+                          static_argnums=(2,)),
+            evaluate=Program(evaluate, identity("evaluate")),
+            sites=Program(sites, identity("sites")),
+            pointwise=Program(pointwise, identity("pointwise")),
             flatten=jax.jit(jax.vmap(flat.flatten)),
-            untemper=jax.jit(untemper),
+            untemper=Program(untemper, identity("untemper")),
         )
 
     return _cached_programs(("model", flat.signature, chunk_size), build)
@@ -211,8 +217,13 @@ def start_positions(programs: _ModelPrograms, flat: FlatModel, samples, num: int
 
 def start_program(move: Any) -> Callable:
     """Jitted ``(position, log prior, log likelihood) -> TMCMCState`` at β = 0 with ``move``'s initial parameters."""
-    return _cached_programs(("start", type(move), _static_key(move)),
-                            lambda: jax.jit(lambda position, lp, ll: initial_state(position, lp, ll, move)))
+    def build():
+        def start(position, lp, ll):
+            return initial_state(position, lp, ll, move)
+
+        return Program(start, identity=start)
+
+    return _cached_programs(("start", type(move), _static_key(move)), build)
 
 
 def offset_evidence(init_fn: Callable, log_evidence: float) -> Callable:

@@ -24,6 +24,7 @@ import jax
 
 from bubblecal.inference.tmcmc._programs import _model_programs, _on_device, _splittable, _stage_programs, flat_model
 from bubblecal.inference.tmcmc.evaluator import _default_platform
+from bubblecal.inference.tmcmc.executables import compile_fresh
 
 __all__ = ["MAX_COMPILE_WORKERS", "RunSpec", "compile_ahead", "compile_lowered", "compile_workers"]
 
@@ -69,6 +70,10 @@ def compile_workers() -> int:
 def compile_ahead(runs: Iterable[RunSpec], workers: int | None = None, exports: bool = True) -> int:
     """Compile the programs of ``runs`` (and of their exports) ahead, up to ``workers`` at a time.
 
+    Programs found in the program store (:func:`~bubblecal.inference.tmcmc.enable_program_store`) are read
+    from it instead: they are neither traced, lowered nor compiled. Those XLA compiled here are written to it (not
+    those JAX read from its persistent compilation cache: :func:`bubblecal.inference.tmcmc.executables.compile_fresh`).
+
     Parameters
     ----------
     runs : iterable of RunSpec
@@ -81,18 +86,24 @@ def compile_ahead(runs: Iterable[RunSpec], workers: int | None = None, exports: 
     Returns
     -------
     int
-        Programs lowered and handed to the compiler (those compiled before return at once from jit's cache).
+        Programs lowered and handed to the compiler (none for those held already or read from the store).
 
     Raises
     ------
     ValueError
         As :meth:`~bubblecal.inference.tmcmc.TMCMC.run` would for a model it cannot run (nothing is compiled).
     """
-    lowered = []
+    calls, seen = [], set()
     for spec in runs:
-        lowered.extend(_run_lowerings(spec, exports))
-    compile_lowered(lowered, workers)
-    return len(lowered)
+        for program, args in _run_calls(spec, exports):
+            key = (id(program), program.call_key(args))
+            if key not in seen and not program.ready(*args):
+                seen.add(key)
+                calls.append((program, args))
+    lowered = [program.lower(*args) for program, args in calls]
+    for (program, args), (executable, fresh) in zip(calls, _compile_all(lowered, workers, compile_fresh), strict=True):
+        program.keep(args, executable, store=fresh)
+    return len(calls)
 
 
 def compile_lowered(lowered: Sequence, workers: int | None = None) -> None:
@@ -108,18 +119,20 @@ def compile_lowered(lowered: Sequence, workers: int | None = None) -> None:
     workers : int or None
         Compilations at once; None: :func:`compile_workers`.
     """
+    _compile_all(lowered, workers, lambda program: program.compile())
+
+
+def _compile_all(lowered: Sequence, workers: int | None, compile_one) -> list:
+    """``compile_one`` of each of ``lowered``, in order, up to ``workers`` at a time."""
     workers = compile_workers() if workers is None else max(1, int(workers))
     if workers == 1 or len(lowered) < 2:
-        for program in lowered:
-            program.compile()
-        return
+        return [compile_one(program) for program in lowered]
     with ThreadPoolExecutor(max_workers=min(workers, len(lowered)), thread_name_prefix="compile") as pool:
-        for _ in pool.map(lambda program: program.compile(), lowered):
-            pass
+        return list(pool.map(compile_one, lowered))
 
 
-def _run_lowerings(spec: RunSpec, exports: bool) -> list:
-    """The lowered programs of one run, as its host-driven random-walk stages call them."""
+def _run_calls(spec: RunSpec, exports: bool) -> list:
+    """The (program, argument shapes) of one run, as its host-driven random-walk stages call them."""
     sampler = spec.sampler
     move, cfg, n = sampler.move, sampler.config, sampler.num_particles
     if sampler.compiled or not _splittable(move):
@@ -133,31 +146,31 @@ def _run_lowerings(spec: RunSpec, exports: bool) -> list:
     position = jax.ShapeDtypeStruct((n, flat.dim), flat.dtype)
     out = []
     if spec.init_samples is None:
-        out.append(model.draws.lower(key, data, n))
-    lp, ll = jax.eval_shape(model.evaluate, position, data)
-    out += [model.evaluate.lower(position, data), stages.initial_state.lower(position, lp, ll)]
-    state = jax.eval_shape(stages.initial_state, position, lp, ll)
+        out.append((model.draws, (key, data, n)))
+    lp, ll = model.evaluate.shapes(position, data)
+    out += [(model.evaluate, (position, data)), (stages.initial_state, (position, lp, ll))]
+    state = stages.initial_state.shapes(position, lp, ll)
     target_cov, min_delta = float(cfg.target_cov), float(cfg.min_delta)  # Python floats, as _split_stage passes
     seen = []
     while state not in seen:  # the first stage's state and the one every stage returns
         seen.append(state)
-        plan, chol, log_s0, carry = jax.eval_shape(stages.begin, key, state, target_cov)
-        _, k_acc, proposal = jax.eval_shape(stages.propose, plan.key_move, carry[0], chol, carry[3])
-        out += [stages.begin.lower(key, state, target_cov),
-                stages.propose.lower(plan.key_move, carry[0], chol, carry[3]),
-                stages.accept.lower(k_acc, carry, proposal, lp, ll, plan.beta),
-                stages.end.lower(state, plan, carry, log_s0, min_delta)]
-        state, _ = jax.eval_shape(stages.end, state, plan, carry, log_s0, min_delta)
+        plan, chol, log_s0, carry = stages.begin.shapes(key, state, target_cov)
+        _, k_acc, proposal = stages.propose.shapes(plan.key_move, carry[0], chol, carry[3])
+        out += [(stages.begin, (key, state, target_cov)),
+                (stages.propose, (plan.key_move, carry[0], chol, carry[3])),
+                (stages.accept, (k_acc, carry, proposal, lp, ll, plan.beta)),
+                (stages.end, (state, plan, carry, log_s0, min_delta))]
+        state, _ = stages.end.shapes(state, plan, carry, log_s0, min_delta)
     if sampler.tempered is not None:
-        out.append(model.untemper.lower(position, lp, ll, data))
+        out.append((model.untemper, (position, lp, ll, data)))
     if exports:
-        sites = jax.eval_shape(model.sites, position, data)
-        out.append(model.sites.lower(position, data))
+        sites = model.sites.shapes(position, data)
+        out.append((model.sites, (position, data)))
     if exports and flat.observed:  # a model without observed sites gets its pointwise values from its caller
         from bubblecal.inference.tmcmc.results import POINTWISE_CPU_CHUNK
 
         total = sampler.num_replicas * n
         size = min(POINTWISE_CPU_CHUNK, total) if _default_platform() == "cpu" else total
         chunk = {k: jax.ShapeDtypeStruct((size,) + v.shape[1:], v.dtype) for k, v in sites.items()}
-        out.append(model.pointwise.lower(chunk, data))
+        out.append((model.pointwise, (chunk, data)))
     return out

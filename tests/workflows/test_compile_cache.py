@@ -175,3 +175,33 @@ def test_gpu_autotuning_is_skipped_unless_the_user_set_a_level(monkeypatch):
     assert skip_gpu_autotuning() and os.environ["XLA_FLAGS"] == f"--xla_dump_to=/tmp/d {GPU_AUTOTUNE_FLAG}"
     monkeypatch.setenv("XLA_FLAGS", "--xla_gpu_autotune_level=4")
     assert not skip_gpu_autotuning() and os.environ["XLA_FLAGS"] == "--xla_gpu_autotune_level=4"  # the user's
+
+
+def test_the_commands_switch_the_program_store_on_beside_the_cache_unless_told_not_to(tmp_path, monkeypatch):
+    import warnings
+
+    import jax
+
+    from bubblecal.inference.tmcmc import disable_program_store, program_store_folder
+    from bubblecal.workflows import compile_cache
+    from bubblecal.workflows.compile_cache import PROGRAMS_ENV, PROGRAMS_SUBFOLDER
+
+    # this process's JAX configuration, warning hook and cache state stay as they were
+    monkeypatch.setattr(jax.config, "update", lambda *a, **k: None)
+    monkeypatch.setattr(warnings, "showwarning", warnings.showwarning)
+    monkeypatch.setattr(compile_cache, "_state", dict(compile_cache._state))
+    try:
+        monkeypatch.setenv(PROGRAMS_ENV, "off")
+        enable_compilation_cache(tmp_path / "a", say=lambda m: None)
+        assert program_store_folder() is None
+        monkeypatch.delenv(PROGRAMS_ENV)
+        enable_compilation_cache(tmp_path / "b", say=lambda m: None)
+        assert program_store_folder() == tmp_path / "b" / PROGRAMS_SUBFOLDER
+        said = []
+        (tmp_path / "c").mkdir()
+        (tmp_path / "c" / PROGRAMS_SUBFOLDER).write_text("a file, not a folder")
+        disable_program_store()
+        assert enable_compilation_cache(tmp_path / "c", say=said.append) == tmp_path / "c"
+        assert program_store_folder() is None and "cannot be written" in said[0]
+    finally:
+        disable_program_store()

@@ -92,7 +92,7 @@ def test_exports_of_one_structure_share_the_pointwise_program():
     runs = [TMCMC(line_model, num_particles=600).run(jax.random.PRNGKey(i), *_data(i)) for i in (1, 2)]
     exports = [r.to_inference_data() for r in runs]
     (programs,) = [v for k, v in tm._program_cache.items() if k[0] == "model"]
-    assert programs.pointwise._cache_size() == 1
+    assert programs.pointwise.executables() == 1
     for r, idata, i in zip(runs, exports, (1, 2), strict=True):  # and each export holds its own dataset's values
         want = log_likelihood(line_model, r.get_samples(), *_data(i))["y"]
         np.testing.assert_allclose(idata.log_likelihood["y"].values[0], np.asarray(want), rtol=1e-5, atol=1e-5)
