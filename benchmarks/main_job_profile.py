@@ -87,6 +87,7 @@ def main(argv=None) -> dict:
     import bubblecal.inference.hierarchical as hierarchical
     import bubblecal.workflows.calibrate as calibrate
     import bubblecal.workflows.calibrate.plan as plan_module
+    import bubblecal.workflows.calibrate.preflight as preflight_module
     import bubblecal.workflows.figures as figures
     import bubblecal.workflows.report as report
     import bubblecal.workflows.summary as summary
@@ -95,6 +96,8 @@ def main(argv=None) -> dict:
     prof.row("imports")["wall_s"] = time.perf_counter() - t0 + (t0 - _T0)
     prof.wrap(calibrate, "make_plan", "plan (bundle, checks)")
     prof.wrap(plan_module, "preflight", "preflight")
+    prof.wrap(preflight_module, "preflight", "preflight")  # the command's own agents (agent processes)
+    prof.wrap(calibrate.AgentProcesses, "wait_ready", "wait for the worker processes' preflight")
     prof.wrap(hierarchical, "run_phase", lambda name, *a, **k: name)
     prof.wrap(phase_batch, "_compile_ahead", "compile ahead (phases)")
     prof.wrap(calibrate.PhaseStore, "save", "phase files (export)")
