@@ -1,15 +1,14 @@
 """Compiled TMCMC programs kept on disk between processes, so that a later run neither traces, lowers nor compiles them.
 
 JAX's persistent compilation cache is keyed by the lowered program: a run that reads every program from it
-still traces and lowers each one first, which is most of a warm run's time before sampling. The *program
-store* keeps the executables themselves (``jax.experimental.serialize_executable``) under a key computed
-without tracing: the digest (:func:`~bubblecal.inference.tmcmc._stable.stable_digest`) of what built the
-program (its role, the model function and every fixed value and bijection of the model's signature, the move
-and its settings), the pytree structure and shapes of the call's arguments, and of the environment
-(:func:`environment_digest`: bubblecal's source files, the versions of Python, JAX, jaxlib, NumPyro and NumPy,
-JAX's configuration, ``XLA_FLAGS``, the platform and device kind). A value the key cannot write out
-exactly (a user's own model function, an object of unknown kind) leaves its program out of the store; it is
-then compiled as without one.
+still traces and lowers each one first. The *program store* keeps the executables themselves
+(``jax.experimental.serialize_executable``) under a key computed without tracing: the digest
+(:func:`~bubblecal.inference.tmcmc._stable.stable_digest`) of what built the program (its role, the model
+function and every fixed value and bijection of the model's signature, the move and its settings), the pytree
+structure and shapes of the call's arguments, and of the environment (:func:`environment_digest`: bubblecal's
+source files, the versions of Python, JAX, jaxlib, NumPyro and NumPy, JAX's configuration, ``XLA_FLAGS``, the
+platform and device kind). A value the key cannot write out exactly (a user's own model function, an object of
+unknown kind) leaves its program out of the store; it is then compiled as without one.
 
 Entries are written whole (a temporary file, then an atomic rename) and carry a checksum; an entry that
 cannot be read, checked or loaded counts as absent and is written again. An entry's name begins with its
