@@ -26,7 +26,7 @@ ALLOWED = {
     "workflows": set(LAYERS),
 }
 #: Private helpers of the root package that every layer may use (they import nothing of bubblecal).
-ROOT_HELPERS = {"_lazy", "_extras", "_progress"}
+ROOT_HELPERS = {"_lazy", "_extras", "_progress", "_folders"}
 FORBIDDEN_THIRD_PARTY = {
     "data": {"jax", "numpyro", "torch", "warp"},
     "priors": {"jax", "numpyro", "torch", "warp"},

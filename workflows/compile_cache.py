@@ -24,11 +24,12 @@ On a GPU the commands also let XLA pick matmul kernels by heuristics rather than
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+
+from bubblecal._folders import folder_problem
 
 __all__ = ["CACHE_ENV", "GPU_AUTOTUNE_FLAG", "PROGRAMS_ENV", "PROGRAMS_SUBFOLDER", "default_cache_dir",
            "enable_compilation_cache", "skip_gpu_autotuning"]
@@ -85,19 +86,6 @@ def skip_gpu_autotuning() -> bool:
         return False
     os.environ["XLA_FLAGS"] = f"{flags} {GPU_AUTOTUNE_FLAG}".strip()
     return True
-
-
-def _usable(folder: Path) -> str | None:
-    """Why ``folder`` cannot hold the cache (None when it can): created if missing, probed with a file."""
-    if folder.exists() and not folder.is_dir():
-        return "it is a file, not a folder"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-"):
-            pass
-    except OSError as exc:
-        return f"it cannot be written ({exc.strerror or exc})"
-    return None
 
 
 def _remove_damaged(folder: Path, min_age_s: float = 60.0) -> int:
@@ -169,7 +157,7 @@ def enable_compilation_cache(folder: Path | None = None, *, say: Callable[[str],
 
     folder = Path(folder) if folder is not None else default_cache_dir()
     say = say or (lambda m: warnings.warn(m, RuntimeWarning, stacklevel=3))
-    why = _usable(folder)
+    why = folder_problem(folder)
     if why is not None:
         say(f"compilation cache {folder}: {why}; running without it (pass --no-cache to silence this)")
         return None

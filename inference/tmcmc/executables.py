@@ -25,7 +25,6 @@ import hashlib
 import os
 import platform
 import sys
-import tempfile
 import threading
 from collections.abc import Callable, Sequence
 from importlib import metadata
@@ -34,6 +33,7 @@ from typing import Any
 
 import jax
 
+from bubblecal._folders import folder_problem
 from bubblecal.inference.tmcmc._stable import Unkeyable, stable_digest
 from bubblecal.inference.tmcmc._store_files import PRUNE_AFTER_S, STORE_SUFFIX, prune, read_entry, write_entry
 
@@ -44,7 +44,7 @@ _PREFIX = 16  # hexadecimal characters of the environment digest that begin an e
 # JAX configuration names that cannot change a program (logging, caches, timeouts)
 _CONFIG_IGNORED = ("log", "cache", "timeout", "explain")
 _state: dict = {"folder": None, "counts": {"loaded": 0, "saved": 0, "compiled": 0, "unkeyed": 0},
-                "source": None}
+                "source": None, "environment": (None, None), "pruned": None, "listening": False}
 _lock = threading.Lock()
 
 
@@ -62,11 +62,7 @@ def enable_program_store(folder: str | os.PathLike) -> Path | None:
         The folder in use; None when it cannot be created or written (programs are then compiled as usual).
     """
     folder = Path(folder)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-"):
-            pass
-    except OSError:
+    if folder_problem(folder) is not None:
         return None
     _state["folder"] = folder
     return folder
@@ -126,7 +122,7 @@ def environment_digest() -> str:
     """
     config = tuple(sorted((k, v) for k, v in jax.config.values.items() if not any(w in k for w in _CONFIG_IGNORED)))
     snapshot = (config, os.environ.get("XLA_FLAGS", ""))
-    if _state.get("environment", (None,))[0] != snapshot:
+    if _state["environment"][0] != snapshot:
         devices = jax.devices()
         digest = stable_digest((
             _source_digest(), sys.version, platform.machine(),
@@ -231,31 +227,34 @@ class Program:
                 _state["counts"]["unkeyed"] += 1
             return None
         prefix = environment[:_PREFIX]
-        if _state.get("pruned") != (folder, prefix):
+        if _state["pruned"] != (folder, prefix):
             _state["pruned"] = (folder, prefix)
             prune(folder, prefix)
         return str(folder / f"{prefix}-{digest}{STORE_SUFFIX}")
 
+    def _entry(self, key: tuple | None):
+        """(executable, output shapes) of the call ``key``: held already, or read now from the store; else None."""
+        if key is None:
+            return None
+        entry = self._entries.get(key)
+        if entry is None:
+            name = self._stored_name(key)
+            entry = read_entry(name) if name is not None else None
+            if entry is not None:
+                self._entries[key] = entry
+                with _lock:
+                    _state["counts"]["loaded"] += 1
+        return entry
+
     def ready(self, *args) -> bool:
         """Whether an executable for ``args`` is at hand: held already, or read now from the store."""
-        key = self.call_key(args)
-        if key is None:
-            return False
-        if key in self._entries:
-            return True
-        name = self._stored_name(key)
-        entry = read_entry(name) if name is not None else None
-        if entry is not None:
-            self._entries[key] = entry
-            with _lock:
-                _state["counts"]["loaded"] += 1
-        return entry is not None
+        return self._entry(self.call_key(args)) is not None
 
     def shapes(self, *args):
         """The output's ``jax.ShapeDtypeStruct`` pytree for ``args`` (from the executable held, else traced)."""
-        key = self.call_key(args)
-        if key is not None and (key in self._entries or self.ready(*args)):
-            return self._entries[key][1]
+        entry = self._entry(self.call_key(args))
+        if entry is not None:
+            return entry[1]
         if self.static_argnums:
             static = {i: args[i] for i in self.static_argnums}
 
@@ -308,9 +307,9 @@ def compile_fresh(lowered) -> tuple[Any, bool]:
     tuple
         ``(executable, fresh)``.
     """
-    if not _state.get("listening"):
+    if not _state["listening"]:
         with _lock:
-            if not _state.get("listening"):
+            if not _state["listening"]:
                 jax.monitoring.register_event_listener(_on_event)
                 _state["listening"] = True
     _thread.hit = False
