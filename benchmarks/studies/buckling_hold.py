@@ -56,11 +56,13 @@ def main() -> None:
     ap.add_argument("--subdivisions", type=int, default=None, help="mesh level (default: the campaign's)")
     ap.add_argument("--box-pad", type=float, default=None,
                     help="explicit tier: periodic box (2R+pad, 2R+pad, 2R+pad+5) [DPD length] (default: the tier's: 5)")
+    ap.add_argument("--md-setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="an MD tier setting (e.g. fsi_friction_factor=0.1, a_vertex_water=40); repeatable")
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--out", type=Path, default=None, help="JSON file of every curve")
     args = ap.parse_args()
 
-    from bubblecal.campaigns import design_points, load_campaign_file
+    from bubblecal.campaigns import design_points, load_campaign_file, parse_tier_settings
     from bubblecal.data import SHELL_PARAMETERS
     from bubblecal.sim.tiers import CurveRequest, get_tier
 
@@ -74,7 +76,7 @@ def main() -> None:
                            subdivisions=args.subdivisions or cfg.subdivisions)
     out = {}
     qs = get_tier("quasistatic", **{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"})
-    md_settings = {"scale": args.scale}
+    md_settings = {"scale": args.scale, **parse_tier_settings(args.md_setting)}
     if args.box_pad is not None:
         from bubblecal.surrogates import radius_of_diameter
 
@@ -96,6 +98,7 @@ def main() -> None:
         print(f"  point {i}: " + " ".join(f"{v:.3f}" for v in row), flush=True)
     line = {"study": "buckling_hold", "campaign": CAMPAIGN, "diameter_um": args.diameter, "points": points,
             "depth_fraction": args.depth, "tier": args.tier, "scale": args.scale, "box": md_settings.get("box"),
+            "md_settings": {k: v for k, v in md_settings.items() if k not in ("scale", "box")},
             "ratio_first_hold": ratio[:, 0].tolist(), "ratio_last_hold": ratio[:, -1].tolist(),
             "seconds": {k: v["seconds"] for k, v in out.items()}}
     if args.out:

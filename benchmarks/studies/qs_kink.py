@@ -8,7 +8,8 @@ the campaign's mesh level) under variants of the minimisation:
 * ``selfavoid``  the shell's self-avoidance on (the MD tiers' default);
 * ``smallstep``  plate sub-steps of at most 0.01 DPD length between minimisations instead of 0.06;
 * ``lowinertia`` FIRE with max move 0.002 and dt_max 0.01 (less momentum to carry a shell over a barrier);
-* ``noextrap``   each point starts from the last minimum instead of the linear extrapolation of the last two.
+* ``noextrap``   each point starts from the last minimum instead of the linear extrapolation of the last two;
+* ``step<X>``    plate sub-steps of at most X DPD length (e.g. ``step0.24``): fewer, longer minimisations.
 
 A kink that survives every variant is the athermal equilibrium path of the shell, not the minimiser's choice.
 
@@ -61,17 +62,33 @@ def run_variant(variant: str, diameter_um: float, points: list[int], device: str
         params, mesh_for_diameter(diameter_um, cfg.subdivisions or 4), grid, gas=IdealGas(p0=tier.gas_p0),
         thermal=ThermalContact(kT=tier.kT) if tier.thermal_contact else None, device=device,
         dtype=resolve_dtype(tier.dtype or "float64"), fire=fire,
-        max_plate_step=0.01 if variant == "smallstep" else 0.06, extrapolate=variant != "noextrap")
+        max_plate_step=plate_step(variant), extrapolate=variant != "noextrap")
     return np.asarray(res.force + res.force_bottom), list(res.status), time.perf_counter() - t0
+
+
+def plate_step(variant: str) -> float:
+    """Largest plate sub-step of a variant [DPD length]: 0.01 for ``smallstep``, X for ``step<X>``, else 0.06."""
+    if variant == "smallstep":
+        return 0.01
+    if variant.startswith("step"):
+        return float(variant[4:])
+    return 0.06
 
 
 def parse_selection(points: str, variants: str, allowed: tuple[str, ...]) -> tuple[list[int], list[str]]:
     """Comma-separated design point indices and variant names; exits naming unknown variants."""
     chosen = [v for v in variants.split(",") if v]
-    bad = sorted(set(chosen) - set(allowed))
+    bad = sorted(v for v in set(chosen) - set(allowed) if not _is_step(v))
     if bad:
         raise SystemExit(f"--variants: unknown {bad}; allowed {allowed}")
     return [int(v) for v in points.split(",") if v], chosen
+
+
+def _is_step(variant: str) -> bool:
+    try:
+        return variant.startswith("step") and float(variant[4:]) > 0
+    except ValueError:
+        return False
 
 
 def main() -> None:
@@ -79,7 +96,7 @@ def main() -> None:
     ap.add_argument("--diameter", type=float, default=7.0, help="diameter level of the design [um]")
     ap.add_argument("--points", default="13,285", help="design point indices (comma-separated)")
     ap.add_argument("--variants", default="default,selfavoid,smallstep,lowinertia",
-                    help=f"comma-separated, from {', '.join(VARIANTS)}")
+                    help=f"comma-separated, from {', '.join(VARIANTS)} or step<X>")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--out", type=Path, default=None, help="JSON file of every curve")
     args = ap.parse_args()

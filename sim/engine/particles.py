@@ -254,6 +254,7 @@ def published_pair_table(
     rho_gas_number: float = 3.0,
     rho_gas_kg_m3: float = RHO_GAS_KG_M3,
     m_vertex: float = 1.0,
+    fsi_friction_factor: float = 1.0,
     units: UnitSystem = DEFAULT_UNITS,
 ) -> PairTable:
     """The published interaction set (docs/physics.md section 2).
@@ -277,6 +278,10 @@ def published_pair_table(
         Gas mass density (kg/m^3; sets the gas bead mass).
     m_vertex : float, optional
         Vertex mass (DPD mass).
+    fsi_friction_factor : float, optional
+        Multiplies both vertex-solvent dissipative coefficients (gamma_fsi of water and gas); the thermostat's
+        pairs keep fluctuation-dissipation, so an equilibrium observable does not depend on it, only how fast the
+        shell reaches it.
     units : UnitSystem, optional
         Unit system.
 
@@ -287,17 +292,20 @@ def published_pair_table(
     Raises
     ------
     ValueError
-        On an unknown protocol.
+        On an unknown protocol or a ``fsi_friction_factor`` that is not > 0.
     """
     if protocol not in ("compression", "indentation"):
         raise ValueError("protocol must be 'compression' or 'indentation'")
+    if not fsi_friction_factor > 0:
+        raise ValueError(f"fsi_friction_factor must be > 0, got {fsi_friction_factor!r}")
+    ff = float(fsi_friction_factor)
     if a_vertex_water is None:
         a_vertex_water = 400.0 if protocol == "compression" else 40.0
     t = PairTable()
     t.set(WATER, WATER, 100.0, 3.5, 0.25)
     t.set(GAS, GAS, 0.0, 11.0, 0.5)
-    t.set(VERTEX, WATER, a_vertex_water, gamma_fsi(ETA_WATER_DPD, rho_water_number, n_s, 0.5, units), 0.5)
+    t.set(VERTEX, WATER, a_vertex_water, ff * gamma_fsi(ETA_WATER_DPD, rho_water_number, n_s, 0.5, units), 0.5)
     eta_gas = viscosity_to_dpd(ETA_GAS_PA_S, units)
-    t.set(VERTEX, GAS, 0.0, gamma_fsi(eta_gas, rho_gas_number, n_s, 0.5, units), 0.5)
+    t.set(VERTEX, GAS, 0.0, ff * gamma_fsi(eta_gas, rho_gas_number, n_s, 0.5, units), 0.5)
     t.mass[:] = [1.0, gas_mass(rho_gas_kg_m3, units), m_vertex, 1.0]
     return t

@@ -66,3 +66,20 @@ def test_total_force_vanishes_in_a_fluid():
     f = ps.f.numpy().astype(np.float64)
     scale = np.abs(f).sum()
     assert np.linalg.norm(f.sum(axis=0)) < 1e-5 * scale
+
+
+def test_fsi_friction_factor_scales_only_the_vertex_solvent_friction():
+    from bubblecal.sim.engine import GAS, VERTEX, bubble_spec, published_pair_table
+
+    base = published_pair_table(5.0, "compression")
+    slow = published_pair_table(5.0, "compression", fsi_friction_factor=0.1)
+    scaled = np.zeros_like(base.gamma, dtype=bool)
+    for a, b in ((VERTEX, WATER), (VERTEX, GAS)):
+        scaled[a, b] = scaled[b, a] = True
+    np.testing.assert_allclose(slow.gamma[scaled], 0.1 * base.gamma[scaled], rtol=1e-12)
+    np.testing.assert_array_equal(slow.gamma[~scaled], base.gamma[~scaled])
+    np.testing.assert_array_equal(slow.a, base.a)
+    assert bubble_spec(1.5, 1, fsi_friction_factor=0.1).pairs.gamma[VERTEX, WATER] == pytest.approx(
+        0.1 * bubble_spec(1.5, 1).pairs.gamma[VERTEX, WATER])
+    with pytest.raises(ValueError, match="fsi_friction_factor"):
+        published_pair_table(5.0, fsi_friction_factor=0.0)
