@@ -65,6 +65,8 @@ def train(
                                             "its size scale) instead of one per diameter."),
     ldo_bands: str = typer.Option("", "--ldo-bands", help="With --over-diameter: diameter bands held out whole, "
                                   "e.g. '3.0-3.4,5.0-5.4' \\[um] (leave-diameters-out score)."),
+    offgrid: Path = typer.Option(None, "--offgrid", help="Curves between the training grid's loading points (a store; "
+                                 "'ok' curves): scored like the held-out ones; the selection takes the worst median."),
     out: Path = typer.Option(..., "--out", help="Output directory (surrogate .npz, reports, plot)."),
     sweep: bool = typer.Option(False, "--sweep/--no-sweep", help="Sweep widths x depths (else one architecture)."),
     widths: str = typer.Option("32,64,128,256", help="Sweep widths (comma separated)."),
@@ -160,7 +162,8 @@ def train(
         else:
             cfg = SweepConfig(widths=(width,), depths=(depth,), holdout_frac=holdout_frac, seed=seed, jobs=1,
                               train=train_cfg, min_curves=2, **inputs)
-        result = run_sweep(ts, cfg, progress=not quiet, checkpoints=checkpoints or out / "checkpoints")
+        off = None if offgrid is None else filter_curves(read_dataset(offgrid, setup=setup, n_points="auto"))[0]
+        result = run_sweep(ts, cfg, progress=not quiet, checkpoints=checkpoints or out / "checkpoints", offgrid=off)
     except (DatasetError, FileNotFoundError) as exc:
         _fail(str(exc))
     out.mkdir(parents=True, exist_ok=True)
@@ -225,8 +228,8 @@ def info(path: Path = typer.Argument(..., help="A surrogate .npz, an acoustic su
             for sur, role in listed:
                 md = sur.metadata
                 typer.echo(repr(sur) + (f" [network: {role}]" if role else ""))
-                # provenance: the training set and how much of it the network saw
-                ldo = f", leave-diameters-out {md['ldo_score']:.3g}" if md.get("ldo_score") is not None else ""
+                ldo = "".join(f", {label} {md[key]:.3g}" for key, label in (("ldo_score", "leave-diameters-out"),
+                              ("offgrid_score", "off the grid")) if md.get(key) is not None)
                 typer.echo(f"  trained on {md.get('source', '?')}: {md.get('n_curves_train', '?')} curves "
                            f"({md.get('n_prefix_curves_train', 0)} failure-truncated prefixes), "
                            f"held-out median relative L2 {sur.holdout_score:.3g}{ldo}")

@@ -41,6 +41,7 @@ from bubblecal.surrogates.training.holdout import (
     diameter_bands,
     error_summary,
     grouped_holdout,
+    selection_score,
 )
 from bubblecal.surrogates.training.onnx_check import onnx_parity, onnx_predict, scaled_max_rel_diff
 from bubblecal.surrogates.training.synthetic import (
@@ -74,8 +75,8 @@ __all__ = [
     "make_synthetic", "truth", "compression_force", "indentation_displacement", "noise_floor", "relative_l2",
     "DEFAULT_RANGES", "DEFAULT_X",
     # grouped holdout, ONNX parity
-    "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "MIN_SCORED_POINTS", "onnx_predict",
-    "onnx_parity", "scaled_max_rel_diff",
+    "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score", "MIN_SCORED_POINTS",
+    "onnx_predict", "onnx_parity", "scaled_max_rel_diff",
     # torch side (lazy)
     *_LAZY,
 ]

@@ -160,13 +160,18 @@ def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = N
              "n_points_holdout": result.holdout_set.n_valid_points,
              "holdout": {k: b[k] for k in ("holdout_median", "holdout_p90", "holdout_n_scored", "holdout_n_skipped",
                                            "holdout_n_prefix", "holdout_median_prefix") if k in b},
-             "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median", "ldo_median") if k in r}
+             "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median", "ldo_median", "offgrid_median") if k in r}
                        for r in result.rows]}
     top = {}
     if result.ldo_set is not None:
         extra["ldo"] = {k: b[k] for k in ("ldo_median", "ldo_p90", "ldo_max", "ldo_n_scored") if k in b}
         extra["n_curves_ldo"] = result.ldo_set.n_curves
         top = {"ldo_score": float(b["ldo_median"]), "ldo_bands_um": [list(x) for x in result.config.ldo_bands]}
+    if result.offgrid_set is not None:
+        extra["offgrid"] = {k: b[k] for k in ("offgrid_median", "offgrid_p90", "offgrid_max", "offgrid_n_scored")
+                            if k in b}
+        extra["offgrid"]["source"] = result.offgrid_set.source
+        top["offgrid_score"] = float(b["offgrid_median"])
     return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra,
                       nominal_diameter_um, filter_report, inputs=result.inputs, extra_metadata=top)
 

@@ -19,7 +19,7 @@ from bubblecal.surrogates.training.dataset import DatasetError, TrainingSet
 if TYPE_CHECKING:
     from bubblecal.surrogates.training.train import TrainedMLP
 
-__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "diameter_bands", "curve_errors", "error_summary"]
+__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score"]
 
 #: A held-out curve needs this many finite points to be scored.
 MIN_SCORED_POINTS = 2
@@ -161,3 +161,19 @@ def error_summary(err: np.ndarray, prefix_mask: np.ndarray | None = None) -> dic
         out["holdout_n_prefix"] = int(pm.sum())
         out["holdout_median_prefix"] = float(np.median(err[pm])) if pm.any() else None
     return out
+
+
+def selection_score(row: dict) -> float:
+    """The score a sweep row is selected by: the worst of its held-out, leave-diameters-out and off-grid medians.
+
+    Parameters
+    ----------
+    row : dict
+        A row of :attr:`SweepResult.rows` (or of a network's ``training.sweep`` metadata).
+
+    Returns
+    -------
+    float
+        Relative L2 (a fraction).
+    """
+    return max(row["holdout_median"], row.get("ldo_median", 0.0), row.get("offgrid_median", 0.0))

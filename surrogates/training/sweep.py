@@ -14,10 +14,13 @@ rows as ``holdout_n_skipped``). The rows also give the median over the held-out 
 
 A network over the diameter (``SweepConfig.inputs = 'diameter'``) is also scored on whole diameter bands
 never trained on (``ldo_bands``, leave-diameters-out), and the selection uses the worse of its two medians.
-The architecture with the lowest score is selected (ties: fewer parameters). Reports: ``sweep_report.md``
-(table), ``sweep_report.json`` (everything, incl. per-curve errors of the selection) and ``heldout_curve.png``
-(the held-out curve whose error is nearest the median). Trained architectures can be checkpointed
-(:mod:`bubblecal.surrogates.training.checkpoints`) so that an interrupted sweep resumes.
+Curves simulated at loading points between the training grid's (``offgrid``: the designs load every curve on
+one grid, a measured curve has its own points) are scored the same way and join the selection: a network that
+fits the grid's points but wiggles between them loses there (docs/decisions.md, "Networks chosen between the
+loading points").  The architecture with the lowest score is selected (ties: fewer parameters).  Reports:
+``sweep_report.md`` (table), ``sweep_report.json`` (everything, incl. per-curve errors of the selection) and
+``heldout_curve.png`` (the held-out curve whose error is nearest the median).  Trained architectures can be
+checkpointed (:mod:`bubblecal.surrogates.training.checkpoints`) so that an interrupted sweep resumes.
 """
 
 from __future__ import annotations
@@ -37,7 +40,13 @@ from bubblecal.surrogates.training.checkpoints import (
     save_checkpoint,
 )
 from bubblecal.surrogates.training.dataset import DatasetError, TrainingSet
-from bubblecal.surrogates.training.holdout import curve_errors, diameter_bands, error_summary, grouped_holdout
+from bubblecal.surrogates.training.holdout import (
+    curve_errors,
+    diameter_bands,
+    error_summary,
+    grouped_holdout,
+    selection_score,
+)
 from bubblecal.surrogates.training.sweep_result import SweepResult, _truncated
 from bubblecal.surrogates.training.train import TrainConfig, TrainedMLP, train_mlp
 
@@ -124,7 +133,7 @@ def _train_job(args):
 
 
 def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool = True,
-              checkpoints: str | Path | None = None) -> SweepResult:
+              checkpoints: str | Path | None = None, offgrid: TrainingSet | None = None) -> SweepResult:
     """Train every architecture of ``config`` on a grouped split of ``ts`` and pick the best (module docstring).
 
     Parameters
@@ -140,6 +149,10 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
         Folder where each architecture is saved as soon as it is trained; a rerun reuses every saved
         architecture whose data, split, seed and recipe match (the device and thread count may differ), so an
         interrupted sweep resumes where it stopped.
+    offgrid : TrainingSet, optional
+        Curves of the same protocol at loading points other than the training grid's (DPD units), scored like
+        the held-out curves; the selection then takes the worst of the held-out, leave-diameters-out and
+        off-grid medians.  Never trained on, and not part of the checkpoint key (selection only).
 
     Returns
     -------
@@ -149,9 +162,12 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
     Raises
     ------
     DatasetError
-        For fewer than ``config.min_curves`` curves, untrainable data, or no scorable held-out curve.
+        For fewer than ``config.min_curves`` curves, untrainable data, no scorable held-out curve, or ``offgrid``
+        curves of another protocol.
     """
     config = config or SweepConfig()
+    if offgrid is not None and offgrid.setup != ts.setup:
+        raise DatasetError(f"{offgrid.source}: off-grid curves are {offgrid.setup}, the training data {ts.setup}")
     several = config.inputs == "diameter"
     ts.check_trainable(min_curves=config.min_curves, several_sizes=several)
     t0 = time.perf_counter()
@@ -214,11 +230,14 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
             ldo_err, _ = curve_errors(m, ldo_set, config.inputs)
             ldo_errs.append(ldo_err)
             row.update({"ldo_" + k.removeprefix("holdout_"): v for k, v in error_summary(ldo_err).items()})
+        if offgrid is not None:
+            og_err, _ = curve_errors(m, offgrid, config.inputs)
+            row.update({"offgrid_" + k.removeprefix("holdout_"): v for k, v in error_summary(og_err).items()})
         rows.append(row)
-    # the worse of the two holdouts decides: a network over the sizes must generalise across both
-    best = min(range(len(rows)), key=lambda i: (max(rows[i]["holdout_median"], rows[i].get("ldo_median", 0.0)),
-                                                rows[i]["n_params"]))
+    # the worst holdout decides: a network must generalise across parameter sets, sizes and loading points
+    best = min(range(len(rows)), key=lambda i: (selection_score(rows[i]), rows[i]["n_params"]))
     return SweepResult(rows=rows, best_index=best, best_model=models[best], train_set=train_set,
                        holdout_set=holdout_set, holdout_errors=errs_all[best], holdout_pred=preds[best],
                        config=config, data_hash=data_hash, wall_s=time.perf_counter() - t0, models=models,
-                       ldo_set=ldo_set, ldo_errors=ldo_errs[best] if ldo_errs else None)
+                       ldo_set=ldo_set, ldo_errors=ldo_errs[best] if ldo_errs else None, offgrid_set=offgrid)
+

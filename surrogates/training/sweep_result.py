@@ -68,6 +68,8 @@ class SweepResult:
         The curves of the held-out diameter bands (a network over the diameter with ``ldo_bands``).
     ldo_errors : numpy.ndarray or None
         Per-curve errors of the selected model on them.
+    offgrid_set : TrainingSet or None
+        Curves at loading points off the training grid that took part in the selection.
     """
 
     rows: list[dict]
@@ -83,6 +85,7 @@ class SweepResult:
     models: list[TrainedMLP] = field(default_factory=list)
     ldo_set: TrainingSet | None = None
     ldo_errors: np.ndarray | None = None
+    offgrid_set: TrainingSet | None = None
 
     @property
     def best(self) -> dict:
@@ -137,6 +140,8 @@ class SweepResult:
             **({} if self.ldo_set is None else {
                 "n_curves_ldo": self.ldo_set.n_curves, "ldo_bands_um": [list(b) for b in self.config.ldo_bands],
                 "ldo_errors_selected": _nan_to_none(self.ldo_errors)}),
+            **({} if self.offgrid_set is None else {
+                "n_curves_offgrid": self.offgrid_set.n_curves, "offgrid_source": self.offgrid_set.source}),
             "metric": "median over held-out curves of ||y_hat - y||_2 / ||y||_2 (finite points; curves with < "
                       f"{MIN_SCORED_POINTS} finite points skipped)",
         }
@@ -168,19 +173,28 @@ class SweepResult:
             bands = ", ".join(f"{lo:g}-{hi:g}" for lo, hi in self.config.ldo_bands)
             lines.append(f"- leave-diameters-out: {self.ldo_set.n_curves} curves in the bands {bands} um never "
                          "trained on; the selection takes the worse of the two medians")
+        og = self.offgrid_set is not None
+        if og:
+            lines.append(f"- off the grid: {self.offgrid_set.n_curves} curves at loading points between the training "
+                         f"grid's ({self.offgrid_set.source}); the selection takes the worst of the medians")
         ldo_head, ldo_rule = (" LDO median | LDO p90 |", "---|---|") if ldo else ("", "")
+        if og:
+            ldo_head, ldo_rule = ldo_head + " off-grid median | off-grid p90 |", ldo_rule + "---|---|"
         lines += ["", f"| hidden | params | holdout median | holdout p90 |{ldo_head} best val MSE (std.) | epochs | "
                       "stop | wall s |",
                   f"|---|---|---|---|{ldo_rule}---|---|---|---|"]
         for i, r in enumerate(self.rows):
             mark = " **(selected)**" if i == self.best_index else ""
             ldo_cells = f" {r['ldo_median']:.4%} | {r['ldo_p90']:.4%} |" if ldo else ""
+            if og:
+                ldo_cells += f" {r['offgrid_median']:.4%} | {r['offgrid_p90']:.4%} |"
             lines.append(f"| {r['width']}x{r['depth']}{mark} | {r['n_params']} | {r['holdout_median']:.4%} | "
                          f"{r['holdout_p90']:.4%} |{ldo_cells} {r['best_val_loss']:.3g} | {r['epochs']} | "
                          f"{r['stop_reason']} | {r['wall_s']:.1f} |")
         b = self.best
         lines += ["", f"Selected: {b['width']}x{b['depth']} with held-out median relative L2 "
-                      f"{b['holdout_median']:.4%}" + (f", leave-diameters-out {b['ldo_median']:.4%}." if ldo else ".")]
+                      f"{b['holdout_median']:.4%}" + (f", leave-diameters-out {b['ldo_median']:.4%}" if ldo else "")
+                  + (f", off the grid {b['offgrid_median']:.4%}." if og else ".")]
         if b.get("holdout_n_prefix"):
             lines.append(f"Held-out failure-truncated prefix curves: {b['holdout_n_prefix']}, median relative L2 "
                          f"{b['holdout_median_prefix']:.4%}.")

@@ -225,3 +225,31 @@ def test_cli_trains_one_network_over_the_diameter(tmp_path):
     bad = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--diameter", "2",
                                    "--over-diameter", "--out", str(tmp_path / "o2")])
     assert bad.exit_code == 2 and "not both" in bad.output
+
+
+def test_off_grid_curves_take_part_in_the_selection(tmp_path):
+    from bubblecal.surrogates.training import selection_score
+
+    ts = several_sizes("compression")
+    parts = []  # the same law at the midpoints of the training grid's intervals
+    for k, d in enumerate(DIAMETERS):
+        r = radius_of_diameter(d)
+        x = np.linspace(0.0, 0.4 * r, 8)
+        parts.append(make_synthetic(4, "compression", radius_dpd=r, noise=0.0, seed=50 + k, x=0.5 * (x[:-1] + x[1:])))
+    off = TrainingSet(setup="compression", params=np.concatenate([p.params for p in parts]),
+                      radius_dpd=np.concatenate([p.radius_dpd for p in parts]),
+                      x=np.concatenate([p.x for p in parts]), y=np.concatenate([p.y for p in parts]),
+                      curve_id=[f"mid{i}" for i in range(16)], source="midpoints")
+    cfg = SweepConfig(**{**CFG, "widths": (4, 16), "depths": (1,)}, inputs="diameter", ldo_bands=((3.0, 3.0),))
+    res = run_sweep(ts, cfg, progress=False, offgrid=off)
+    assert all(r["offgrid_n_scored"] == 16 and np.isfinite(r["offgrid_median"]) for r in res.rows)
+    assert res.best_index == min(range(2), key=lambda i: (selection_score(res.rows[i]), res.rows[i]["n_params"]))
+    assert "off-grid median" in res.markdown() and "midpoints" in res.markdown()
+    md = load(export_sweep(res, tmp_path / "c.npz")).metadata
+    assert md["offgrid_score"] == pytest.approx(res.best["offgrid_median"])
+    assert [r["offgrid_median"] for r in md["training"]["sweep"]] == [r["offgrid_median"] for r in res.rows]
+    # the worst of the three medians decides
+    assert selection_score({"holdout_median": 0.1, "ldo_median": 0.2, "offgrid_median": 0.5}) == 0.5
+    assert selection_score({"holdout_median": 0.3}) == 0.3
+    with pytest.raises(DatasetError, match="off-grid curves are indentation"):
+        run_sweep(ts, cfg, progress=False, offgrid=several_sizes("indentation", n=2))
