@@ -83,7 +83,7 @@ def test_manifest_round_trip_and_fallback_without_a_fast_network(tmp_path):
     only = load_bundle(write_bundle(tmp_path / "d", [acc_c]).parent)
     assert only.networks("compression") == ("accurate",) and not only.fast
     sur = only.get("compression", 5.0, network="fast")
-    assert list(sur.architecture["hidden"]) == [256] * 4 and sur.diameter_um == pytest.approx(5.0)
+    assert list(sur.architecture["hidden"]) == [128] * 3 and sur.diameter_um == pytest.approx(5.0)
     # a manifest without 'network' fields (written before the roles) reads as accurate
     m = json.loads((out / "manifest.json").read_text())
     m["surrogates"] = [{k: v for k, v in e.items() if k != "network"} for e in m["surrogates"][:1]]
