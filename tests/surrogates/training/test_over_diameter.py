@@ -53,6 +53,19 @@ def several_sizes(setup: str, n: int = 24) -> TrainingSet:
                        curve_id=[f"{d:g}:{i}" for d in DIAMETERS for i in range(n)], source="synthetic sizes")
 
 
+def midpoint_sizes(n: int = 4) -> TrainingSet:
+    """Compression curves of the same law at the midpoints of :func:`several_sizes`' loading intervals."""
+    parts = []
+    for k, d in enumerate(DIAMETERS):
+        r = radius_of_diameter(d)
+        x = np.linspace(0.0, 0.4 * r, 8)
+        parts.append(make_synthetic(n, "compression", radius_dpd=r, noise=0.0, seed=50 + k, x=0.5 * (x[:-1] + x[1:])))
+    return TrainingSet(setup="compression", params=np.concatenate([p.params for p in parts]),
+                       radius_dpd=np.concatenate([p.radius_dpd for p in parts]),
+                       x=np.concatenate([p.x for p in parts]), y=np.concatenate([p.y for p in parts]),
+                       curve_id=[f"mid{i}" for i in range(n * len(DIAMETERS))], source="midpoints")
+
+
 CFG = dict(widths=(16,), depths=(2,), min_curves=2, seed=0,
            train=TrainConfig(max_epochs=25, batch_size=128, lr=3e-3, threads=1))
 
@@ -213,15 +226,17 @@ def test_cli_trains_one_network_over_the_diameter(tmp_path):
     from bubblecal.surrogates.training import write_published
     from bubblecal.workflows.cli import app
 
-    csv = tmp_path / "sizes.csv"
+    csv, off = tmp_path / "sizes.csv", tmp_path / "midpoints.csv"
     write_published(several_sizes("compression", n=10), csv)
+    write_published(midpoint_sizes(), off)
     run = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--over-diameter",
                                    "--ldo-bands", "3.0-3.0", "--no-sweep", "--width", "8", "--depth", "1",
                                    "--max-epochs", "3", "--no-onnx", "--quiet", "--n-points", "8",
-                                   "--out", str(tmp_path / "out")])
+                                   "--offgrid", str(off), "--out", str(tmp_path / "out")])
     assert run.exit_code == 0, run.output
     sur = load(tmp_path / "out" / "compression_2-5um.npz")
     assert sur.over_diameter and sur.metadata["ldo_bands_um"] == [[3.0, 3.0]]
+    assert sur.metadata["offgrid_score"] > 0 and "off the grid" in run.output
     bad = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--diameter", "2",
                                    "--over-diameter", "--out", str(tmp_path / "o2")])
     assert bad.exit_code == 2 and "not both" in bad.output
@@ -230,16 +245,7 @@ def test_cli_trains_one_network_over_the_diameter(tmp_path):
 def test_off_grid_curves_take_part_in_the_selection(tmp_path):
     from bubblecal.surrogates.training import selection_score
 
-    ts = several_sizes("compression")
-    parts = []  # the same law at the midpoints of the training grid's intervals
-    for k, d in enumerate(DIAMETERS):
-        r = radius_of_diameter(d)
-        x = np.linspace(0.0, 0.4 * r, 8)
-        parts.append(make_synthetic(4, "compression", radius_dpd=r, noise=0.0, seed=50 + k, x=0.5 * (x[:-1] + x[1:])))
-    off = TrainingSet(setup="compression", params=np.concatenate([p.params for p in parts]),
-                      radius_dpd=np.concatenate([p.radius_dpd for p in parts]),
-                      x=np.concatenate([p.x for p in parts]), y=np.concatenate([p.y for p in parts]),
-                      curve_id=[f"mid{i}" for i in range(16)], source="midpoints")
+    ts, off = several_sizes("compression"), midpoint_sizes()
     cfg = SweepConfig(**{**CFG, "widths": (4, 16), "depths": (1,)}, inputs="diameter", ldo_bands=((3.0, 3.0),))
     res = run_sweep(ts, cfg, progress=False, offgrid=off)
     assert all(r["offgrid_n_scored"] == 16 and np.isfinite(r["offgrid_median"]) for r in res.rows)
