@@ -58,6 +58,8 @@ def main() -> None:
                     help="explicit tier: periodic box (2R+pad, 2R+pad, 2R+pad+5) [DPD length] (default: the tier's: 5)")
     ap.add_argument("--md-setting", action="append", default=[], metavar="KEY=VALUE",
                     help="an MD tier setting (e.g. fsi_friction_factor=0.1, a_vertex_water=40); repeatable")
+    ap.add_argument("--qs-setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="a quasi-static tier setting over the campaign's (e.g. gas_p0=0); repeatable")
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--out", type=Path, default=None, help="JSON file of every curve")
     args = ap.parse_args()
@@ -75,7 +77,8 @@ def main() -> None:
                            seeds=tuple(int(s) for s in design["seed"][points]),
                            subdivisions=args.subdivisions or cfg.subdivisions)
     out = {}
-    qs = get_tier("quasistatic", **{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"})
+    qs = get_tier("quasistatic", **{**{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"},
+                                    **parse_tier_settings(args.qs_setting)})
     md_settings = {"scale": args.scale, **parse_tier_settings(args.md_setting)}
     if args.box_pad is not None:
         from bubblecal.surrogates import radius_of_diameter
@@ -99,6 +102,7 @@ def main() -> None:
     line = {"study": "buckling_hold", "campaign": CAMPAIGN, "diameter_um": args.diameter, "points": points,
             "depth_fraction": args.depth, "tier": args.tier, "scale": args.scale, "box": md_settings.get("box"),
             "md_settings": {k: v for k, v in md_settings.items() if k not in ("scale", "box")},
+            "qs_settings": parse_tier_settings(args.qs_setting),
             "ratio_first_hold": ratio[:, 0].tolist(), "ratio_last_hold": ratio[:, -1].tolist(),
             "seconds": {k: v["seconds"] for k, v in out.items()}}
     if args.out:

@@ -273,7 +273,7 @@ def published_pair_table(
     rho_water_number : float, optional
         Water number density (enters gamma_fsi).
     rho_gas_number : float, optional
-        Gas number density (a choice, default 3; enters gamma_fsi,gas).
+        Gas number density (a choice, default 3; enters gamma_fsi,gas; 0: no gas, no vertex-gas friction).
     rho_gas_kg_m3 : float, optional
         Gas mass density (kg/m^3; sets the gas bead mass).
     m_vertex : float, optional
@@ -306,6 +306,8 @@ def published_pair_table(
     t.set(GAS, GAS, 0.0, 11.0, 0.5)
     t.set(VERTEX, WATER, a_vertex_water, ff * gamma_fsi(ETA_WATER_DPD, rho_water_number, n_s, 0.5, units), 0.5)
     eta_gas = viscosity_to_dpd(ETA_GAS_PA_S, units)
-    t.set(VERTEX, GAS, 0.0, ff * gamma_fsi(eta_gas, rho_gas_number, n_s, 0.5, units), 0.5)
+    # no gas particles (rho 0, a shell held by its back pressure alone): no vertex-gas pair to weight
+    g_gas = ff * gamma_fsi(eta_gas, rho_gas_number, n_s, 0.5, units) if rho_gas_number > 0 else 0.0
+    t.set(VERTEX, GAS, 0.0, g_gas, 0.5)
     t.mass[:] = [1.0, gas_mass(rho_gas_kg_m3, units), m_vertex, 1.0]
     return t

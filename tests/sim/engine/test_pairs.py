@@ -83,3 +83,11 @@ def test_fsi_friction_factor_scales_only_the_vertex_solvent_friction():
         0.1 * bubble_spec(1.5, 1).pairs.gamma[VERTEX, WATER])
     with pytest.raises(ValueError, match="fsi_friction_factor"):
         published_pair_table(5.0, fsi_friction_factor=0.0)
+
+
+def test_no_gas_means_no_vertex_gas_friction():
+    from bubblecal.sim.engine import GAS, VERTEX, published_pair_table
+
+    t = published_pair_table(5.0, "compression", rho_gas_number=0.0)
+    assert t.gamma[VERTEX, GAS] == 0.0 and t.gamma[GAS, VERTEX] == 0.0
+    assert t.gamma[VERTEX, WATER] == published_pair_table(5.0, "compression").gamma[VERTEX, WATER]
