@@ -255,6 +255,7 @@ def published_pair_table(
     rho_gas_kg_m3: float = RHO_GAS_KG_M3,
     m_vertex: float = 1.0,
     fsi_friction_factor: float = 1.0,
+    a_water: float = 100.0,
     units: UnitSystem = DEFAULT_UNITS,
 ) -> PairTable:
     """The published interaction set (docs/physics.md section 2).
@@ -282,6 +283,9 @@ def published_pair_table(
         Multiplies both vertex-solvent dissipative coefficients (gamma_fsi of water and gas); the thermostat's
         pairs keep fluctuation-dissipation, so an equilibrium observable does not depend on it, only how fast the
         shell reaches it.
+    a_water : float, optional
+        Water-water repulsion (DPD force; the published 100 gives a bulk pressure of about 94 at density 3, which
+        the back pressure balances: change both together).
     units : UnitSystem, optional
         Unit system.
 
@@ -302,7 +306,7 @@ def published_pair_table(
     if a_vertex_water is None:
         a_vertex_water = 400.0 if protocol == "compression" else 40.0
     t = PairTable()
-    t.set(WATER, WATER, 100.0, 3.5, 0.25)
+    t.set(WATER, WATER, float(a_water), 3.5, 0.25)
     t.set(GAS, GAS, 0.0, 11.0, 0.5)
     t.set(VERTEX, WATER, a_vertex_water, ff * gamma_fsi(ETA_WATER_DPD, rho_water_number, n_s, 0.5, units), 0.5)
     eta_gas = viscosity_to_dpd(ETA_GAS_PA_S, units)

@@ -198,7 +198,7 @@ def bubble_spec(diameter_um: float = 3.0, subdivisions: int | None = None, box=N
                 ka: float = 5584.0, kb: float = 389.23, p_back: float = P_BACK_DEFAULT, gas_density: float = 3.0,
                 protocol: str = "compression", rho_shell_kg_m3: float | None = None, mass_factor: float = 1.0,
                 a_vertex_water: float | None = None, kbt: float = 1.0, fsi_friction_factor: float = 1.0,
-                **shell_kwargs) -> ReplicaSpec:
+                a_water: float = 100.0, **shell_kwargs) -> ReplicaSpec:
     """A bubble at the published parameters (docs/physics.md sections 2-3) in explicit water and gas.
 
     Parameters
@@ -229,6 +229,8 @@ def bubble_spec(diameter_um: float = 3.0, subdivisions: int | None = None, box=N
         Thermal energy (k_BT units).
     fsi_friction_factor : float, optional
         Factor on the vertex-solvent dissipative coefficients (:func:`published_pair_table`).
+    a_water : float, optional
+        Water-water repulsion (DPD force; :func:`published_pair_table`).
     **shell_kwargs
         Further :class:`ShellParams` fields.
 
@@ -251,6 +253,6 @@ def bubble_spec(diameter_um: float = 3.0, subdivisions: int | None = None, box=N
     m_v = mesh.vertex_mass(rho_shell_kg_m3, mass_factor=mass_factor)
     tab = published_pair_table(mesh.n_vertices / mesh.area(), protocol, m_vertex=m_v,
                                rho_gas_number=gas_density, a_vertex_water=a_vertex_water,
-                               fsi_friction_factor=fsi_friction_factor)
+                               fsi_friction_factor=fsi_friction_factor, a_water=a_water)
     return ReplicaSpec(box=box, pairs=tab, kbt=kbt, seed=seed, water_density=3.0, gas_density=gas_density,
                        mesh=mesh, shell=ShellParams(ka=ka, kb=kb, p_back=p_back, **shell_kwargs))

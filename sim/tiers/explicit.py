@@ -39,6 +39,9 @@ rupture_strain, max_seconds, verbose, indentation_convention
     fsi_friction_factor : float
         Multiplies the vertex-solvent dissipative coefficients; like ``mass_factor`` it changes how fast the shell
         relaxes, not the equilibrium it relaxes to.
+    a_water : float
+        Water-water repulsion (DPD force; the published 100 sets the water's pressure, about 94, that ``p_back``
+        plus the gas balance).
     chunk : int
         Engine steps per CUDA graph.
     health_leaks : bool
@@ -57,6 +60,7 @@ rupture_strain, max_seconds, verbose, indentation_convention
     water_gap: float = 0.5
     mass_factor: float = 1.0
     fsi_friction_factor: float = 1.0
+    a_water: float = 100.0
     chunk: int = 20
     health_leaks: bool = True
     name: str = "explicit"
@@ -89,7 +93,8 @@ rupture_strain, max_seconds, verbose, indentation_convention
             sp = bubble_spec(request.diameter_um, mesh.subdivisions, box=self.box, seed=seed, ka=p.ka, kb=p.kb,
                              p_back=self.p_back, gas_density=self.gas_density, protocol=request.protocol,
                              mass_factor=self.mass_factor, a_vertex_water=self.a_vertex_water, kbt=self.kbt,
-                             fsi_friction_factor=self.fsi_friction_factor, mu=p.mu, b1=p.b1, b2=p.b2, a3=p.a3, a4=p.a4)
+                             fsi_friction_factor=self.fsi_friction_factor, a_water=self.a_water, mu=p.mu, b1=p.b1,
+                             b2=p.b2, a3=p.a3, a4=p.a4)
             sp.pin_com = True
             sp.water_gap = self.water_gap
             specs.append(sp)

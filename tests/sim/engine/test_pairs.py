@@ -91,3 +91,10 @@ def test_no_gas_means_no_vertex_gas_friction():
     t = published_pair_table(5.0, "compression", rho_gas_number=0.0)
     assert t.gamma[VERTEX, GAS] == 0.0 and t.gamma[GAS, VERTEX] == 0.0
     assert t.gamma[VERTEX, WATER] == published_pair_table(5.0, "compression").gamma[VERTEX, WATER]
+
+
+def test_water_repulsion_is_a_setting():
+    from bubblecal.sim.engine import bubble_spec, published_pair_table
+
+    assert published_pair_table(5.0).a[WATER, WATER] == 100.0
+    assert bubble_spec(1.5, 1, a_water=25.0).pairs.a[WATER, WATER] == 25.0
