@@ -77,8 +77,9 @@ def main() -> None:
                            seeds=tuple(int(s) for s in design["seed"][points]),
                            subdivisions=args.subdivisions or cfg.subdivisions)
     out = {}
+    qs_overrides = parse_tier_settings(args.qs_setting)
     qs = get_tier("quasistatic", **{**{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"},
-                                    **parse_tier_settings(args.qs_setting)})
+                                    **qs_overrides})
     md_settings = {"scale": args.scale, **parse_tier_settings(args.md_setting)}
     if args.box_pad is not None:
         from bubblecal.surrogates import radius_of_diameter
@@ -102,7 +103,7 @@ def main() -> None:
     line = {"study": "buckling_hold", "campaign": CAMPAIGN, "diameter_um": args.diameter, "points": points,
             "depth_fraction": args.depth, "tier": args.tier, "scale": args.scale, "box": md_settings.get("box"),
             "md_settings": {k: v for k, v in md_settings.items() if k not in ("scale", "box")},
-            "qs_settings": parse_tier_settings(args.qs_setting),
+            "qs_settings": qs_overrides,
             "ratio_first_hold": ratio[:, 0].tolist(), "ratio_last_hold": ratio[:, -1].tolist(),
             "seconds": {k: v["seconds"] for k, v in out.items()}}
     if args.out:

@@ -49,7 +49,7 @@ def simulate(campaign: str, diameters: list[float], n: int, start: int, device: 
 
     cfg = load_campaign_file(campaign).config
     design = design_points(cfg)
-    tier = get_tier("quasistatic", **{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"})
+    tier = get_tier("quasistatic", **cfg.tier_settings)  # the campaign's own settings, its pool size included
     levels = []
     for d in diameters:
         idx = np.nonzero(np.isclose(design["diameter_um"], d))[0][start:start + n]
@@ -87,7 +87,7 @@ def write_store(levels: list[dict], path: Path, campaign: str, setup: str) -> No
                 store.append(make_record(sample_id=f"{campaign}-{i:06d}-midpoints", setup=setup, params=params,
                                          radius_dpd=float(radius_of_diameter(lev["diameter_um"])),
                                          x=grid[1::2].tolist(), y=np.asarray(lev["y"][k])[1::2].tolist(),
-                                         status="ok", seed=int(lev.get("seeds", [0] * len(lev["points"]))[k]),
+                                         status="ok", seed=int(lev["seeds"][k]),
                                          tier="quasistatic", provenance={"study": "offgrid_loading"}))
         export_compressed(store, path)
 
@@ -109,9 +109,9 @@ def score(path: str, levels: list[dict], from_fraction: float) -> dict:
         keep = grid >= from_fraction * grid[-1]
         with np.errstate(divide="ignore", invalid="ignore"):  # the zero response at x = 0 is never scored
             rel = np.abs(y_hat - y) / np.abs(y)
-        even = (np.arange(len(grid)) % 2 == 0) & keep
-        on.append(rel[:, even].ravel())
-        mid.append(rel[:, ~(np.arange(len(grid)) % 2 == 0) & keep].ravel())
+        on_grid = np.arange(len(grid)) % 2 == 0
+        on.append(rel[:, on_grid & keep].ravel())
+        mid.append(rel[:, ~on_grid & keep].ravel())
     on, mid = np.concatenate(on), np.concatenate(mid)
     return {"surrogate": path, "grid_median": float(np.nanmedian(on)), "grid_p90": float(np.nanpercentile(on, 90)),
             "mid_median": float(np.nanmedian(mid)), "mid_p90": float(np.nanpercentile(mid, 90)),

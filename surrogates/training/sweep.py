@@ -240,4 +240,3 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
                        holdout_set=holdout_set, holdout_errors=errs_all[best], holdout_pred=preds[best],
                        config=config, data_hash=data_hash, wall_s=time.perf_counter() - t0, models=models,
                        ldo_set=ldo_set, ldo_errors=ldo_errs[best] if ldo_errs else None, offgrid_set=offgrid)
-
