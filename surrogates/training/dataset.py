@@ -72,6 +72,12 @@ def diameter_um_from_radius(radius_dpd: float) -> float:
     return float(radius_dpd) * UM_PER_RADIUS_DPD
 
 
+def _rows(values, n: int) -> np.ndarray:
+    """``values`` as n rows of floats; an empty selection of a 2-D array keeps its number of points."""
+    a = np.asarray(values, dtype=float)
+    return a if a.ndim == 2 and a.shape[0] == n else a.reshape(n, -1)
+
+
 @dataclass
 class TrainingSet:
     """Curves of one loading protocol and (normally) one diameter, in the surrogate's orientation.
@@ -120,8 +126,7 @@ class TrainingSet:
         self.params = np.asarray(self.params, dtype=float).reshape(-1, len(SHELL_PARAMETERS))
         n = self.params.shape[0]
         self.radius_dpd = np.asarray(self.radius_dpd, dtype=float).reshape(n)
-        self.x = np.asarray(self.x, dtype=float).reshape(n, -1)
-        self.y = np.asarray(self.y, dtype=float).reshape(n, -1)
+        self.x, self.y = _rows(self.x, n), _rows(self.y, n)
         if self.x.shape != self.y.shape:
             raise DatasetError(f"{self.source}: x and y shapes differ: {self.x.shape} vs {self.y.shape}")
         self.curve_id = np.asarray(self.curve_id).astype(str).reshape(n)

@@ -163,11 +163,13 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
     ------
     DatasetError
         For fewer than ``config.min_curves`` curves, untrainable data, no scorable held-out curve, or ``offgrid``
-        curves of another protocol.
+        curves of another protocol or none at all.
     """
     config = config or SweepConfig()
     if offgrid is not None and offgrid.setup != ts.setup:
         raise DatasetError(f"{offgrid.source}: off-grid curves are {offgrid.setup}, the training data {ts.setup}")
+    if offgrid is not None and offgrid.n_curves == 0:
+        raise DatasetError(f"{offgrid.source}: no off-grid curve to score (none kept by the filter)")
     several = config.inputs == "diameter"
     ts.check_trainable(min_curves=config.min_curves, several_sizes=several)
     t0 = time.perf_counter()

@@ -237,6 +237,15 @@ def test_cli_trains_one_network_over_the_diameter(tmp_path):
     sur = load(tmp_path / "out" / "compression_2-5um.npz")
     assert sur.over_diameter and sur.metadata["ldo_bands_um"] == [[3.0, 3.0]]
     assert sur.metadata["offgrid_score"] > 0 and "off the grid" in run.output
+    # an off-grid file the filter keeps nothing of (another protocol's table read as compression), or none at all
+    write_published(several_sizes("indentation", n=3), tmp_path / "ind.csv")
+    for bad_file, message in ((tmp_path / "ind.csv", "ind.csv: no off-grid curve to score"),
+                              (tmp_path / "missing.csv", "missing.csv")):
+        bad = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--over-diameter",
+                                       "--no-sweep", "--width", "8", "--depth", "1", "--max-epochs", "2",
+                                       "--no-onnx", "--quiet", "--n-points", "8", "--offgrid", str(bad_file),
+                                       "--out", str(tmp_path / "bad")])
+        assert bad.exit_code == 1 and message in bad.output, bad.output
     bad = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--diameter", "2",
                                    "--over-diameter", "--out", str(tmp_path / "o2")])
     assert bad.exit_code == 2 and "not both" in bad.output
@@ -259,3 +268,6 @@ def test_off_grid_curves_take_part_in_the_selection(tmp_path):
     assert selection_score({"holdout_median": 0.3}) == 0.3
     with pytest.raises(DatasetError, match="off-grid curves are indentation"):
         run_sweep(ts, cfg, progress=False, offgrid=several_sizes("indentation", n=2))
+    with pytest.raises(DatasetError, match="midpoints: no off-grid curve to score"):
+        run_sweep(ts, cfg, progress=False, offgrid=off.subset(np.zeros(off.n_curves, bool)))
+    assert off.subset(np.zeros(off.n_curves, bool)).x.shape == (0, 7)  # an empty selection keeps its points
