@@ -296,12 +296,15 @@ def published_pair_table(
     Raises
     ------
     ValueError
-        On an unknown protocol or a ``fsi_friction_factor`` that is not > 0.
+        On an unknown protocol, a ``fsi_friction_factor`` that is not > 0 or an ``a_water`` that is not finite
+        and >= 0.
     """
     if protocol not in ("compression", "indentation"):
         raise ValueError("protocol must be 'compression' or 'indentation'")
     if not fsi_friction_factor > 0:
         raise ValueError(f"fsi_friction_factor must be > 0, got {fsi_friction_factor!r}")
+    if not (math.isfinite(a_water) and a_water >= 0):
+        raise ValueError(f"a_water must be a finite repulsion >= 0 (DPD force), got {a_water!r}")
     ff = float(fsi_friction_factor)
     if a_vertex_water is None:
         a_vertex_water = 400.0 if protocol == "compression" else 40.0

@@ -98,3 +98,6 @@ def test_water_repulsion_is_a_setting():
 
     assert published_pair_table(5.0).a[WATER, WATER] == 100.0
     assert bubble_spec(1.5, 1, a_water=25.0).pairs.a[WATER, WATER] == 25.0
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="a_water must be a finite repulsion >= 0"):
+            published_pair_table(5.0, a_water=bad)
