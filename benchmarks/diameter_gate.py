@@ -87,10 +87,12 @@ def stored_reference(path: str, idx, n_points: int) -> dict:
 def run_level(config, diameter_um: float, n: int, device: str, scale: float, subdivisions: int | None,
               start: int = 0, reference: str = "explicit", ref_subdivisions: int | None = None,
               qs_store: str | None = None, qs_overrides: dict | None = None,
-              reference_curves: str | None = None, ref_overrides: dict | None = None) -> dict:
+              reference_curves: str | None = None, ref_overrides: dict | None = None,
+              qs_shift: dict | None = None) -> dict:
     """Quasi-static and reference-tier curves of design points ``start`` .. ``start + n - 1`` of one level.
 
-    The reference-tier result is stored under the key ``"explicit"`` whichever tier it is (the CSV names it).
+    The reference-tier result is stored under the key ``"explicit"`` whichever tier it is (the CSV names it);
+    ``qs_shift`` adds a constant to shell parameters of the quasi-static run only (e.g. ``{"kb": 300.0}``).
     """
     design = design_points(config)
     idx = np.nonzero(np.isclose(design["diameter_um"], diameter_um))[0][start:start + n]
@@ -102,6 +104,7 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
     request = CurveRequest(protocol=config.protocol, diameter_um=float(diameter_um), grid=grid,
                            params={k: np.asarray(design[k][idx]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][idx]), subdivisions=sub)
+    qs_request = replace(request, params={k: v + (qs_shift or {}).get(k, 0.0) for k, v in request.params.items()})
     qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"} | (qs_overrides or {})
     md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED} | (ref_overrides or {})
     out = {"indices": idx.tolist(), "grid": list(request.grid)}
@@ -109,7 +112,7 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
         out["quasistatic"] = stored_curves(qs_store, config, idx, tuple(grid))
     else:
         t0 = time.perf_counter()
-        batch = get_tier("quasistatic", **qs_settings).run(request, device)
+        batch = get_tier("quasistatic", **qs_settings).run(qs_request, device)
         out["quasistatic"] = {"y": np.asarray(batch.observable, dtype=float), "status": list(batch.status),
                               "seconds": time.perf_counter() - t0}
     if reference_curves:
@@ -169,6 +172,8 @@ def main() -> None:
     ap.add_argument("--qs-store", default=None, help="take the quasi-static curves from this finished store")
     ap.add_argument("--qs-setting", action="append", default=[], metavar="KEY=VALUE",
                     help="override a quasi-static tier setting of the campaign (repeatable)")
+    ap.add_argument("--qs-shift", action="append", default=[], metavar="KEY=VALUE",
+                    help="add VALUE to the shell parameter KEY of the quasi-static run only, e.g. kb=300 (repeatable)")
     ap.add_argument("--ref-setting", action="append", default=[], metavar="KEY=VALUE",
                     help="a setting of the reference tier, e.g. p_back=86.05 (repeatable)")
     ap.add_argument("--reference-curves", default=None, metavar="CSV",
@@ -177,6 +182,7 @@ def main() -> None:
     args = ap.parse_args()
     try:  # the campaigns' own KEY=VALUE parser (values read as TOML)
         qs_overrides, ref_overrides = parse_tier_settings(args.qs_setting), parse_tier_settings(args.ref_setting)
+        qs_shift = {k: float(v) for k, v in parse_tier_settings(args.qs_shift).items()}
     except ValueError as exc:
         raise SystemExit(str(exc)) from exc
     config = load_campaign_file(args.campaign).config
@@ -193,7 +199,7 @@ def main() -> None:
                                    args.subdivisions, start=first, reference=args.reference,
                                    ref_subdivisions=args.ref_subdivisions, qs_store=args.qs_store,
                                    qs_overrides=qs_overrides, reference_curves=args.reference_curves,
-                                   ref_overrides=ref_overrides))
+                                   ref_overrides=ref_overrides, qs_shift=qs_shift))
             res = merge(parts)
             write_curves(out / f"curves_{config.name}_{d:g}um{tag}.csv", res, config.protocol, args.reference)
             print(f"  {d:g} um: {len(res['indices'])} of {args.n} points done", flush=True)
@@ -209,7 +215,8 @@ def main() -> None:
         line = {"benchmark": "diameter_gate", "campaign": config.name, "device": args.device, "scale": args.scale,
                 "n": args.n, "start": args.start, "reference": args.reference,
                 "ref_subdivisions": args.ref_subdivisions, "qs_store": args.qs_store, "qs_settings": qs_overrides,
-                "ref_settings": ref_overrides, "reference_curves": args.reference_curves, "rows": rows}
+                "ref_settings": ref_overrides, "qs_shift": qs_shift, "reference_curves": args.reference_curves,
+                "rows": rows}
         (out / f"diameter_gate{tag}.json").write_text(json.dumps(line, indent=1))
     print(json.dumps(line))
 

@@ -43,16 +43,19 @@ class TracedSurrogate:
     diameter_um : float or array_like, optional
         The bound bubble diameter [um] of a network over the diameter: a traced leaf too, so bubbles of
         different sizes share one compiled likelihood.
+    log_inputs : tuple of str
+        Shell parameters the network takes as natural logarithms (metadata ``log_inputs``).
     """
 
     def __init__(self, weights, biases, in_mean, in_std, out_mean, out_std, setup: str, param_names: tuple,
-                 inputs: str = "raw", diameter_um=None):
+                 inputs: str = "raw", diameter_um=None, log_inputs: tuple = ()):
         self.weights, self.biases = tuple(weights), tuple(biases)
         self.in_mean, self.in_std, self.out_mean, self.out_std = in_mean, in_std, out_mean, out_std
         self.setup = setup
         self.param_names = tuple(param_names)
         self.inputs = inputs
         self.diameter_um = diameter_um
+        self.log_inputs = tuple(log_inputs)
 
     @classmethod
     def wrap(cls, surrogate):
@@ -73,11 +76,13 @@ class TracedSurrogate:
             return surrogate
         inputs = getattr(surrogate, "inputs", "raw")
         diameter = jnp.asarray(surrogate.diameter_um) if inputs == "diameter" else None
-        return cls(*(getattr(surrogate, f) for f in fields), inputs=inputs, diameter_um=diameter)
+        return cls(*(getattr(surrogate, f) for f in fields), inputs=inputs, diameter_um=diameter,
+                   log_inputs=tuple(getattr(surrogate, "log_inputs", ())))
 
     def __call__(self, params, x):
         """Surrogate output y[...] at ``params[..., 6]`` and ``x[...]`` (DPD units)."""
-        u = network_inputs(self.inputs, params, x, self.diameter_um, xp=jnp)  # as Surrogate.__call__
+        u = network_inputs(self.inputs, params, x, self.diameter_um, xp=jnp,  # as Surrogate.__call__
+                           log_inputs=self.log_inputs)
         y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std, u)
         y = y[..., 0]
         if self.inputs == "diameter":
@@ -85,16 +90,17 @@ class TracedSurrogate:
         return y
 
     def tree_flatten(self):
-        """Pytree children (the arrays, and the bound diameter) and auxiliary data (setup, names, input kind)."""
+        """Pytree children (the arrays, and the bound diameter) and auxiliary data (setup, names, input kind,
+        logged inputs)."""
         return (self.weights, self.biases, self.in_mean, self.in_std, self.out_mean, self.out_std,
-                self.diameter_um), (self.setup, self.param_names, self.inputs)
+                self.diameter_um), (self.setup, self.param_names, self.inputs, self.log_inputs)
 
     @classmethod
     def tree_unflatten(cls, aux, children):
         """Rebuild from :meth:`tree_flatten`'s output."""
         *arrays, diameter = children
-        setup, names, inputs = aux
-        return cls(*arrays, setup, names, inputs=inputs, diameter_um=diameter)
+        setup, names, inputs, log_inputs = aux
+        return cls(*arrays, setup, names, inputs=inputs, diameter_um=diameter, log_inputs=log_inputs)
 
 
 def pad_curve(x, y, length: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -48,8 +48,11 @@ from bubblecal.surrogates.bundle_validation import VALIDATION_FILE, load_validat
 from bubblecal.surrogates.bundle_write import write_bundle
 from bubblecal.surrogates.classical_resonance import classical_f0, diameter_exponent
 from bubblecal.surrogates.features import (
+    DEFAULT_LOG_INPUTS,
     INPUT_KINDS,
+    LOG_INPUT_CHOICES,
     RESPONSE_SCALES,
+    check_log_inputs,
     network_inputs,
     radius_of_diameter,
     response_scale,
@@ -73,6 +76,7 @@ from bubblecal.surrogates.surrogate_file import (
     FORMAT,
     FORMAT_VERSION,
     FORMAT_VERSION_DIAMETER,
+    FORMAT_VERSION_LOG_INPUTS,
     REQUIRED_METADATA,
     SurrogateFormatError,
     load,
@@ -97,10 +101,11 @@ from bubblecal.surrogates.synthetic_bundle import (
 __all__ = [
     # mechanical surrogates and their files
     "Surrogate", "load", "save_surrogate", "SurrogateFormatError", "OutOfDomainError", "SurrogateDomainWarning",
-    "FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "REQUIRED_METADATA", "DIAMETER_METADATA", "X_INFO",
-    "Y_INFO",
+    "FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "FORMAT_VERSION_LOG_INPUTS", "REQUIRED_METADATA",
+    "DIAMETER_METADATA", "X_INFO", "Y_INFO",
     # network inputs: per diameter or over the diameter
     "INPUT_KINDS", "RESPONSE_SCALES", "network_inputs", "response_scale", "x_per_size", "radius_of_diameter",
+    "LOG_INPUT_CHOICES", "DEFAULT_LOG_INPUTS", "check_log_inputs",
     # bundles
     "Bundle", "load_bundle", "write_bundle", "default_bundle_path", "NoDefaultBundleError", "BUNDLE_FORMAT",
     "BUNDLE_FORMAT_VERSION", "DIAMETER_ATOL_UM", "NETWORK_ROLES", "DEFAULT_NETWORK", "VALIDATION_FILE",

@@ -9,6 +9,10 @@ Two input kinds, recorded in a surrogate file's metadata as ``inputs`` (docs/dat
   order ka R), so that the network fits an order-one response at every size (docs/decisions.md, "One network
   over the sizes").
 
+Either kind may enter the moduli as natural logarithms (metadata ``log_inputs``, e.g. ``["ka", "kb"]``): the
+designs draw k_a and k_b over two to three decades, and standardised linear inputs squeeze the soft shells of lipid
+bubbles into a sliver of the input range (docs/decisions.md, "One network over the sizes").
+
 The loading coordinate ``x`` stays in DPD units. The domain of a diameter network is its shell-parameter box,
 its diameter range and the loading range per size: for compression the displacement as a fraction of the
 diameter ``x / (2 radius_dpd)`` (the designs scale the plate travel with the size), for indentation the force
@@ -21,11 +25,15 @@ import numpy as np
 
 from bubblecal.data import DEFAULT_UNITS, LOADING_PROTOCOLS, SHELL_PARAMETERS
 
-__all__ = ["INPUT_KINDS", "RESPONSE_SCALES", "UM_PER_RADIUS_DPD", "radius_of_diameter", "network_inputs",
-           "response_scale", "x_per_size"]
+__all__ = ["INPUT_KINDS", "LOG_INPUT_CHOICES", "DEFAULT_LOG_INPUTS", "RESPONSE_SCALES", "UM_PER_RADIUS_DPD",
+           "radius_of_diameter", "check_log_inputs", "network_inputs", "response_scale", "x_per_size"]
 
 #: Network input kinds (module docstring).
 INPUT_KINDS: tuple[str, ...] = ("raw", "diameter")
+#: Shell parameters a network may take as natural logarithms (positive in every box).
+LOG_INPUT_CHOICES: tuple[str, ...] = ("ka", "kb")
+#: Logged inputs of a new network, per input kind (the per-diameter networks keep the published linear inputs).
+DEFAULT_LOG_INPUTS: dict[str, tuple[str, ...]] = {"raw": (), "diameter": ("ka", "kb")}
 #: Name of the response scale of a diameter network, per loading protocol (metadata ``response_scale``).
 RESPONSE_SCALES: dict[str, str] = {"compression": "ka * radius_dpd", "indentation": "radius_dpd"}
 #: Bubble diameter [um] per DPD radius (2 x the DPD length in um).
@@ -55,8 +63,33 @@ def _check(kind: str, setup: str) -> None:
         raise ValueError(f"setup must be one of {LOADING_PROTOCOLS}, got {setup!r}")
 
 
-def network_inputs(kind: str, params, x, diameter_um=None, xp=np):
-    """Raw network inputs: the shell parameters and ``x`` (and the diameter), broadcast, in the last axis.
+def check_log_inputs(log_inputs) -> tuple[str, ...]:
+    """The logged inputs as a tuple in parameter order, checked.
+
+    Parameters
+    ----------
+    log_inputs : iterable of str
+        Names from :data:`LOG_INPUT_CHOICES`.
+
+    Returns
+    -------
+    tuple of str
+        The names, each once, in the order of :data:`LOG_INPUT_CHOICES`.
+
+    Raises
+    ------
+    ValueError
+        For a name outside :data:`LOG_INPUT_CHOICES`.
+    """
+    names = set(log_inputs)
+    bad = sorted(names - set(LOG_INPUT_CHOICES))
+    if bad:
+        raise ValueError(f"log_inputs may hold {list(LOG_INPUT_CHOICES)}, got {bad}")
+    return tuple(k for k in LOG_INPUT_CHOICES if k in names)
+
+
+def network_inputs(kind: str, params, x, diameter_um=None, xp=np, log_inputs=()):
+    """Network inputs: the shell parameters and ``x`` (and the diameter), broadcast, in the last axis.
 
     Parameters
     ----------
@@ -71,6 +104,8 @@ def network_inputs(kind: str, params, x, diameter_um=None, xp=np):
         Bubble diameter [um] (``kind='diameter'`` only); broadcasts like ``x``.
     xp : module
         ``numpy`` or ``jax.numpy``.
+    log_inputs : iterable of str
+        Shell parameters entered as their natural logarithm (:data:`LOG_INPUT_CHOICES`; default none).
 
     Returns
     -------
@@ -80,7 +115,8 @@ def network_inputs(kind: str, params, x, diameter_um=None, xp=np):
     Raises
     ------
     ValueError
-        For an unknown kind, a last axis of ``params`` that is not 6 long, or a missing diameter.
+        For an unknown kind, a last axis of ``params`` that is not 6 long, a missing diameter, or an unknown
+        name in ``log_inputs``.
     """
     if kind not in INPUT_KINDS:
         raise ValueError(f"inputs must be one of {INPUT_KINDS}, got {kind!r}")
@@ -97,6 +133,10 @@ def network_inputs(kind: str, params, x, diameter_um=None, xp=np):
     shape = params.shape[:-1]
     for c in cols:
         shape = np.broadcast_shapes(shape, c.shape)
+    logged = check_log_inputs(log_inputs)
+    if logged:  # before the broadcast: one log per parameter set, not per point
+        params = xp.concatenate([xp.log(params[..., i:i + 1]) if name in logged else params[..., i:i + 1]
+                                 for i, name in enumerate(SHELL_PARAMETERS)], axis=-1)
     p = xp.broadcast_to(params, shape + (params.shape[-1],))
     extra = [xp.broadcast_to(c, shape)[..., None].astype(p.dtype) for c in cols]
     return xp.concatenate([p, *extra], axis=-1)

@@ -77,6 +77,7 @@ class Surrogate:
         md = self.metadata
         self.setup: str = md["setup"]
         self.inputs: str = md.get("inputs", "raw")
+        self.log_inputs: tuple[str, ...] = tuple(md.get("log_inputs", ()))
         if self.inputs == "diameter":
             self.diameter_range_um = (float(md["diameter_range_um"][0]), float(md["diameter_range_um"][1]))
             self.loading_range_per_size = (float(md["loading_range_per_size"][0]),
@@ -175,7 +176,7 @@ class Surrogate:
             For a diameter given to a per-diameter surrogate, or none to an unbound network over the diameter.
         """
         d = self._diameter(diameter_um)
-        u = network_inputs(self.inputs, params, x, d, xp=jnp)
+        u = network_inputs(self.inputs, params, x, d, xp=jnp, log_inputs=self.log_inputs)
         y = mlp_forward(self.weights, self.biases, self.in_mean, self.in_std, self.out_mean,
                         self.out_std, u)[..., 0]
         if self.over_diameter:

@@ -37,6 +37,11 @@ it), ``diameter_range_um`` and ``loading_range_per_size`` ([lo, hi] of the displ
 compression, of the force for indentation) instead of ``diameter_um`` and ``radius_dpd``, and optionally
 ``ldo_score`` / ``ldo_bands_um`` (the leave-diameters-out median and its bands).
 
+Version 3 is a network (of either input kind) that takes some moduli as natural logarithms: its metadata holds a
+non-empty ``log_inputs`` (names from ``["ka", "kb"]``, in that order; their ``param_ranges`` start above 0), and
+``in_mean`` / ``in_std`` standardise the logged columns.  Code that reads only versions 1 and 2 refuses such a
+file instead of feeding it linear moduli.
+
 Inputs and outputs are DPD units: compression x = imposed displacement [DPD length], y = force [DPD force];
 indentation x = applied force [DPD force], y = displacement [DPD length].
 """
@@ -51,12 +56,12 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import LOADING_PROTOCOLS, SHELL_PARAMETERS, code_version
-from bubblecal.surrogates.features import INPUT_KINDS, RESPONSE_SCALES
+from bubblecal.surrogates.features import INPUT_KINDS, LOG_INPUT_CHOICES, RESPONSE_SCALES, check_log_inputs
 from bubblecal.surrogates.fileio import atomic_write_bytes, utc_now
 from bubblecal.surrogates.surrogate import Surrogate
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "REQUIRED_METADATA", "DIAMETER_METADATA",
-           "SurrogateFormatError", "save_surrogate", "load"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_VERSION_DIAMETER", "FORMAT_VERSION_LOG_INPUTS", "REQUIRED_METADATA",
+           "DIAMETER_METADATA", "SurrogateFormatError", "save_surrogate", "load"]
 
 #: ``format`` of a surrogate file.
 FORMAT = "bubblecal-mlp-surrogate"
@@ -64,6 +69,8 @@ FORMAT = "bubblecal-mlp-surrogate"
 FORMAT_VERSION = 1
 #: ``format_version`` of a network over the diameter (read and written).
 FORMAT_VERSION_DIAMETER = 2
+#: ``format_version`` of a network that takes logged moduli (metadata ``log_inputs``; read and written).
+FORMAT_VERSION_LOG_INPUTS = 3
 
 #: Metadata keys every surrogate file holds.
 REQUIRED_METADATA = (
@@ -84,6 +91,8 @@ def _required(md: Mapping) -> tuple[str, ...]:
 
 def _version(md: Mapping) -> int:
     """The format version of a file with this metadata."""
+    if md.get("log_inputs"):
+        return FORMAT_VERSION_LOG_INPUTS
     return FORMAT_VERSION_DIAMETER if md.get("inputs", "raw") == "diameter" else FORMAT_VERSION
 
 
@@ -193,6 +202,7 @@ def _check_arrays(path: Path, arrays: Mapping[str, np.ndarray], md: Mapping) -> 
     inputs = md.get("inputs", "raw")
     if inputs not in INPUT_KINDS:
         raise SurrogateFormatError(f"{path}: metadata field 'inputs' must be one of {INPUT_KINDS}, got {inputs!r}")
+    _check_log_inputs(path, md)
     if inputs == "diameter":
         if n_in != len(SHELL_PARAMETERS) + 2 or md["input_names"][-1] != "diameter_um":
             raise SurrogateFormatError(f"{path}: metadata field 'input_names' of a network over the diameter must "
@@ -214,6 +224,23 @@ def _check_arrays(path: Path, arrays: Mapping[str, np.ndarray], md: Mapping) -> 
                                    f"loading coordinate, got {md['input_names']}")
 
 
+def _check_log_inputs(path: Path, md: Mapping) -> None:
+    """Raise SurrogateFormatError unless ``log_inputs`` names positive-ranged moduli once each, in order."""
+    given = md.get("log_inputs", [])
+    try:
+        names = check_log_inputs(given)
+    except (TypeError, ValueError):
+        names = None
+    if isinstance(given, str) or names is None or list(names) != list(given):
+        raise SurrogateFormatError(f"{path}: metadata field 'log_inputs' must list names from "
+                                   f"{list(LOG_INPUT_CHOICES)} once each, in that order, got {given!r}")
+    for name in names:
+        lo = float(md["param_ranges"][name][0])
+        if not lo > 0:
+            raise SurrogateFormatError(f"{path}: metadata field 'param_ranges' of the logged input '{name}' must "
+                                       f"start above 0, got {md['param_ranges'][name]}")
+
+
 def _read_fields(path: Path, npz) -> tuple[dict, int]:
     """The arrays of an opened surrogate archive, its format and fields checked; returns (arrays, n_layers)."""
     with npz:
@@ -225,9 +252,10 @@ def _read_fields(path: Path, npz) -> tuple[dict, int]:
         if fmt != FORMAT:
             raise SurrogateFormatError(f"{path}: field 'format' is {fmt!r}, expected {FORMAT!r}")
         version = int(npz["format_version"])
-        if version not in (FORMAT_VERSION, FORMAT_VERSION_DIAMETER):
+        versions = (FORMAT_VERSION, FORMAT_VERSION_DIAMETER, FORMAT_VERSION_LOG_INPUTS)
+        if version not in versions:
             raise SurrogateFormatError(f"{path}: field 'format_version' is {version}, this code reads "
-                                       f"versions {FORMAT_VERSION} and {FORMAT_VERSION_DIAMETER}")
+                                       f"versions {', '.join(str(v) for v in versions)}")
         for key in ("n_layers", "in_mean", "in_std", "out_mean", "out_std", "metadata"):
             if key not in keys:
                 raise SurrogateFormatError(f"{path}: missing field '{key}'")
@@ -286,7 +314,8 @@ def load(path: str | Path) -> Surrogate:
         raise SurrogateFormatError(f"{path}: field 'metadata' lacks key(s) {', '.join(missing)}")
     if int(arrays["format_version"]) != _version(md):
         raise SurrogateFormatError(f"{path}: field 'format_version' {int(arrays['format_version'])} does not match "
-                                   f"metadata 'inputs' {md.get('inputs', 'raw')!r} (version {_version(md)})")
+                                   f"metadata 'inputs' {md.get('inputs', 'raw')!r} and 'log_inputs' "
+                                   f"{md.get('log_inputs', [])} (version {_version(md)})")
     _check_arrays(path, arrays, md)
     weights = [arrays[f"W_{i}"] for i in range(n_layers)]
     biases = [arrays[f"b_{i}"] for i in range(n_layers)]

@@ -15,34 +15,10 @@ from bubblecal._extras import require
 from bubblecal.data import AGENTS
 from bubblecal.surrogates.bundle import DIAMETER_ATOL_UM
 from bubblecal.workflows.choices import Agent, LawFormName, LoadingProtocol, choice_value
+from bubblecal.workflows.cli_train_options import diameter_bands, int_list, log_input_names
 
 app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, export, inspection.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
-
-
-def _ints(text: str, name: str) -> tuple[int, ...]:
-    """Comma-separated positive integers (typer.BadParameter naming the option otherwise)."""
-    try:
-        vals = tuple(int(v) for v in text.replace(" ", "").split(",") if v)
-    except ValueError as exc:
-        raise typer.BadParameter(f"{name} must be comma-separated integers, got {text!r}") from exc
-    if not vals or any(v < 1 for v in vals):
-        raise typer.BadParameter(f"{name} must be positive integers, got {text!r}")
-    return vals
-
-
-def _bands(text: str) -> tuple[tuple[float, float], ...]:
-    """'lo-hi,lo-hi' diameter bands [um] (typer.BadParameter naming --ldo-bands otherwise)."""
-    out = []
-    for part in (p for p in text.replace(" ", "").split(",") if p):
-        try:
-            lo, hi = (float(v) for v in part.split("-"))
-        except ValueError:
-            raise typer.BadParameter(f"--ldo-bands must be 'lo-hi,lo-hi' in um, got {part!r}") from None
-        if not (0 < lo <= hi):
-            raise typer.BadParameter(f"--ldo-bands: band {part!r} must have 0 < lo <= hi [um]")
-        out.append((lo, hi))
-    return tuple(out)
 
 
 def _fail(msg: str, code: int = 1):
@@ -65,6 +41,9 @@ def train(
                                             "its size scale) instead of one per diameter."),
     ldo_bands: str = typer.Option("", "--ldo-bands", help="With --over-diameter: diameter bands held out whole, "
                                   "e.g. '3.0-3.4,5.0-5.4' \\[um] (leave-diameters-out score)."),
+    log_inputs: str = typer.Option("auto", "--log-inputs", help="Shell parameters taken as natural logarithms: "
+                                   "'auto' (ka,kb over the diameter; none per diameter, as published), 'none', "
+                                   "or names, e.g. 'ka,kb'."),
     offgrid: Path = typer.Option(None, "--offgrid", help="Curves between the training grid's loading points (a store; "
                                  "'ok' curves): scored like the held-out ones; the selection takes the worst median."),
     out: Path = typer.Option(..., "--out", help="Output directory (surrogate .npz, reports, plot)."),
@@ -133,7 +112,8 @@ def train(
         raise typer.BadParameter("give --diameter D (one network per diameter) or --over-diameter, not both")
     if ldo_bands and not over_diameter:
         raise typer.BadParameter("--ldo-bands needs --over-diameter")
-    bands = _bands(ldo_bands)
+    bands = diameter_bands(ldo_bands)
+    logged = log_input_names(log_inputs)
     try:
         parts = []
         for dataset in datasets:
@@ -155,8 +135,9 @@ def train(
         except ValueError as exc:
             raise typer.BadParameter(str(exc).replace("TrainConfig.device", "--device")) from None
         inputs = {"inputs": "diameter", "ldo_bands": bands} if over_diameter else {}
+        inputs["log_inputs"] = logged
         if sweep:
-            cfg = SweepConfig(widths=_ints(widths, "--widths"), depths=_ints(depths, "--depths"),
+            cfg = SweepConfig(widths=int_list(widths, "--widths"), depths=int_list(depths, "--depths"),
                               holdout_frac=holdout_frac, seed=seed, jobs=jobs, train=train_cfg,
                               min_curves=MIN_SWEEP_CURVES, **inputs)
         else:
@@ -176,9 +157,11 @@ def train(
     # parity: the exported JAX function against torch on the held-out points (in the network's own target)
     torch = require("torch", "train")
 
-    u, _, _, scale = result.holdout_set.network_points(result.inputs)
+    u, _, _, scale = result.holdout_set.network_points(result.inputs)  # raw: the surrogate's own call logs
+    u_net = result.holdout_set.network_points(result.inputs, result.config.log_inputs)[0]
     with torch.no_grad():
-        y_torch = result.best_model.torch_module(torch.float64)(torch.as_tensor(u, dtype=torch.float64)).numpy()[:, 0]
+        mod = result.best_model.torch_module(torch.float64)
+        y_torch = mod(torch.as_tensor(u_net, dtype=torch.float64)).numpy()[:, 0]
     y_jax = np.asarray(sur(u[:, :6], u[:, 6], *([u[:, 7]] if over_diameter else []))) / scale
     checks = {"jax_vs_torch_max_rel_diff": scaled_max_rel_diff(y_jax, y_torch)}
     if onnx:

@@ -7,13 +7,15 @@ minibatches of 4,096 points, standardised inputs and output) on three parameteri
 
 * ``raw``: log ka, log kb, b1, b2, a3, a4, D [um], x  ->  y;
 * ``scaled_y``: the same inputs  ->  y~ (below), y = y~ times its scale;
+* ``linear``: ka, kb, b1, b2, a3, a4, D, x  ->  y~ (ka and kb not logged);
 * ``groups``: the groups of the athermal shell (R = radius_dpd; energies over ka R^2):
   log(kb / (ka R^2)), log(p0 R / ka), b1, b2, a3, a4, x~  ->  y~, with (x~, y~) = (F / (ka R), d / R) for
   indentation and (d / R, F / (ka R)) for compression, and y = y~ times its scale.
 
 Holdouts: whole diameter bands never trained on (``--bands``, levels inside them) and 10 % of the other curves
 (grouped by curve).  Prints the median [p90] relative L2 per held-out curve, in the physical response, and a
-JSON line.  The quasi-static gas pressure p0 = 3 (``IdealGas``) enters the scaled set as a group.
+JSON line; ``--corner LO-HI`` adds the held-out curves with LO < ka < HI (where lipid shells' posteriors lie) as
+a third group.  The quasi-static gas pressure p0 = 3 (``IdealGas``) enters the scaled set as a group.
 """
 
 from __future__ import annotations
@@ -54,8 +56,9 @@ def features(d: dict, kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xt, scale = x / (ka * R), np.broadcast_to(R, x.shape)
     else:
         xt, scale = x / R, np.broadcast_to(ka * R, x.shape)
-    if kind in ("raw", "scaled_y"):
-        cols = np.hstack([np.log(p[:, :2]), p[:, 2:], d["diameter"][:, None]])
+    if kind in ("raw", "scaled_y", "linear"):
+        moduli = p[:, :2] if kind == "linear" else np.log(p[:, :2])
+        cols = np.hstack([moduli, p[:, 2:], d["diameter"][:, None]])
         inputs = np.hstack([rep(cols), x.reshape(-1, 1)])
         if kind == "raw":
             return inputs, y.reshape(-1), np.ones(n * m)
@@ -101,6 +104,8 @@ def main() -> None:
     ap.add_argument("store")
     ap.add_argument("--epochs", type=int, default=400)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--kinds", default="raw,scaled_y,groups", help="comma-separated parameterisations")
+    ap.add_argument("--corner", default=None, metavar="LO-HI", help="also score held-out curves with LO < ka < HI")
     ap.add_argument("--bands", default="2.5-2.9,4.5-4.9,6.5-6.9", help="held-out diameter bands [um]")
     args = ap.parse_args()
     import torch
@@ -120,7 +125,11 @@ def main() -> None:
     print(f"{d['setup']}: {n} ok curves, levels {np.unique(d['diameter']).size}, {int(in_band.sum())} in the held-out "
           f"bands {args.bands}, {int(held_set.sum())} held-out parameter sets")
     print(f"{'inputs':8s} {'unseen diameters':>22s} {'unseen parameter sets':>24s} {'train s':>8s}")
-    for kind in ("raw", "scaled_y", "groups"):
+    groups = [("unseen_diameters", in_band), ("unseen_parameter_sets", held_set)]
+    if args.corner:
+        lo, hi = (float(v) for v in args.corner.split("-"))
+        groups.append(("corner", (in_band | held_set) & (d["params"][:, 0] > lo) & (d["params"][:, 0] < hi)))
+    for kind in args.kinds.split(","):
         X, T, scale = features(d, kind)
         t0 = time.perf_counter()
         predict = train(X[point(train_curves)], T[point(train_curves)], args.epochs, args.seed)
@@ -128,13 +137,14 @@ def main() -> None:
         y_hat = (predict(X) * scale).reshape(n, m)
         rel = np.linalg.norm(y_hat - d["y"], axis=1) / np.linalg.norm(d["y"], axis=1)
         row = {"inputs": kind, "train_seconds": seconds}
-        for name, mask in (("unseen_diameters", in_band), ("unseen_parameter_sets", held_set)):
+        for name, mask in groups:
             row[name] = {"median": float(np.median(rel[mask])), "p90": float(np.quantile(rel[mask], 0.9)),
                          "n": int(mask.sum())}
         rows.append(row)
         fmt = lambda r: f"{100 * r['median']:.2f} [{100 * r['p90']:.2f}] %"  # noqa: E731
+        extra = f" corner {fmt(row['corner'])} (n {row['corner']['n']})" if args.corner else ""
         print(f"{kind:8s} {fmt(row['unseen_diameters']):>22s} {fmt(row['unseen_parameter_sets']):>24s} "
-              f"{seconds:8.0f}", flush=True)
+              f"{seconds:8.0f}{extra}", flush=True)
     print(json.dumps({"benchmark": "diameter_inputs", "store": args.store, "setup": d["setup"], "epochs": args.epochs,
                       "bands": args.bands, "rows": rows}))
 

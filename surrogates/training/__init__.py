@@ -40,6 +40,7 @@ from bubblecal.surrogates.training.holdout import (
     curve_errors,
     diameter_bands,
     error_summary,
+    fast_choice,
     grouped_holdout,
     selection_score,
 )
@@ -75,7 +76,8 @@ __all__ = [
     "make_synthetic", "truth", "compression_force", "indentation_displacement", "noise_floor", "relative_l2",
     "DEFAULT_RANGES", "DEFAULT_X",
     # grouped holdout, ONNX parity
-    "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score", "MIN_SCORED_POINTS",
+    "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score", "fast_choice",
+    "MIN_SCORED_POINTS",
     "onnx_predict", "onnx_parity", "scaled_max_rel_diff",
     # torch side (lazy)
     *_LAZY,

@@ -49,6 +49,8 @@ def checkpoint_key(data_hash: str, hidden: Sequence[int], config: SweepConfig) -
            "holdout_frac": float(config.holdout_frac), "recipe": recipe}
     if config.inputs != "raw":  # per-diameter keys stay as they were, so their saved sweeps are reused
         key.update(inputs=config.inputs, ldo_bands=[list(b) for b in config.ldo_bands])
+    if config.log_inputs:
+        key["log_inputs"] = list(config.log_inputs)
     return key
 
 

@@ -217,7 +217,7 @@ class TrainingSet:
         """Bubble diameter of each curve [um] (from its radius, default unit system)."""
         return self.radius_dpd * UM_PER_RADIUS_DPD
 
-    def network_points(self, inputs: str = "raw"):
+    def network_points(self, inputs: str = "raw", log_inputs: tuple[str, ...] = ()):
         """Pointwise network inputs and targets of the finite points (:mod:`bubblecal.surrogates.features`).
 
         Parameters
@@ -225,6 +225,8 @@ class TrainingSet:
         inputs : {'raw', 'diameter'}
             Input kind: ``raw`` gives :meth:`points` (target = response); ``diameter`` appends each curve's
             diameter [um] to the inputs and divides the response by its size scale.
+        log_inputs : tuple of str
+            Shell parameters entered as natural logarithms (:data:`~bubblecal.surrogates.LOG_INPUT_CHOICES`).
 
         Returns
         -------
@@ -246,7 +248,7 @@ class TrainingSet:
         mask = self.point_mask().reshape(-1)
         d = np.repeat(self.diameters_um, m)
         p = np.repeat(self.params, m, axis=0)
-        u = network_inputs(inputs, p, self.x.reshape(-1), d if inputs == "diameter" else None)
+        u = network_inputs(inputs, p, self.x.reshape(-1), d if inputs == "diameter" else None, log_inputs=log_inputs)
         scale = np.broadcast_to(response_scale(inputs, self.setup, p, d), (n * m,))
         return u[mask], self.y.reshape(-1)[mask] / scale[mask], np.repeat(np.arange(n), m)[mask], scale[mask]
 

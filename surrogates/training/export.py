@@ -27,7 +27,7 @@ HOLDOUT_METRIC = "median over held-out curves of ||y_hat - y||_2 / ||y||_2"
 
 def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score: float, data_hash: str,
                        extra_training: dict | None = None, nominal_diameter_um: float | None = None,
-                       filter_report=None, inputs: str = "raw") -> dict:
+                       filter_report=None, inputs: str = "raw", log_inputs: tuple[str, ...] = ()) -> dict:
     """Metadata of a surrogate file (keys: :mod:`bubblecal.surrogates.surrogate_file`).
 
     ``diameter_um`` is the data's (2 x 0.25 um x median radius_dpd, e.g. 3.19 for the "3.2 um" SonoVue set);
@@ -55,6 +55,8 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
     inputs : {'raw', 'diameter'}
         The network's input kind; ``diameter`` writes the keys of a network over the diameter (diameter range,
         loading range per size, response scale) instead of ``diameter_um`` / ``radius_dpd``.
+    log_inputs : tuple of str
+        Shell parameters the network takes as natural logarithms (written as ``log_inputs`` when not empty).
 
     Returns
     -------
@@ -91,6 +93,8 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
     }
     if filter_report is not None:
         md["filter"] = filter_report.as_dict() if hasattr(filter_report, "as_dict") else dict(filter_report)
+    if log_inputs:
+        md["log_inputs"] = list(log_inputs)
     if inputs == "diameter":
         d = train_set.diameters_um
         valid = train_set.point_mask()
@@ -106,12 +110,13 @@ def surrogate_metadata(model: TrainedMLP, train_set: TrainingSet, holdout_score:
 
 def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, holdout_score: float,
                data_hash: str, extra_training: dict | None = None, nominal_diameter_um: float | None = None,
-               filter_report=None, inputs: str = "raw", extra_metadata: dict | None = None) -> Path:
+               filter_report=None, inputs: str = "raw", extra_metadata: dict | None = None,
+               log_inputs: tuple[str, ...] = ()) -> Path:
     """Write ``model`` as a surrogate ``.npz`` (training box = ``train_set``'s ranges).
 
     Parameters
     ----------
-    model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um, filter_report, inputs
+    model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um, filter_report, inputs, log_inputs
         As :func:`surrogate_metadata`.
     extra_metadata : dict, optional
         Further top-level metadata keys (e.g. ``ldo_score``).
@@ -129,7 +134,7 @@ def export_npz(model: TrainedMLP, path: str | Path, train_set: TrainingSet, hold
         When the arrays or metadata are inconsistent (e.g. a zero standard deviation).
     """
     md = surrogate_metadata(model, train_set, holdout_score, data_hash, extra_training, nominal_diameter_um,
-                            filter_report, inputs)
+                            filter_report, inputs, log_inputs)
     md.update(extra_metadata or {})
     return save_surrogate(path, model.weights, model.biases, model.in_mean, model.in_std, model.out_mean,
                           model.out_std, md)
@@ -160,8 +165,8 @@ def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = N
              "n_points_holdout": result.holdout_set.n_valid_points,
              "holdout": {k: b[k] for k in ("holdout_median", "holdout_p90", "holdout_n_scored", "holdout_n_skipped",
                                            "holdout_n_prefix", "holdout_median_prefix") if k in b},
-             "sweep": [{k: r[k] for k in ("width", "depth", "holdout_median", "ldo_median", "offgrid_median") if k in r}
-                       for r in result.rows]}
+             "sweep": [{k: r[k] for k in ("width", "depth", "n_params", "holdout_median", "holdout_p90", "ldo_median",
+                                         "offgrid_median") if k in r} for r in result.rows]}
     top = {}
     if result.ldo_set is not None:
         extra["ldo"] = {k: b[k] for k in ("ldo_median", "ldo_p90", "ldo_max", "ldo_n_scored") if k in b}
@@ -173,7 +178,8 @@ def export_sweep(result, path: str | Path, nominal_diameter_um: float | None = N
         extra["offgrid"]["source"] = result.offgrid_set.source
         top["offgrid_score"] = float(b["offgrid_median"])
     return export_npz(result.best_model, path, result.train_set, result.score, result.data_hash, extra,
-                      nominal_diameter_um, filter_report, inputs=result.inputs, extra_metadata=top)
+                      nominal_diameter_um, filter_report, inputs=result.inputs, extra_metadata=top,
+                      log_inputs=result.config.log_inputs)
 
 
 def export_onnx(model: TrainedMLP, path: str | Path) -> Path:
@@ -189,8 +195,10 @@ def export_onnx(model: TrainedMLP, path: str | Path) -> Path:
     Returns
     -------
     Path
-        ``path``: input ``u`` float32 (n, 7) = (ka, kb, b1, b2, a3, a4, x) [DPD units]; output ``y`` float32
-        (n, 1) [DPD force or DPD length].
+        ``path``: input ``u`` float32 (n, 7 or 8) = the network inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um])
+        [DPD units; um], with the columns of the metadata's ``log_inputs`` as natural logarithms; output ``y``
+        float32 (n, 1) = the network's target (the response, or over its size scale for a network over the
+        diameter).
     """
     torch = require("torch", "train")
     require("onnx", "train")  # the exporter's own import, checked before anything is written

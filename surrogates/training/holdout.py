@@ -19,7 +19,8 @@ from bubblecal.surrogates.training.dataset import DatasetError, TrainingSet
 if TYPE_CHECKING:
     from bubblecal.surrogates.training.train import TrainedMLP
 
-__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score"]
+__all__ = ["MIN_SCORED_POINTS", "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score",
+           "fast_choice", "FAST_MEDIAN_FACTOR", "FAST_P90_FACTOR"]
 
 #: A held-out curve needs this many finite points to be scored.
 MIN_SCORED_POINTS = 2
@@ -87,7 +88,8 @@ def diameter_bands(diameters_um, bands) -> np.ndarray:
     return mask
 
 
-def curve_errors(model: TrainedMLP, ts: TrainingSet, inputs: str = "raw") -> tuple[np.ndarray, np.ndarray]:
+def curve_errors(model: TrainedMLP, ts: TrainingSet, inputs: str = "raw",
+                 log_inputs: tuple[str, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Per-curve relative L2 errors and predictions of ``model`` on the curves of ``ts``.
 
     Each curve is scored on its finite points (``ts.point_mask()``): ||y_hat - y||_2 / ||y||_2, in the response
@@ -101,6 +103,8 @@ def curve_errors(model: TrainedMLP, ts: TrainingSet, inputs: str = "raw") -> tup
         The curves to score (DPD units).
     inputs : {'raw', 'diameter'}
         The network's input kind (:mod:`bubblecal.surrogates.features`).
+    log_inputs : tuple of str
+        Shell parameters the network takes as natural logarithms.
 
     Returns
     -------
@@ -114,7 +118,7 @@ def curve_errors(model: TrainedMLP, ts: TrainingSet, inputs: str = "raw") -> tup
     xfin = np.isfinite(ts.x)
     p = np.repeat(ts.params, m, axis=0)
     d = np.repeat(ts.diameters_um, m) if inputs == "diameter" else None
-    u = network_inputs(inputs, p, np.where(xfin, ts.x, 0.0).reshape(-1), d)
+    u = network_inputs(inputs, p, np.where(xfin, ts.x, 0.0).reshape(-1), d, log_inputs=log_inputs)
     scale = np.broadcast_to(response_scale(inputs, ts.setup, p, d), (n * m,))
     y_hat = np.where(xfin, (model.predict(u) * scale).reshape(n, m), np.nan)
     valid = ts.point_mask()
@@ -177,3 +181,37 @@ def selection_score(row: dict) -> float:
         Relative L2 (a fraction).
     """
     return max(row["holdout_median"], row.get("ldo_median", 0.0), row.get("offgrid_median", 0.0))
+
+
+#: A fast network's worst median may be at most this many times the selection's (:func:`fast_choice`).
+FAST_MEDIAN_FACTOR = 1.5
+#: A fast network's held-out p90 may be at most this many times the selection's (:func:`fast_choice`).
+FAST_P90_FACTOR = 2.0
+
+
+def fast_choice(rows: list[dict], best: int) -> int | None:
+    """The fast twin of a sweep's selection: its smallest architecture that stays close to the selection.
+
+    Close means a :func:`selection_score` within :data:`FAST_MEDIAN_FACTOR` times the selection's and a held-out
+    p90 within :data:`FAST_P90_FACTOR` times the selection's (a small network whose median is close but whose tail
+    is not would fit some curves much worse; docs/decisions.md, "Fast networks over the diameter").
+
+    Parameters
+    ----------
+    rows : list of dict
+        :attr:`SweepResult.rows` (``n_params``, ``holdout_median``, ``holdout_p90`` and the other medians).
+    best : int
+        Index of the selected row.
+
+    Returns
+    -------
+    int or None
+        Index of the fast row (fewest parameters, ties to the lower score); None when no architecture smaller
+        than the selection qualifies.
+    """
+    sel = rows[best]
+    limit_median = FAST_MEDIAN_FACTOR * selection_score(sel)
+    limit_p90 = FAST_P90_FACTOR * sel["holdout_p90"]
+    ok = [i for i, r in enumerate(rows) if r["n_params"] < sel["n_params"] and selection_score(r) <= limit_median
+          and r["holdout_p90"] <= limit_p90]
+    return min(ok, key=lambda i: (rows[i]["n_params"], selection_score(rows[i]))) if ok else None

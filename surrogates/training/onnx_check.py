@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal._extras import require
-from bubblecal.surrogates.features import response_scale
+from bubblecal.surrogates.features import network_inputs, response_scale
 
 __all__ = ["onnx_predict", "scaled_max_rel_diff", "onnx_parity"]
 
@@ -43,7 +43,8 @@ def onnx_predict(onnx_path: str | Path, u) -> np.ndarray:
     onnx_path : str or Path
         Model from :func:`bubblecal.surrogates.training.export_onnx`.
     u : array_like, shape (n, 7) or (n, 8)
-        Raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]) [DPD units; um].
+        Raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]) [DPD units; um]; the graph gets them with the
+        surrogate's ``log_inputs`` columns logged, as it was exported.
 
     Returns
     -------
@@ -68,7 +69,8 @@ def onnx_parity(onnx_path: str | Path, surrogate, u) -> dict:
     surrogate : Surrogate
         The same model loaded from its ``.npz``.
     u : array_like, shape (n, 7) or (n, 8)
-        Raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]) [DPD units; um].
+        Raw inputs (ka, kb, b1, b2, a3, a4, x[, diameter_um]) [DPD units; um]; the graph gets them with the
+        surrogate's ``log_inputs`` columns logged, as it was exported.
 
     Returns
     -------
@@ -78,7 +80,10 @@ def onnx_parity(onnx_path: str | Path, surrogate, u) -> dict:
         the bare network).
     """
     u = np.asarray(u, dtype=float)
-    y_onnx = onnx_predict(onnx_path, u)
+    logged = getattr(surrogate, "log_inputs", ())
+    u_net = network_inputs("diameter" if u.shape[1] == 8 else "raw", u[:, :6], u[:, 6],
+                           u[:, 7] if u.shape[1] == 8 else None, log_inputs=logged)
+    y_onnx = onnx_predict(onnx_path, u_net)
     if getattr(surrogate, "over_diameter", False):
         d = u[:, 7]
         scale = response_scale("diameter", surrogate.setup, u[:, :6], d)

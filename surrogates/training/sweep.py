@@ -32,7 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from bubblecal.surrogates.features import INPUT_KINDS
+from bubblecal.surrogates.features import DEFAULT_LOG_INPUTS, INPUT_KINDS, check_log_inputs
 from bubblecal.surrogates.training.checkpoints import (
     checkpoint_key,
     checkpoint_path,
@@ -81,11 +81,16 @@ class SweepConfig:
     ldo_bands : tuple of (float, float)
         Diameter bands [um] held out whole (leave-diameters-out; ``inputs='diameter'`` only): their curves never
         enter training and score every architecture beside the grouped holdout.
+    log_inputs : tuple of str or None
+        Shell parameters entered as natural logarithms (:data:`~bubblecal.surrogates.LOG_INPUT_CHOICES`); None
+        (default): :data:`~bubblecal.surrogates.DEFAULT_LOG_INPUTS` of ``inputs`` (k_a and k_b over the diameter,
+        none per diameter, as the published networks).
 
     Raises
     ------
     ValueError
-        For an unknown ``inputs``, bands without ``inputs='diameter'``, or a band with lo > hi.
+        For an unknown ``inputs``, bands without ``inputs='diameter'``, a band with lo > hi, or an unknown name
+        in ``log_inputs``.
     """
 
     widths: tuple[int, ...] = (32, 64, 128, 256)
@@ -97,10 +102,16 @@ class SweepConfig:
     train: TrainConfig = field(default_factory=TrainConfig)
     inputs: str = "raw"
     ldo_bands: tuple[tuple[float, float], ...] = ()
+    log_inputs: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.inputs not in INPUT_KINDS:
             raise ValueError(f"SweepConfig.inputs must be one of {INPUT_KINDS}, got {self.inputs!r}")
+        logged = DEFAULT_LOG_INPUTS[self.inputs] if self.log_inputs is None else self.log_inputs
+        try:
+            object.__setattr__(self, "log_inputs", check_log_inputs(logged))
+        except ValueError as exc:
+            raise ValueError(f"SweepConfig.{exc}") from None
         bands = tuple((float(lo), float(hi)) for lo, hi in self.ldo_bands)
         if bands and self.inputs != "diameter":
             raise ValueError("SweepConfig.ldo_bands needs inputs='diameter' (a network over the sizes)")
@@ -186,7 +197,7 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
         train_set.check_trainable(min_curves=1, several_sizes=several)
     except DatasetError as exc:
         raise DatasetError(f"{exc} (in the training part of the grouped split)") from exc
-    u, y, _, _ = train_set.network_points(config.inputs)
+    u, y, _, _ = train_set.network_points(config.inputs, config.log_inputs)
     archs = config.architectures()
     data_hash = ts.data_hash()
     models: list[TrainedMLP | None] = [None] * len(archs)
@@ -221,7 +232,7 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
     prefix_mask = _truncated(holdout_set)
     ldo_errs = []
     for h, m in zip(archs, models, strict=True):
-        err, pred = curve_errors(m, holdout_set, config.inputs)
+        err, pred = curve_errors(m, holdout_set, config.inputs, config.log_inputs)
         preds.append(pred)
         errs_all.append(err)
         row = {"hidden": list(h), "width": h[0], "depth": len(h), "n_params": _n_params(m.layer_sizes),
@@ -229,11 +240,11 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
                "best_val_loss": m.best_val_loss, "epochs": m.epochs, "stop_reason": m.stop_reason,
                "wall_s": m.wall_s, "device": m.config.device}
         if ldo_set is not None:
-            ldo_err, _ = curve_errors(m, ldo_set, config.inputs)
+            ldo_err, _ = curve_errors(m, ldo_set, config.inputs, config.log_inputs)
             ldo_errs.append(ldo_err)
             row.update({"ldo_" + k.removeprefix("holdout_"): v for k, v in error_summary(ldo_err).items()})
         if offgrid is not None:
-            og_err, _ = curve_errors(m, offgrid, config.inputs)
+            og_err, _ = curve_errors(m, offgrid, config.inputs, config.log_inputs)
             row.update({"offgrid_" + k.removeprefix("holdout_"): v for k, v in error_summary(og_err).items()})
         rows.append(row)
     # the worst holdout decides: a network must generalise across parameter sets, sizes and loading points

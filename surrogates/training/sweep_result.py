@@ -17,7 +17,7 @@ import numpy as np
 from bubblecal.surrogates.axes import X_INFO, Y_INFO
 from bubblecal.surrogates.features import network_inputs, response_scale
 from bubblecal.surrogates.training.dataset import TrainingSet
-from bubblecal.surrogates.training.holdout import MIN_SCORED_POINTS
+from bubblecal.surrogates.training.holdout import FAST_MEDIAN_FACTOR, FAST_P90_FACTOR, MIN_SCORED_POINTS, fast_choice
 from bubblecal.surrogates.training.train import TrainedMLP
 
 if TYPE_CHECKING:
@@ -93,6 +93,11 @@ class SweepResult:
         return self.rows[self.best_index]
 
     @property
+    def fast_index(self) -> int | None:
+        """Index of the fast twin of the selection (:func:`~bubblecal.surrogates.training.fast_choice`), or None."""
+        return fast_choice(self.rows, self.best_index)
+
+    @property
     def score(self) -> float:
         """Held-out median relative L2 error of the selected model."""
         return float(self.best["holdout_median"])
@@ -121,13 +126,14 @@ class SweepResult:
         """
         p = np.repeat(ts.params[i:i + 1], x.size, axis=0)
         d = np.full(x.size, ts.diameters_um[i]) if self.inputs == "diameter" else None
-        u = network_inputs(self.inputs, p, x, d)
+        u = network_inputs(self.inputs, p, x, d, log_inputs=self.config.log_inputs)
         return self.best_model.predict(u) * response_scale(self.inputs, ts.setup, p, d)
 
     def as_dict(self) -> dict:
         """Everything as plain JSON (``sweep_report.json``)."""
         return {
-            "selected": self.best, "rows": self.rows, "config": self.config.as_dict(),
+            "selected": self.best, "fast": None if self.fast_index is None else self.rows[self.fast_index],
+            "rows": self.rows, "config": self.config.as_dict(),
             "data_hash": self.data_hash, "setup": self.train_set.setup,
             "diameter_um": self.train_set.diameter_um, "source": self.train_set.source,
             "n_curves_train": self.train_set.n_curves, "n_curves_holdout": self.holdout_set.n_curves,
@@ -136,7 +142,7 @@ class SweepResult:
             "truncation_holdout": self.holdout_set.truncation_summary(),
             "holdout_curve_ids": self.holdout_set.curve_id.tolist(),
             "holdout_errors_selected": _nan_to_none(self.holdout_errors), "wall_s": self.wall_s,
-            "inputs": self.inputs,
+            "inputs": self.inputs, "log_inputs": list(self.config.log_inputs),
             **({} if self.ldo_set is None else {
                 "n_curves_ldo": self.ldo_set.n_curves, "ldo_bands_um": [list(b) for b in self.config.ldo_bands],
                 "ldo_errors_selected": _nan_to_none(self.ldo_errors)}),
@@ -169,6 +175,8 @@ class SweepResult:
             f"{sum(r['wall_s'] for r in self.rows):.0f} s on "
             f"{', '.join(sorted({r.get('device', 'cpu') for r in self.rows}))}",
         ]
+        if self.config.log_inputs:
+            lines.append(f"- inputs: {', '.join(self.config.log_inputs)} as natural logarithms")
         if ldo:
             bands = ", ".join(f"{lo:g}-{hi:g}" for lo, hi in self.config.ldo_bands)
             lines.append(f"- leave-diameters-out: {self.ldo_set.n_curves} curves in the bands {bands} um never "
@@ -195,6 +203,12 @@ class SweepResult:
         lines += ["", f"Selected: {b['width']}x{b['depth']} with held-out median relative L2 "
                       f"{b['holdout_median']:.4%}" + (f", leave-diameters-out {b['ldo_median']:.4%}" if ldo else "")
                   + (f", off the grid {b['offgrid_median']:.4%}." if og else ".")]
+        fast = self.fast_index
+        if fast is not None:
+            f = self.rows[fast]
+            lines.append(f"Fast twin: {f['width']}x{f['depth']} (the smallest architecture within "
+                         f"{FAST_MEDIAN_FACTOR:g}x the selection's worst median and {FAST_P90_FACTOR:g}x its held-out "
+                         f"p90; export it with --widths {f['width']} --depths {f['depth']}).")
         if b.get("holdout_n_prefix"):
             lines.append(f"Held-out failure-truncated prefix curves: {b['holdout_n_prefix']}, median relative L2 "
                          f"{b['holdout_median_prefix']:.4%}.")

@@ -16,12 +16,13 @@ from bubblecal.surrogates import (
     radius_of_diameter,
     write_bundle,
 )
+from bubblecal.surrogates.training import fast_choice
 
 PATH = default_bundle_path()
 pytestmark = pytest.mark.skipif(not (PATH / "manifest.json").is_file(), reason="no shipped bundle in this checkout")
 #: Shipped networks over the diameter: (accurate file, fast file, fast architecture).
-SHIPPED = {"compression": ("compression_1.5-8um.npz", "compression_1.5-8um_fast.npz", [64] * 4),
-           "indentation": ("indentation_1.5-8um.npz", "indentation_1.5-8um_fast.npz", [128] * 3)}
+SHIPPED = {"compression": ("compression_1.5-8um.npz", "compression_1.5-8um_fast.npz", [64] * 2),
+           "indentation": ("indentation_1.5-8um.npz", "indentation_1.5-8um_fast.npz", [64] * 3)}
 
 
 @pytest.fixture(scope="module")
@@ -46,12 +47,33 @@ def test_shipped_bundle_has_both_roles_and_get_binds_the_asked_one(bundle, setup
         assert bundle.get(setup, d, network="accurate").architecture == acc.architecture
 
 
+@pytest.mark.parametrize("setup", sorted(SHIPPED))
+def test_shipped_fast_network_is_the_sweeps_fast_choice(bundle, setup):
+    """The fast file is what the library's rule picks from the accurate network's own sweep rows."""
+    acc = bundle.over_diameter[setup]
+    rows = acc.metadata["training"]["sweep"]
+    best = next(i for i, r in enumerate(rows) if [r["width"]] * r["depth"] == list(acc.architecture["hidden"]))
+    fast = fast_choice(rows, best)
+    assert fast is not None and [rows[fast]["width"]] * rows[fast]["depth"] == SHIPPED[setup][2]
+
+
+def test_fast_choice_rule():
+    rows = [dict(n_params=100, holdout_median=0.010, holdout_p90=0.020),
+            dict(n_params=50, holdout_median=0.014, holdout_p90=0.050),  # median close, tail 2.5x: no
+            dict(n_params=60, holdout_median=0.014, holdout_p90=0.030),  # the smallest that stays close
+            dict(n_params=10, holdout_median=0.020, holdout_p90=0.020),  # 2x the median: no
+            dict(n_params=70, holdout_median=0.012, holdout_p90=0.020, ldo_median=0.016)]  # its LDO median: no
+    assert fast_choice(rows, 0) == 2
+    assert fast_choice(rows[:2], 0) is None  # nothing smaller qualifies
+    assert fast_choice(rows, 3) is None  # only larger networks than the selection
+
+
 def test_fast_keeps_the_per_diameter_preference(bundle):
     # a published diameter keeps its per-diameter network (no role) unless the network over the diameter is preferred
     per = bundle.get("compression", 2.1, network="fast")
     assert not per.over_diameter and per.diameter_um == pytest.approx(2.1)
     wide = bundle.get("compression", 2.1, prefer="over-diameter", network="fast")
-    assert wide.over_diameter and list(wide.architecture["hidden"]) == [64] * 4
+    assert wide.over_diameter and list(wide.architecture["hidden"]) == SHIPPED["compression"][2]
 
 
 @pytest.mark.parametrize("bad", ["Fast", "slow", "", None])
@@ -74,7 +96,7 @@ def test_manifest_round_trip_and_fallback_without_a_fast_network(tmp_path):
         ("compression_1.5-8um.npz", "accurate"), ("compression_1.5-8um_fast.npz", "fast")]
     b = load_bundle(out)
     assert b.networks("compression") == ("accurate", "fast") and b.networks("indentation") == ()
-    assert list(b.get("compression", 5.0, network="fast").architecture["hidden"]) == [64] * 4
+    assert list(b.get("compression", 5.0, network="fast").architecture["hidden"]) == SHIPPED["compression"][2]
     # rewritten from the loaded bundle: the same manifest entries
     again = json.loads(write_bundle(tmp_path / "c", [b.over_diameter["compression"].path],
                                     fast_files=[b.fast["compression"].path]).read_text())
@@ -83,7 +105,8 @@ def test_manifest_round_trip_and_fallback_without_a_fast_network(tmp_path):
     only = load_bundle(write_bundle(tmp_path / "d", [acc_c]).parent)
     assert only.networks("compression") == ("accurate",) and not only.fast
     sur = only.get("compression", 5.0, network="fast")
-    assert list(sur.architecture["hidden"]) == [128] * 3 and sur.diameter_um == pytest.approx(5.0)
+    accurate = load_bundle(PATH).over_diameter["compression"].architecture["hidden"]
+    assert list(sur.architecture["hidden"]) == list(accurate) and sur.diameter_um == pytest.approx(5.0)
     # a manifest without 'network' fields (written before the roles) reads as accurate
     m = json.loads((out / "manifest.json").read_text())
     m["surrogates"] = [{k: v for k, v in e.items() if k != "network"} for e in m["surrogates"][:1]]

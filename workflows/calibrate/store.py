@@ -68,6 +68,8 @@ def phase_hashes(ap, config: CalibrationConfig, acoustic_hashes: Mapping[str, st
         if getattr(sur, "over_diameter", False):  # one network serves every size: the bound diameter is an input
             # networks of one training set share its data hash: the architecture tells them apart
             h1.update(diameter_um=float(sur.diameter_um), architecture=dict(sur.architecture))
+            if getattr(sur, "log_inputs", ()):  # same data and layers with logged moduli: another network
+                h1["log_inputs"] = list(sur.log_inputs)
         hashes[f"phase1_{curve.name}"] = config_hash(h1)
     for ds in ap.acoustic:
         hashes[f"phase1_{ds.name}"] = config_hash({**common, "phase": 1,

@@ -1,4 +1,5 @@
-"""One mechanical network over the diameter: inputs, training with leave-diameters-out, file version 2, binding.
+"""One mechanical network over the diameter: inputs (logged moduli), training with leave-diameters-out, file versions
+2 and 3, binding.
 
 Known-answer synthetic curves (closed-form shell law, no noise) at four sizes; tiny networks and few epochs (the
 assertions are about the plumbing: which curves train, what the file holds, what a bound surrogate computes).
@@ -83,6 +84,15 @@ def test_inputs_and_scales():
     assert x_per_size("compression", 1.2, 3.0) == pytest.approx(0.1)
     with pytest.raises(ValueError, match="needs diameter_um"):
         network_inputs("diameter", p, 0.1)
+    # logged moduli: log k_a and log k_b in their columns, the rest as given, in NumPy and in JAX alike
+    logged = network_inputs("diameter", p, np.array([0.1, 0.2]), 3.0, log_inputs=("kb", "ka"))
+    np.testing.assert_allclose(logged[:, :2], np.log(p[:, :2]))
+    np.testing.assert_array_equal(logged[:, 2:], u[:, 2:])
+    np.testing.assert_allclose(np.asarray(network_inputs("diameter", jnp.asarray(p), jnp.asarray([0.1, 0.2]), 3.0,
+                                                         xp=jnp, log_inputs=("ka", "kb"))), logged, rtol=1e-6)
+    np.testing.assert_allclose(network_inputs("raw", p, 0.5, log_inputs=("kb",))[:, 1], np.log(300.0))
+    with pytest.raises(ValueError, match=r"log_inputs may hold \['ka', 'kb'\], got \['b1'\]"):
+        network_inputs("raw", p, 0.5, log_inputs=("b1",))
 
 
 def test_training_set_points_over_the_diameter():
@@ -106,8 +116,16 @@ def test_sweep_config_checks_bands():
         SweepConfig(inputs="log")
     raw = SweepConfig(**CFG)
     wide = SweepConfig(**CFG, inputs="diameter", ldo_bands=((3.0, 3.0),))
+    assert raw.log_inputs == () and wide.log_inputs == ("ka", "kb")  # the defaults per input kind
     assert "inputs" not in checkpoint_key("h", (16, 16), raw)  # per-diameter checkpoints keep their key
+    assert "log_inputs" not in checkpoint_key("h", (16, 16), raw)
     assert checkpoint_key("h", (16, 16), wide)["ldo_bands"] == [[3.0, 3.0]]
+    assert checkpoint_key("h", (16, 16), wide)["log_inputs"] == ["ka", "kb"]
+    linear = SweepConfig(**CFG, inputs="diameter", ldo_bands=((3.0, 3.0),), log_inputs=())
+    assert "log_inputs" not in checkpoint_key("h", (16, 16), linear)  # linear inputs never reuse logged weights
+    assert SweepConfig(**CFG, log_inputs=("kb", "ka", "kb")).log_inputs == ("ka", "kb")
+    with pytest.raises(ValueError, match=r"SweepConfig\.log_inputs may hold"):
+        SweepConfig(**CFG, log_inputs=("mu",))
     np.testing.assert_array_equal(diameter_bands([2.0, 3.0, 3.05, 4.0], ((2.9, 3.1),)), [False, True, True, False])
 
 
@@ -130,15 +148,17 @@ def test_bands_never_train_and_are_scored(swept):
     assert "LDO median" in res.markdown() and "one network over the diameter" in res.markdown()
 
 
-def test_file_version_2_round_trip(swept):
+def test_file_version_3_round_trip(swept):
     ts, res, path = swept
     sur = load(path)
     md = sur.metadata
     assert sur.over_diameter and md["inputs"] == "diameter" and md["input_names"][-1] == "diameter_um"
+    assert sur.log_inputs == ("ka", "kb") and md["log_inputs"] == ["ka", "kb"]
+    assert "ka, kb as natural logarithms" in res.markdown()
     assert sur.diameter_range_um == pytest.approx((2.0, 5.0))
     assert md["ldo_score"] == pytest.approx(res.best["ldo_median"]) and md["ldo_bands_um"] == [[3.0, 3.0]]
     with np.load(path) as npz:
-        assert int(npz["format_version"]) == 2
+        assert int(npz["format_version"]) == 3
     # the exported JAX function is the trained network times the size scale
     h = res.holdout_set
     for i in range(3):
@@ -147,6 +167,20 @@ def test_file_version_2_round_trip(swept):
         bound = sur.at_diameter(h.diameters_um[i])
         np.testing.assert_array_equal(np.asarray(bound(h.params[i], h.x[i])), y)
         assert bound.radius_dpd == pytest.approx(radius_of_diameter(h.diameters_um[i]))
+
+
+def test_linear_moduli_keep_file_version_2(tmp_path):
+    ts = several_sizes("indentation", n=8)
+    res = run_sweep(ts, SweepConfig(**CFG, inputs="diameter", ldo_bands=((3.0, 3.0),), log_inputs=()),
+                    progress=False)
+    sur = load(export_sweep(res, tmp_path / "linear.npz"))
+    assert sur.log_inputs == () and "log_inputs" not in sur.metadata
+    with np.load(tmp_path / "linear.npz") as npz:
+        assert int(npz["format_version"]) == 2
+        np.testing.assert_allclose(npz["in_mean"][:2], ts.params[:, :2].mean(axis=0), rtol=0.2)  # linear moduli
+    h = res.holdout_set
+    y = np.asarray(sur(h.params[0], h.x[0], h.diameters_um[0]))
+    np.testing.assert_allclose(y, res.predict(h, 0, h.x[0]), rtol=2e-5, atol=1e-6 * np.abs(y).max())
 
 
 def test_bound_surrogate_domain(swept):
@@ -198,6 +232,30 @@ def test_bad_version_2_metadata_is_named(swept, tmp_path):
         load(tmp_path / "bad2.npz")
 
 
+def test_bad_log_inputs_metadata_is_named(swept, tmp_path):
+    _, _, path = swept
+    with np.load(path) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    good = json.loads(str(arrays["metadata"]))
+
+    def write(name, md, version=3):
+        np.savez(tmp_path / name, **{**arrays, "metadata": np.array(json.dumps(md)),
+                                     "format_version": np.array(version)})
+        return tmp_path / name
+
+    for value in (["kb", "ka"], ["b1"], "ka", ["ka", "ka"]):
+        with pytest.raises(SurrogateFormatError, match=r"metadata field 'log_inputs' must list names"):
+            load(write("order.npz", {**good, "log_inputs": value}))
+    ranges = {**good["param_ranges"], "kb": [0.0, 70000.0]}
+    with pytest.raises(SurrogateFormatError, match=r"'param_ranges' of the logged input 'kb' must start above 0"):
+        load(write("zero.npz", {**good, "param_ranges": ranges}))
+    # a version-2 reader would feed such a file linear moduli: the version must say that they are logged
+    with pytest.raises(SurrogateFormatError, match=r"'format_version' 2 does not match .* 'log_inputs'"):
+        load(write("v2.npz", good, version=2))
+    with pytest.raises(SurrogateFormatError, match=r"'format_version' 3 does not match"):
+        load(write("v3.npz", {k: v for k, v in good.items() if k != "log_inputs"}))
+
+
 def test_bundle_binds_the_diameter_and_shares_one_trace(swept, tmp_path):
     ts, _, path = swept
     write_bundle(tmp_path / "b", [path])
@@ -231,11 +289,12 @@ def test_cli_trains_one_network_over_the_diameter(tmp_path):
     write_published(midpoint_sizes(), off)
     run = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--over-diameter",
                                    "--ldo-bands", "3.0-3.0", "--no-sweep", "--width", "8", "--depth", "1",
-                                   "--max-epochs", "3", "--no-onnx", "--quiet", "--n-points", "8",
+                                   "--max-epochs", "3", "--quiet", "--n-points", "8",
                                    "--offgrid", str(off), "--out", str(tmp_path / "out")])
     assert run.exit_code == 0, run.output
     sur = load(tmp_path / "out" / "compression_2-5um.npz")
-    assert sur.over_diameter and sur.metadata["ldo_bands_um"] == [[3.0, 3.0]]
+    assert sur.over_diameter and sur.metadata["ldo_bands_um"] == [[3.0, 3.0]] and sur.log_inputs == ("ka", "kb")
+    assert "onnx_vs_jax_max_rel_diff" in run.output  # the ONNX graph takes the logged moduli as exported
     assert sur.metadata["offgrid_score"] > 0 and "off the grid" in run.output
     # an off-grid file the filter keeps nothing of (another protocol's table read as compression), or none at all
     write_published(several_sizes("indentation", n=3), tmp_path / "ind.csv")
@@ -249,6 +308,10 @@ def test_cli_trains_one_network_over_the_diameter(tmp_path):
     bad = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--diameter", "2",
                                    "--over-diameter", "--out", str(tmp_path / "o2")])
     assert bad.exit_code == 2 and "not both" in bad.output
+    bad = CliRunner().invoke(app, ["surrogates", "train", str(csv), "--setup", "compression", "--over-diameter",
+                                   "--log-inputs", "ka,mu", "--out", str(tmp_path / "o3")])
+    flat = " ".join(bad.output.replace("│", " ").split())  # the message as one line, out of its box
+    assert bad.exit_code == 2 and "--log-inputs must be 'auto', 'none' or names from ['ka', 'kb']" in flat, flat
 
 
 def test_off_grid_curves_take_part_in_the_selection(tmp_path):

@@ -127,8 +127,8 @@ def test_bad_weight_files_name_file_and_field(trained, tmp_path):
     _, path = trained
     with pytest.raises(SurrogateFormatError, match=r"broken\.npz: missing field 'W_1'"):
         load(_rewrite(path, tmp_path / "broken.npz", drop=("W_1",)))
-    with pytest.raises(SurrogateFormatError, match=r"v3\.npz: field 'format_version' is 3"):
-        load(_rewrite(path, tmp_path / "v3.npz", format_version=np.array(3)))
+    with pytest.raises(SurrogateFormatError, match=r"v4\.npz: field .format_version. is 4, this code reads versions"):
+        load(_rewrite(path, tmp_path / "v4.npz", format_version=np.array(4)))
     with pytest.raises(SurrogateFormatError, match=r"v2\.npz: field 'format_version' 2 does not match .*'raw'"):
         load(_rewrite(path, tmp_path / "v2.npz", format_version=np.array(2)))
     with pytest.raises(SurrogateFormatError, match="field 'format'"):

@@ -5,6 +5,7 @@ Plans only (``check_likelihoods=False``): nothing is sampled."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 from pathlib import Path
@@ -93,6 +94,20 @@ def test_phase_hashes_differ_between_the_two_choices(tmp_path):
         # the acoustic law serves both roles: only its phase 1 is shared (phases 2 and 3 see the curves' phase 1)
         shared = {k for k in over if over[k] == acc[k]}
         assert shared == {k for k in over if k.startswith(f"phase1_{agent}_acoustic")}, agent
+
+
+def test_phase_hashes_tell_logged_moduli_apart(tmp_path):
+    """Two networks of one training set and one architecture, one with logged moduli: no phase of one is reused by
+    the other (a network taking linear moduli keeps the hashes it had)."""
+    plan = _plan(tmp_path, agents=("sonovue",))
+    (ap,) = plan.agents
+    assert all(s.log_inputs == ("ka", "kb") for s in ap.surrogates)  # the shipped networks over the diameter
+    logged = phase_hashes(ap, plan.config, bundle_hashes(plan.bundle))
+    linear = dataclasses.replace(ap, surrogates=[copy.copy(s) for s in ap.surrogates])
+    for s in linear.surrogates:
+        s.log_inputs = ()
+    other = phase_hashes(linear, plan.config, bundle_hashes(plan.bundle))
+    assert all(logged[k] != other[k] for k in logged if not k.startswith("phase1_sonovue_acoustic"))
 
 
 def test_the_manifest_records_the_choice_and_old_manifests_read_per_diameter(tmp_path):
