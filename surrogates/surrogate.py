@@ -364,5 +364,6 @@ class Surrogate:
         return self(params, x), mask
 
     def __repr__(self) -> str:
-        return (f"Surrogate({self.setup}, {self._size_label()}, hidden={self.architecture.get('hidden')}, "
+        logged = f", log_inputs={','.join(self.log_inputs)}" if self.log_inputs else ""
+        return (f"Surrogate({self.setup}, {self._size_label()}, hidden={self.architecture.get('hidden')}{logged}, "
                 f"holdout={self.holdout_score:.4g}, data_hash={self.data_hash[:12]})")

@@ -153,7 +153,7 @@ def test_file_version_3_round_trip(swept):
     sur = load(path)
     md = sur.metadata
     assert sur.over_diameter and md["inputs"] == "diameter" and md["input_names"][-1] == "diameter_um"
-    assert sur.log_inputs == ("ka", "kb") and md["log_inputs"] == ["ka", "kb"]
+    assert sur.log_inputs == ("ka", "kb") and md["log_inputs"] == ["ka", "kb"] and "log_inputs=ka,kb" in repr(sur)
     assert "ka, kb as natural logarithms" in res.markdown()
     assert sur.diameter_range_um == pytest.approx((2.0, 5.0))
     assert md["ldo_score"] == pytest.approx(res.best["ldo_median"]) and md["ldo_bands_um"] == [[3.0, 3.0]]
