@@ -48,7 +48,7 @@ def network_inputs_of(sur, n, points, seed):
     x_lo, x_hi = sur.loading_range()
     x = x_lo + np.linspace(0.05, 0.95, points) * (x_hi - x_lo)
     d = sur.diameter_um if sur.over_diameter else None
-    u = network_inputs(sur.inputs, params[:, None, :], x[None, :], d, xp=np)
+    u = network_inputs(sur.inputs, params[:, None, :], x[None, :], d, xp=np, log_inputs=sur.log_inputs)
     return np.asarray(u, dtype=np.float64).reshape(-1, u.shape[-1])
 
 
