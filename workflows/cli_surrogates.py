@@ -15,7 +15,7 @@ from bubblecal._extras import require
 from bubblecal.data import AGENTS
 from bubblecal.surrogates.bundle import DIAMETER_ATOL_UM
 from bubblecal.workflows.choices import Agent, LawFormName, LoadingProtocol, choice_value
-from bubblecal.workflows.cli_train_options import diameter_bands, int_list, log_input_names
+from bubblecal.workflows.cli_train_options import band_list, int_list, log_input_names
 
 app = typer.Typer(help="Neural (MLP) and acoustic surrogates: training, sweep, export, inspection.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -112,7 +112,7 @@ def train(
         raise typer.BadParameter("give --diameter D (one network per diameter) or --over-diameter, not both")
     if ldo_bands and not over_diameter:
         raise typer.BadParameter("--ldo-bands needs --over-diameter")
-    bands = diameter_bands(ldo_bands)
+    bands = band_list(ldo_bands)
     logged = log_input_names(log_inputs)
     try:
         parts = []

@@ -7,7 +7,7 @@ import typer
 
 from bubblecal.surrogates.features import LOG_INPUT_CHOICES, check_log_inputs
 
-__all__ = ["int_list", "diameter_bands", "log_input_names"]
+__all__ = ["int_list", "band_list", "log_input_names"]
 
 
 def int_list(text: str, name: str) -> tuple[int, ...]:
@@ -38,7 +38,7 @@ def int_list(text: str, name: str) -> tuple[int, ...]:
     return vals
 
 
-def diameter_bands(text: str) -> tuple[tuple[float, float], ...]:
+def band_list(text: str) -> tuple[tuple[float, float], ...]:
     """'lo-hi,lo-hi' diameter bands [um] of ``--ldo-bands``.
 
     Parameters

@@ -21,7 +21,7 @@ from bubblecal.surrogates import load
 from bubblecal.surrogates.training import diameter_bands, filter_curves, read_dataset
 
 
-def curve_errors(sur, ts) -> np.ndarray:
+def surrogate_errors(sur, ts) -> np.ndarray:
     """Relative L2 error of ``sur`` on every curve of ``ts`` (each at its own diameter)."""
     err = np.full(ts.n_curves, np.nan)
     valid = ts.point_mask()
@@ -48,7 +48,7 @@ def main() -> None:
     print(f"{ts.n_curves} curves in the bands {args.bands} um, {int(corner.sum())} with {lo:g} < ka < {hi:g}")
     print(f"{'network':48s} {'median':>8s} {'p90':>8s} {'corner median':>14s} {'corner p90':>11s}")
     for path in args.surrogate:
-        err = curve_errors(load(path), ts)
+        err = surrogate_errors(load(path), ts)
         row = {"surrogate": path, "median": float(np.nanmedian(err)), "p90": float(np.nanquantile(err, 0.9)),
                "corner_median": float(np.nanmedian(err[corner])), "corner_p90": float(np.nanquantile(err[corner], 0.9)),
                "n": int(ts.n_curves), "n_corner": int(corner.sum())}

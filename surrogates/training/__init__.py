@@ -36,6 +36,8 @@ from bubblecal.surrogates.training.dataset import (
 )
 from bubblecal.surrogates.training.filtering import PREFIX_STATUSES, FilterReport, filter_curves
 from bubblecal.surrogates.training.holdout import (
+    FAST_MEDIAN_FACTOR,
+    FAST_P90_FACTOR,
     MIN_SCORED_POINTS,
     curve_errors,
     diameter_bands,
@@ -77,7 +79,7 @@ __all__ = [
     "DEFAULT_RANGES", "DEFAULT_X",
     # grouped holdout, ONNX parity
     "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score", "fast_choice",
-    "MIN_SCORED_POINTS",
+    "FAST_MEDIAN_FACTOR", "FAST_P90_FACTOR", "MIN_SCORED_POINTS",
     "onnx_predict", "onnx_parity", "scaled_max_rel_diff",
     # torch side (lazy)
     *_LAZY,

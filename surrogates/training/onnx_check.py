@@ -80,11 +80,11 @@ def onnx_parity(onnx_path: str | Path, surrogate, u) -> dict:
         the bare network).
     """
     u = np.asarray(u, dtype=float)
-    logged = getattr(surrogate, "log_inputs", ())
-    u_net = network_inputs("diameter" if u.shape[1] == 8 else "raw", u[:, :6], u[:, 6],
-                           u[:, 7] if u.shape[1] == 8 else None, log_inputs=logged)
+    over = getattr(surrogate, "over_diameter", False)
+    u_net = network_inputs("diameter" if over else "raw", u[:, :6], u[:, 6], u[:, 7] if over else None,
+                           log_inputs=getattr(surrogate, "log_inputs", ()))
     y_onnx = onnx_predict(onnx_path, u_net)
-    if getattr(surrogate, "over_diameter", False):
+    if over:
         d = u[:, 7]
         scale = response_scale("diameter", surrogate.setup, u[:, :6], d)
         y_jax = np.asarray(surrogate(u[:, :6], u[:, 6], d)) / scale
