@@ -8,8 +8,9 @@ and after the change, then::
 Every phase file (``*.nc`` groups, or ``*.npz``) present in either folder is compared variable by variable, as
 are the numeric columns of ``summary.csv`` / ``ess.csv`` and the config hashes and log evidences of
 ``manifest.json``.  Prints one table row per file (variables compared, largest absolute and relative
-difference, verdict) and, last, one JSON line.  Exit status 0 when everything agrees within ``--rtol`` /
-``--atol`` (default: bit-identical), 1 otherwise, 2 on unusable input.
+difference, verdict) and, last, one JSON line.  ``--shifts K`` adds the K largest shifts of the summary medians in
+units of the 90 % interval widths (for two runs that differ on purpose, e.g. two surrogate choices).  Exit status 0
+when everything agrees within ``--rtol`` / ``--atol`` (default: bit-identical), 1 otherwise, 2 on unusable input.
 """
 
 from __future__ import annotations
@@ -141,12 +142,42 @@ def compare_folders(before: Path, after: Path, rtol: float = 0.0, atol: float = 
     return rows
 
 
+def median_shifts(before: Path, after: Path) -> list[dict]:
+    """Per summary row (agent, dataset, parameter) of both folders' ``summary.csv``: the shift of the median in units
+    of the 90 % interval width, |median_after - median_before| / mean(width_before, width_after), largest first."""
+    def rows(folder: Path) -> dict:
+        out = {}
+        for path in sorted(folder.rglob("summary.csv")):
+            with open(path, newline="", encoding="utf-8") as fh:
+                for r in csv.DictReader(fh):
+                    out[(str(path.parent.relative_to(folder)), r["dataset"], r["parameter"])] = r
+        return out
+
+    a, b = rows(before), rows(after)
+    shifts = []
+    for key in sorted(set(a) & set(b)):
+        ra, rb = a[key], b[key]
+        try:
+            width = 0.5 * (float(ra["q95"]) - float(ra["q05"]) + float(rb["q95"]) - float(rb["q05"]))
+            shift = abs(float(rb["median"]) - float(ra["median"])) / width
+        except (ValueError, ZeroDivisionError):
+            continue
+        if math.isfinite(shift):
+            ratio = (float(rb["q95"]) - float(rb["q05"])) / (float(ra["q95"]) - float(ra["q05"]))
+            shifts.append({"run": key[0], "dataset": key[1], "parameter": key[2], "shift": shift,
+                           "width_ratio": ratio})
+    return sorted(shifts, key=lambda r: -r["shift"])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("before", type=Path)
     parser.add_argument("after", type=Path)
     parser.add_argument("--rtol", type=float, default=0.0, help="relative tolerance (default 0: bit-identical)")
     parser.add_argument("--atol", type=float, default=0.0, help="absolute tolerance (default 0)")
+    parser.add_argument("--shifts", type=int, default=0, metavar="K",
+                        help="also print the K largest median shifts of summary.csv in 90 %% widths (two runs of "
+                             "different settings: how far apart are their posteriors?)")
     args = parser.parse_args(argv)
     for d in (args.before, args.after):
         if not d.is_dir():
@@ -161,6 +192,16 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         verdict = "equal" if r["equal"] else "DIFFERENT: " + ", ".join(r["differing"])
         print(f"{r['file']:<{width}}  {r['variables']:>5}  {r['max_abs']:>11.3g}  {r['max_rel']:>9.3g}  {verdict}")
+    if args.shifts:
+        shifts = median_shifts(args.before, args.after)
+        print(f"\nmedian shifts in 90 % widths (largest {args.shifts} of {len(shifts)}); width ratio after / before")
+        for r in shifts[:args.shifts]:
+            print(f"  {r['run']:<32} {r['dataset']:<34} {r['parameter']:<14} {r['shift']:6.3f}  "
+                  f"{r['width_ratio']:6.3f}")
+        if shifts:
+            print(json.dumps({"benchmark": "compare_calibrations_shifts", "rows": len(shifts),
+                              "max_shift": shifts[0]["shift"],
+                              "median_shift": float(np.median([r["shift"] for r in shifts]))}))
     same = all(r["equal"] for r in rows)
     print(json.dumps({"benchmark": "compare_calibrations", "files": len(rows), "equal": same,
                       "max_abs": max(r["max_abs"] for r in rows), "max_rel": max(r["max_rel"] for r in rows),

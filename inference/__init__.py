@@ -15,49 +15,40 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
 - :func:`run_staged` and the staged (Korali-style) hierarchy (section 4);
 - posterior-predictive metrics (section 7): :func:`predictive_band`, :func:`coverage`,
   :func:`predictive_crps`, :func:`map_index`, ...;
-- :class:`ExportInfo`, :func:`build_inference_data`, :func:`pointwise_log_likelihood`, :func:`pareto_k` —
-  ArviZ-complete exports (named dims, units, pointwise log likelihood) and PSIS Pareto k̂;
+- :class:`ExportInfo`, :func:`build_inference_data`, :func:`pointwise_log_likelihood` — ArviZ-complete exports
+  (named dims, units, pointwise log likelihood); :func:`pareto_k` — PSIS Pareto k̂ (ArviZ's, in NumPy alone);
 - :func:`sobol_along` — Sobol sensitivity along a loading coordinate (section 8; SALib is imported
   only when it runs).
 """
 
-from bubblecal.inference.compare import Comparison, compare_posteriors, compare_staged_joint
-from bubblecal.inference.crps import CRPSResult, crps_ensemble, gaussian_crps, predictive_crps
-from bubblecal.inference.hierarchical import (
-    ESS_PREFIX,
-    Dataset,
-    PhaseResult,
-    StagedResult,
-    ess_table,
-    run_phase,
-    run_staged,
-)
-from bubblecal.inference.idata import ExportInfo, build_inference_data, pareto_k, pointwise_log_likelihood
-from bubblecal.inference.nuts import NUTSResult, run_nuts
-from bubblecal.inference.predictive import (
-    PredictiveBand,
-    coverage,
-    map_estimate,
-    map_index,
-    mixture_cdf,
-    mixture_quantile,
-    predictive_band,
-)
-from bubblecal.inference.sensitivity import SobolResult, saltelli_design, sobol_along, sobol_indices
-from bubblecal.inference.tmcmc import (
-    TMCMC,
-    BatchStructureError,
-    KernelMove,
-    RandomWalk,
-    RunSpec,
-    TMCMCKernel,
-    clear_program_cache,
-    compile_ahead,
-    enable_program_store,
-    hmc_move,
-    nuts_move,
-    run_batched,
-)
+from bubblecal._lazy import lazy_exports
+
+#: Exported name -> defining module, imported on first access: importing the layer (the CLI's option defaults,
+#: a configuration) loads neither JAX nor SciPy; every name keeps its one path ``from bubblecal.inference import X``.
+_LAZY = {
+    "Comparison": "bubblecal.inference.compare", "compare_posteriors": "bubblecal.inference.compare",
+    "compare_staged_joint": "bubblecal.inference.compare", "CRPSResult": "bubblecal.inference.crps",
+    "crps_ensemble": "bubblecal.inference.crps", "gaussian_crps": "bubblecal.inference.crps",
+    "predictive_crps": "bubblecal.inference.crps", "ESS_PREFIX": "bubblecal.inference.hierarchical",
+    "Dataset": "bubblecal.inference.hierarchical", "PhaseResult": "bubblecal.inference.hierarchical",
+    "StagedResult": "bubblecal.inference.hierarchical", "ess_table": "bubblecal.inference.hierarchical",
+    "run_phase": "bubblecal.inference.hierarchical", "run_staged": "bubblecal.inference.hierarchical",
+    "ExportInfo": "bubblecal.inference.idata", "build_inference_data": "bubblecal.inference.idata",
+    "pointwise_log_likelihood": "bubblecal.inference.idata", "NUTSResult": "bubblecal.inference.nuts",
+    "run_nuts": "bubblecal.inference.nuts", "PredictiveBand": "bubblecal.inference.predictive",
+    "coverage": "bubblecal.inference.predictive", "map_estimate": "bubblecal.inference.predictive",
+    "map_index": "bubblecal.inference.predictive", "mixture_cdf": "bubblecal.inference.predictive",
+    "mixture_quantile": "bubblecal.inference.predictive", "predictive_band": "bubblecal.inference.predictive",
+    "pareto_k": "bubblecal.inference.psis", "SobolResult": "bubblecal.inference.sensitivity",
+    "saltelli_design": "bubblecal.inference.sensitivity", "sobol_along": "bubblecal.inference.sensitivity",
+    "sobol_indices": "bubblecal.inference.sensitivity", "TMCMC": "bubblecal.inference.tmcmc",
+    "BatchStructureError": "bubblecal.inference.tmcmc", "KernelMove": "bubblecal.inference.tmcmc",
+    "RandomWalk": "bubblecal.inference.tmcmc", "RunSpec": "bubblecal.inference.tmcmc",
+    "TMCMCKernel": "bubblecal.inference.tmcmc", "clear_program_cache": "bubblecal.inference.tmcmc",
+    "compile_ahead": "bubblecal.inference.tmcmc", "enable_program_store": "bubblecal.inference.tmcmc",
+    "hmc_move": "bubblecal.inference.tmcmc", "nuts_move": "bubblecal.inference.tmcmc",
+    "run_batched": "bubblecal.inference.tmcmc",
+}
 
 __all__ = [
     # TMCMC
@@ -76,3 +67,5 @@ __all__ = [
     # sensitivity
     "SobolResult", "saltelli_design", "sobol_indices", "sobol_along",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ExportInfo", "IDATA_FORMAT", "library_versions", "observed_sites", "pointwise_log_likelihood",
-           "build_inference_data", "pareto_k"]
+           "build_inference_data"]
 
 #: Version of the group layout written by :func:`build_inference_data` (attribute ``bubblecal_idata_format``).
 IDATA_FORMAT = 2
@@ -327,22 +327,3 @@ def _attr(v):
         return int(v)
     return v
 
-
-def pareto_k(log_weights) -> np.ndarray:
-    """Pareto k̂ of PSIS-smoothed importance weights (ArviZ's ``psislw``), one per column.
-
-    Parameters
-    ----------
-    log_weights : array_like
-        (S,) or (S, n) unnormalised log importance weights over S draws (−inf allowed).
-
-    Returns
-    -------
-    numpy.ndarray
-        Scalar array or (n,) k̂: below 0.7 the importance estimate is reliable; above, not.
-    """
-    import arviz as az
-
-    lw = np.asarray(log_weights, dtype=np.float64)
-    _, k = az.psislw(lw.T, reff=1.0)  # ArviZ wants the draws on the last axis
-    return np.asarray(k)

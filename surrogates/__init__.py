@@ -24,79 +24,63 @@ development bundle). Training (dataset I/O, filtering, torch training, sweeps, e
 :mod:`bubblecal.surrogates.training`.
 """
 
-from bubblecal.surrogates.acoustic import (
-    ACOUSTIC_FORMAT,
-    ACOUSTIC_FORMAT_VERSION,
-    AcousticFormatError,
-    AcousticRangeError,
-    AcousticRangeWarning,
-    AcousticSurrogate,
-)
-from bubblecal.surrogates.acoustic_law import ACOUSTIC_LAW_FORMAT_VERSION, AcousticLawSurrogate
-from bubblecal.surrogates.axes import X_INFO, Y_INFO
-from bubblecal.surrogates.bundle import (
-    BUNDLE_FORMAT,
-    BUNDLE_FORMAT_VERSION,
-    DIAMETER_ATOL_UM,
-    Bundle,
-    NoDefaultBundleError,
-    default_bundle_path,
-    load_bundle,
-)
-from bubblecal.surrogates.bundle_networks import DEFAULT_NETWORK, NETWORK_ROLES
-from bubblecal.surrogates.bundle_validation import VALIDATION_FILE, load_validation, validation_lines
-from bubblecal.surrogates.bundle_write import write_bundle
-from bubblecal.surrogates.classical_resonance import classical_f0, diameter_exponent
-from bubblecal.surrogates.features import (
-    DEFAULT_LOG_INPUTS,
-    INPUT_KINDS,
-    LOG_INPUT_CHOICES,
-    RESPONSE_SCALES,
-    check_log_inputs,
-    network_inputs,
-    radius_of_diameter,
-    response_scale,
-    x_per_size,
-)
-from bubblecal.surrogates.law_fit import compare_forms, fit_law, leave_diameters_out
-from bubblecal.surrogates.mlp import (
-    flops_per_point,
-    matmul_floor_forward,
-    mlp_forward,
-    standardised_forward,
-    surrogate_inputs,
-    xavier_uniform_weights,
-)
-from bubblecal.surrogates.resonance import DiameterFit, fit_quadratic
-from bubblecal.surrogates.resonance_law import DEFAULT_LAW_FORM, LAW_FORMS, LawForm, LawFormatError, ResonanceLaw
-from bubblecal.surrogates.ringdown import RingdownFit, damped_sine, fit_ringdown
-from bubblecal.surrogates.surrogate import OutOfDomainError, Surrogate, SurrogateDomainWarning
-from bubblecal.surrogates.surrogate_file import (
-    DIAMETER_METADATA,
-    FORMAT,
-    FORMAT_VERSION,
-    FORMAT_VERSION_DIAMETER,
-    FORMAT_VERSION_LOG_INPUTS,
-    REQUIRED_METADATA,
-    SurrogateFormatError,
-    load,
-    save_surrogate,
-)
-from bubblecal.surrogates.synthetic_bundle import (
-    ACOUSTIC_GRID_UM,
-    ACOUSTIC_KA_RANGE,
-    DEPTH_CAP_RADII,
-    GAS_PRESSURE_DPD,
-    LOG_PARAMETERS,
-    RHO_SHELL_KG_M3,
-    SYNTHETIC_NOTE,
-    TRAINING_BOXES,
-    X_MARGIN,
-    development_bundle_path,
-    is_synthetic_bundle,
-    ringdown_frequency_MHz,
-    write_synthetic_bundle,
-)
+from bubblecal._lazy import lazy_exports
+
+#: Exported name -> defining module: imported on first access, so that importing the package (the CLI, the
+#: configuration layers) loads no JAX; every name keeps its one import path ``from bubblecal.surrogates import X``.
+_LAZY = {
+    "ACOUSTIC_FORMAT": "bubblecal.surrogates.acoustic", "ACOUSTIC_FORMAT_VERSION": "bubblecal.surrogates.acoustic",
+    "AcousticFormatError": "bubblecal.surrogates.acoustic", "AcousticRangeError": "bubblecal.surrogates.acoustic",
+    "AcousticRangeWarning": "bubblecal.surrogates.acoustic", "AcousticSurrogate": "bubblecal.surrogates.acoustic",
+    "ACOUSTIC_LAW_FORMAT_VERSION": "bubblecal.surrogates.acoustic_law",
+    "AcousticLawSurrogate": "bubblecal.surrogates.acoustic_law", "X_INFO": "bubblecal.surrogates.axes",
+    "Y_INFO": "bubblecal.surrogates.axes", "BUNDLE_FORMAT": "bubblecal.surrogates.bundle",
+    "BUNDLE_FORMAT_VERSION": "bubblecal.surrogates.bundle", "DIAMETER_ATOL_UM": "bubblecal.surrogates.bundle",
+    "Bundle": "bubblecal.surrogates.bundle", "NoDefaultBundleError": "bubblecal.surrogates.bundle",
+    "default_bundle_path": "bubblecal.surrogates.bundle", "load_bundle": "bubblecal.surrogates.bundle",
+    "DEFAULT_NETWORK": "bubblecal.surrogates.bundle_networks",
+    "NETWORK_ROLES": "bubblecal.surrogates.bundle_networks",
+    "VALIDATION_FILE": "bubblecal.surrogates.bundle_validation",
+    "load_validation": "bubblecal.surrogates.bundle_validation",
+    "validation_lines": "bubblecal.surrogates.bundle_validation",
+    "write_bundle": "bubblecal.surrogates.bundle_write", "classical_f0": "bubblecal.surrogates.classical_resonance",
+    "diameter_exponent": "bubblecal.surrogates.classical_resonance",
+    "DEFAULT_LOG_INPUTS": "bubblecal.surrogates.features", "INPUT_KINDS": "bubblecal.surrogates.features",
+    "LOG_INPUT_CHOICES": "bubblecal.surrogates.features", "RESPONSE_SCALES": "bubblecal.surrogates.features",
+    "check_log_inputs": "bubblecal.surrogates.features", "network_inputs": "bubblecal.surrogates.features",
+    "radius_of_diameter": "bubblecal.surrogates.features", "response_scale": "bubblecal.surrogates.features",
+    "x_per_size": "bubblecal.surrogates.features", "compare_forms": "bubblecal.surrogates.law_fit",
+    "fit_law": "bubblecal.surrogates.law_fit", "leave_diameters_out": "bubblecal.surrogates.law_fit",
+    "flops_per_point": "bubblecal.surrogates.mlp", "matmul_floor_forward": "bubblecal.surrogates.mlp",
+    "mlp_forward": "bubblecal.surrogates.mlp", "standardised_forward": "bubblecal.surrogates.mlp",
+    "surrogate_inputs": "bubblecal.surrogates.mlp", "xavier_uniform_weights": "bubblecal.surrogates.mlp",
+    "DiameterFit": "bubblecal.surrogates.resonance", "fit_quadratic": "bubblecal.surrogates.resonance",
+    "DEFAULT_LAW_FORM": "bubblecal.surrogates.resonance_law", "LAW_FORMS": "bubblecal.surrogates.resonance_law",
+    "LawForm": "bubblecal.surrogates.resonance_law", "LawFormatError": "bubblecal.surrogates.resonance_law",
+    "ResonanceLaw": "bubblecal.surrogates.resonance_law", "RingdownFit": "bubblecal.surrogates.ringdown",
+    "damped_sine": "bubblecal.surrogates.ringdown", "fit_ringdown": "bubblecal.surrogates.ringdown",
+    "OutOfDomainError": "bubblecal.surrogates.surrogate", "Surrogate": "bubblecal.surrogates.surrogate",
+    "SurrogateDomainWarning": "bubblecal.surrogates.surrogate",
+    "DIAMETER_METADATA": "bubblecal.surrogates.surrogate_file", "FORMAT": "bubblecal.surrogates.surrogate_file",
+    "FORMAT_VERSION": "bubblecal.surrogates.surrogate_file",
+    "FORMAT_VERSION_DIAMETER": "bubblecal.surrogates.surrogate_file",
+    "FORMAT_VERSION_LOG_INPUTS": "bubblecal.surrogates.surrogate_file",
+    "REQUIRED_METADATA": "bubblecal.surrogates.surrogate_file",
+    "SurrogateFormatError": "bubblecal.surrogates.surrogate_file", "load": "bubblecal.surrogates.surrogate_file",
+    "save_surrogate": "bubblecal.surrogates.surrogate_file",
+    "ACOUSTIC_GRID_UM": "bubblecal.surrogates.synthetic_bundle",
+    "ACOUSTIC_KA_RANGE": "bubblecal.surrogates.synthetic_bundle",
+    "DEPTH_CAP_RADII": "bubblecal.surrogates.synthetic_bundle",
+    "GAS_PRESSURE_DPD": "bubblecal.surrogates.synthetic_bundle",
+    "LOG_PARAMETERS": "bubblecal.surrogates.synthetic_bundle",
+    "RHO_SHELL_KG_M3": "bubblecal.surrogates.synthetic_bundle",
+    "SYNTHETIC_NOTE": "bubblecal.surrogates.synthetic_bundle",
+    "TRAINING_BOXES": "bubblecal.surrogates.synthetic_bundle", "X_MARGIN": "bubblecal.surrogates.synthetic_bundle",
+    "development_bundle_path": "bubblecal.surrogates.synthetic_bundle",
+    "is_synthetic_bundle": "bubblecal.surrogates.synthetic_bundle",
+    "ringdown_frequency_MHz": "bubblecal.surrogates.synthetic_bundle",
+    "write_synthetic_bundle": "bubblecal.surrogates.synthetic_bundle",
+}
 
 __all__ = [
     # mechanical surrogates and their files
@@ -125,3 +109,5 @@ __all__ = [
     "ringdown_frequency_MHz", "LOG_PARAMETERS", "X_MARGIN", "DEPTH_CAP_RADII", "GAS_PRESSURE_DPD", "RHO_SHELL_KG_M3",
     "ACOUSTIC_KA_RANGE", "ACOUSTIC_GRID_UM",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -21,7 +21,6 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["LawForm", "LAW_FORMS", "DEFAULT_LAW_FORM", "ResonanceLaw", "LawFormatError"]
@@ -206,6 +205,8 @@ class ResonanceLaw:
         jax.Array
             f_res^2 [MHz^2].
         """
+        import jax.numpy as jnp  # here, not at import: the CLI's choices read LAW_FORMS without loading JAX
+
         c = self.quadratic(diameter_um, xp=jnp)
         ka = jnp.asarray(ka)
         return c[..., 0] + c[..., 1] * ka + c[..., 2] * ka * ka

@@ -212,3 +212,16 @@ def test_public_api_docstrings_are_numpydoc_contracts():
             if not any(_has_section(d, s) for d in (doc, init_doc or "") for s in ("Parameters", "Attributes")):
                 problems.append(f"{where}.{name}: no 'Parameters' or 'Attributes' section")
     assert not problems, "public objects without a numpydoc contract:\n" + "\n".join(problems)
+
+
+def test_the_command_line_starts_without_jax_or_scipy():
+    """`bubblecal` imports its commands without JAX, NumPyro or SciPy (the layers export them lazily), so the CLI
+    answers --help at once and `calibrate` spawns its worker processes before it imports JAX itself."""
+    import subprocess
+    import sys
+
+    heavy = ("jax", "numpyro", "scipy", "pandas", "matplotlib", "arviz")
+    code = f"import sys, bubblecal.workflows.cli; print(sorted(m for m in {heavy!r} if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"

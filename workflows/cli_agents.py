@@ -44,7 +44,7 @@ class _PhaseProgress:
             self.progress.console.print(f"  {escape(self.prefix + message)}", highlight=False)
 
 
-def run_agents(plan, jobs: int, cache: bool) -> None:
+def run_agents(plan, jobs: int, cache: bool, workers=None) -> None:
     """Run the agents of a validated plan under one progress display, each agent's summary printed as it finishes.
 
     Parameters
@@ -58,6 +58,9 @@ def run_agents(plan, jobs: int, cache: bool) -> None:
         processes and the costliest group in this one.
     cache : bool
         The workers switch the persistent compilation cache on, as this process did.
+    workers : bubblecal.workflows.calibrate.AgentProcesses or None
+        Workers prestarted by the caller (:meth:`~bubblecal.workflows.calibrate.AgentProcesses.prestart`), given
+        their agents here (those not needed end); None: spawned here when needed.
 
     Raises
     ------
@@ -70,10 +73,12 @@ def run_agents(plan, jobs: int, cache: bool) -> None:
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     from bubblecal.workflows.calibrate import (
+        LATE_MODULES,
         AgentProcesses,
         CalibrationError,
         agent_groups,
         outcome_of,
+        preload,
         run_agent_with_report,
     )
     from bubblecal.workflows.calibrate.preflight import preflight
@@ -81,7 +86,11 @@ def run_agents(plan, jobs: int, cache: bool) -> None:
     figures, sampler = plan.config.figures, plan.config.sampler
     groups = agent_groups({ap.agent: len(ap.curves) + len(ap.acoustic) for ap in plan.agents}, jobs)
     own = dataclasses.replace(plan, agents=[ap for ap in plan.agents if ap.agent in groups[0]])
-    workers = AgentProcesses(plan.config, groups[1:], cache=cache) if len(groups) > 1 else None
+    if len(groups) > 1 and workers is None:
+        workers = AgentProcesses(cache=cache)
+    elif len(groups) == 1 and workers is not None:
+        workers.dismiss()
+        workers = None
 
     def warn(message: str) -> None:
         console.print(f"[yellow]warning:[/] {escape(message)}", highlight=False)
@@ -89,10 +98,11 @@ def run_agents(plan, jobs: int, cache: bool) -> None:
     failures: dict[str, str] = {}
     try:
         if workers is not None:
-            workers.start()  # they plan and check their agents while this process checks its own
+            workers.start(plan.config, groups[1:])  # they plan and check their agents while this one checks its own
         try:
             preflight(own)
             if workers is not None:
+                preload(LATE_MODULES)  # imported later anyway: now, while the workers finish their preflight
                 workers.wait_ready(on_warning=warn)
         except CalibrationError as exc:
             raise fail(str(exc)) from None

@@ -21,6 +21,7 @@ from bubblecal.workflows.calibrate import (
     MAX_AUTO_JOBS,
     PAPER_POPULATION,
     PHASE2_DRAW_BUDGET,
+    AgentProcesses,
     CalibrationConfig,
     CalibrationError,
     agent_jobs,
@@ -72,12 +73,13 @@ def calibrate(
     acoustic: Path = typer.Option(None, "--acoustic", help="Tidy resonance CSV for the agents of --data (agent, "
                                   "diameter_um, frequency_MHz[, source])."),
     networks: Networks = typer.Option(_D.networks, "--networks", help="Where the networks over the diameter serve "
-                                      "(--data, or the published study with --surrogates over-diameter): the "
+                                      "(--data, or the published study unless --surrogates per-diameter): the "
                                       "bundle's fast ones (cheaper per point) or its accurate ones."),
     surrogates: Surrogates = typer.Option(_D.surrogates, "--surrogates", help="Published study: the networks over "
-                                          "the diameter and the acoustic laws (over-diameter) or the files fitted at "
-                                          "each published diameter (per-diameter, the paper's set-up). Default: "
-                                          "per-diameter with --paper, else over-diameter.", show_default=False),
+                                          "the diameter and the acoustic laws (over-diameter, the default, also "
+                                          "with --paper) or the files fitted at each published diameter "
+                                          "(per-diameter: with --paper, the paper's exact set-up).",
+                                          show_default=False),
     data_dir: Path = typer.Option(_D.data_dir, "--data-dir", help="Folder of curve CSVs (DPD units) named like the "
                                   "shipped ones, e.g. definity_compression_2.1um_dpd.csv, and/or "
                                   "acoustic_observations_published.csv, replacing them."),
@@ -111,8 +113,6 @@ def calibrate(
     agent label) or of the published study (Definity and/or SonoVue on the shipped curves): staged hierarchical
     TMCMC (or joint NUTS); writes NetCDF per phase, summary.csv, figures and report.md under
     OUT/<agent>/<workflow>/. Finished phases are reused on rerun."""
-    from bubblecal.workflows.calibrate import make_plan, run_lock
-
     agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates = (
         choice_value(o) for o in (agent, workflow, sampler, device, phase3, phase3_start, networks, surrogates))
     if workflow is None:
@@ -122,46 +122,60 @@ def calibrate(
         gpu_memory_shared(device, agent_jobs(jobs, len(agents) if data is None else MAX_AUTO_JOBS))
     except CalibrationError as exc:
         raise fail(str(exc)) from None
-    _compilation_cache(cache, device)
-    priors_map = _priors_map(list(priors or ()), agents, data)
-    try:
-        config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
-                                   paper=paper, out=out, device=device, bundle=bundle, force=force, seed=seed,
-                                   priors=priors_map, data_dir=data_dir, data=data, acoustic_data=acoustic,
-                                   networks=networks, surrogates=surrogates, curves=tuple(curve or ()),
-                                   phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
-                                   nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
-                                   netcdf=netcdf, figures=figures, phase3=phase3, phase3_start=phase3_start)
-        plan = make_plan(config, check_likelihoods=False)  # every input checked; the preflight runs per process
-    except CalibrationError as exc:
-        raise fail(str(exc)) from None
-    if plan.synthetic_bundle:
-        console.print(f"[bold yellow]warning:[/] {plan.bundle_path} is a SYNTHETIC bundle (closed-form laws, not DPD): "
-                      "the posteriors are not physical results", highlight=False)
-    from bubblecal.workflows.calibrate import served_lines
+    if device == "gpu":  # in the environment before the workers start: they inherit it
+        from bubblecal.workflows.compile_cache import skip_gpu_autotuning
 
-    for ap in plan.agents:
-        for line in served_lines(ap, plan.bundle):
-            console.print(f"surrogates: {escape(ap.agent)}: {escape(line)}", highlight=False)
-        for note in ap.notes:
-            console.print(f"[cyan]note:[/] {escape(ap.agent)}: {escape(note)}", highlight=False)
-        for msg in ap.domain_warnings[:5]:
-            console.print(f"[yellow]warning:[/] {ap.agent}: surrogate domain: {escape(msg)}", highlight=False)
-    names = [ap.agent for ap in plan.agents]
-    what = (f"{sum(len(ap.curves) for ap in plan.agents)} bubbles of {data}, agents {', '.join(names)}"
-            if data is not None else f"agents {', '.join(names)}")
-    console.print(f"calibrate: {what}, workflow {workflow}, sampler {sampler}, "
-                  f"N = {config.num_particles} per phase, device {device}, bundle {plan.bundle_path}, out {out}",
-                  highlight=False)
-    t_all = time.perf_counter()
-    with contextlib.ExitStack() as stack:  # one run per output folder (a second one stops here, named)
+        skip_gpu_autotuning()
+    # the published agents are known (a --curve filter may leave some without datasets): their workers start
+    # (interpreter, imports, device) while this process imports JAX and plans (nothing imported so far loads JAX)
+    workers = AgentProcesses(cache=cache, device=device)
+    if data is None and not curve:
+        workers.prestart(agent_jobs(jobs, len(agents)) - 1)
+    try:
+        from bubblecal.workflows.calibrate import make_plan, run_lock
+
+        _compilation_cache(cache, device)
+        priors_map = _priors_map(list(priors or ()), agents, data)
         try:
-            stack.enter_context(run_lock(Path(out), say=lambda m: console.print(f"[yellow]note:[/] {escape(m)}",
-                                                                                highlight=False)))
+            config = CalibrationConfig(agents=agents, workflow=workflow, sampler=sampler, population=population,
+                                       paper=paper, out=out, device=device, bundle=bundle, force=force, seed=seed,
+                                       priors=priors_map, data_dir=data_dir, data=data, acoustic_data=acoustic,
+                                       networks=networks, surrogates=surrogates, curves=tuple(curve or ()),
+                                       phase2_samples=phase2_samples, chunk_size=chunk_size, num_mcmc_steps=mcmc_steps,
+                                       nuts_samples=nuts_samples, nuts_warmup=nuts_samples, nuts_chains=nuts_chains,
+                                       netcdf=netcdf, figures=figures, phase3=phase3, phase3_start=phase3_start)
+            plan = make_plan(config, check_likelihoods=False)  # every input checked; the preflight runs per process
         except CalibrationError as exc:
             raise fail(str(exc)) from None
-        run_agents(plan, agent_jobs(jobs, len(plan.agents)), cache)
-    console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
+        if plan.synthetic_bundle:
+            console.print(f"[bold yellow]warning:[/] {plan.bundle_path} is a SYNTHETIC bundle (closed-form laws, "
+                          "not DPD): the posteriors are not physical results", highlight=False)
+        from bubblecal.workflows.calibrate import served_lines
+
+        for ap in plan.agents:
+            for line in served_lines(ap, plan.bundle):
+                console.print(f"surrogates: {escape(ap.agent)}: {escape(line)}", highlight=False)
+            for note in ap.notes:
+                console.print(f"[cyan]note:[/] {escape(ap.agent)}: {escape(note)}", highlight=False)
+            for msg in ap.domain_warnings[:5]:
+                console.print(f"[yellow]warning:[/] {ap.agent}: surrogate domain: {escape(msg)}", highlight=False)
+        names = [ap.agent for ap in plan.agents]
+        what = (f"{sum(len(ap.curves) for ap in plan.agents)} bubbles of {data}, agents {', '.join(names)}"
+                if data is not None else f"agents {', '.join(names)}")
+        console.print(f"calibrate: {what}, workflow {workflow}, sampler {sampler}, "
+                      f"N = {config.num_particles} per phase, device {device}, bundle {plan.bundle_path}, out {out}",
+                      highlight=False)
+        t_all = time.perf_counter()
+        with contextlib.ExitStack() as stack:  # one run per output folder (a second one stops here, named)
+            try:
+                stack.enter_context(run_lock(Path(out), say=lambda m: console.print(f"[yellow]note:[/] {escape(m)}",
+                                                                                    highlight=False)))
+            except CalibrationError as exc:
+                raise fail(str(exc)) from None
+            run_agents(plan, agent_jobs(jobs, len(plan.agents)), cache, workers)
+        console.print(f"done in {time.perf_counter() - t_all:.1f} s", highlight=False)
+    finally:
+        workers.stop()
 
 
 def _priors_map(entries: list[str], agents: tuple[str, ...], data: Path | None) -> dict[str, str]:
@@ -213,7 +227,7 @@ def evidence(
     seed: int = typer.Option(_D.seed, "--seed"),
     surrogates: Surrogates = typer.Option(_D.resolved_surrogates, "--surrogates", help="The networks over the "
                                           "diameter (over-diameter, calibrate's default) or the per-diameter files "
-                                          "(per-diameter, calibrate --paper's); give the calibration's own, since "
+                                          "(per-diameter, the paper's set-up); give the calibration's own, since "
                                           "its report shows the evidence beside it."),
     networks: Networks = typer.Option(_D.networks, "--networks", help="With --surrogates over-diameter: the fast "
                                       "or the accurate networks."),

@@ -13,7 +13,6 @@ import typer
 
 from bubblecal._extras import require
 from bubblecal.data import AGENTS
-from bubblecal.surrogates.bundle import DIAMETER_ATOL_UM
 from bubblecal.workflows.choices import Agent, LawFormName, LoadingProtocol, choice_value
 from bubblecal.workflows.cli_train_options import band_list, int_list, log_input_names
 
@@ -126,6 +125,8 @@ def train(
         ts, report = filter_curves(raw, zero_frac=zero_frac, max_rel_drop=max_drop, keep_failed_prefix=failed_prefix,
                                    min_prefix_points=min_prefix_points)
         typer.echo(str(report))
+        from bubblecal.surrogates import DIAMETER_ATOL_UM
+
         if not over_diameter and ts.n_curves and abs(ts.diameter_um - diameter) > DIAMETER_ATOL_UM:
             _fail(f"{dataset}: field 'radius_dpd' gives a diameter of {ts.diameter_um:g} um, "
                   f"--diameter is {diameter:g}")

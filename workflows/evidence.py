@@ -144,9 +144,8 @@ def run_evidence(agents, bundle, *, population: int = DEFAULT_POPULATION, replic
         ``stages(replica, row)``: each TMCMC stage (the ``progress`` reporter of
         :class:`~bubblecal.inference.TMCMC`).
     surrogates : {'over-diameter', 'per-diameter'} or None
-        Which surrogates serve the curves, as ``calibrate --surrogates`` (None: calibrate's default without
-        ``--paper``, the networks over the diameter); the per-diameter file answers where no network covers a
-        curve.
+        Which surrogates serve the curves, as ``calibrate --surrogates`` (None: calibrate's default, the networks
+        over the diameter); the per-diameter file answers where no network covers a curve.
     networks : {'fast', 'accurate'}
         Role of the network over the diameter.
 

@@ -10,7 +10,7 @@ import numpyro.distributions as dist
 import pytest
 from scipy import stats
 
-from bubblecal.inference import TMCMC, ExportInfo, pareto_k, pointwise_log_likelihood
+from bubblecal.inference import TMCMC, ExportInfo, pointwise_log_likelihood
 
 Y = np.linspace(-1.0, 1.5, 12)
 
@@ -72,21 +72,6 @@ def test_pointwise_log_likelihood_drops_padding_and_checks_shapes():
     np.testing.assert_allclose(ll["y"], stats.norm.logpdf(y[None, :3], draws["mu"][:, None]), rtol=1e-5)
     with pytest.raises(ValueError, match="disagree"):
         pointwise_log_likelihood(padded, {"mu": np.zeros(3), "z": np.zeros(4)}, (y, mask))
-
-
-@pytest.mark.parametrize("alpha", [1.0, 2.0, 4.0])
-def test_pareto_k_of_pareto_tailed_weights(alpha):
-    """Importance ratios with a Pareto(α) tail have k = 1/α (PSIS's estimate, 4,000 draws, ± 0.15)."""
-    w = np.random.default_rng(3).pareto(alpha, size=4000) + 1.0
-    assert float(pareto_k(np.log(w))) == pytest.approx(1.0 / alpha, abs=0.15)
-
-
-def test_pareto_k_per_column():
-    """(S, n) weights: one k per column, each that of its own column's tail."""
-    rng = np.random.default_rng(4)
-    lw = np.log(np.stack([rng.pareto(a, size=4000) + 1.0 for a in (1.0, 4.0)], axis=-1))
-    k = pareto_k(lw)
-    assert k.shape == (2,) and k[0] == pytest.approx(1.0, abs=0.15) and k[1] == pytest.approx(0.25, abs=0.15)
 
 
 def test_observed_sites_as_data_and_computed_in_the_model_equal_the_eager_trace():

@@ -22,6 +22,25 @@ def test_help_and_version():
     assert code == 0 and out.strip() == f"bubblecal {__version__}"
 
 
+def test_the_command_process_ends_with_the_commands_status_and_all_of_its_output():
+    """``python -m bubblecal.workflows.cli`` (the console script's ``run``): status 0 / 2 / 1 as ``main`` raises
+    them, and what the command printed reaches the pipe although the process skips the interpreter's teardown."""
+    import subprocess
+    import sys
+
+    def command(*args):
+        proc = subprocess.run([sys.executable, "-m", "bubblecal.workflows.cli", *args], capture_output=True,
+                              text=True, env={**__import__("os").environ, "COLUMNS": "200"}, timeout=300)
+        return proc.returncode, proc.stdout + proc.stderr
+
+    code, out = command("--version")
+    assert code == 0 and out.strip() == f"bubblecal {__version__}"
+    code, out = command("no-such-command")
+    assert code == 2 and "No such command" in out
+    code, out = command("calibrate", "--population", "1")
+    assert code == 1 and "--population" in out and "got 1" in out
+
+
 def test_info():
     code, out = _run("info")
     assert code == 0

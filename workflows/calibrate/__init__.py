@@ -15,7 +15,8 @@ Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one
 run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws),
 :mod:`~bubblecal.workflows.calibrate.served` (which surrogate served each dataset, in words),
-:mod:`~bubblecal.workflows.calibrate.parallel` (agents calibrated at once in worker processes).
+:mod:`~bubblecal.workflows.calibrate.parallel` (agents calibrated at once in worker processes, whose body is
+:mod:`~bubblecal.workflows.calibrate.agent_worker`).
 
 Measured bubbles: ``CalibrationConfig(data=Path("curves.csv"), acoustic_data=Path("resonance.csv"))`` runs one
 hierarchy per agent label of the file (``out/<label>/<workflow>/``).
@@ -38,6 +39,15 @@ MAP = the posterior draw with the largest log likelihood + log prior; every prio
 uniform (the phase-3 population prior is a likelihood factor), so this is the largest stored log likelihood.
 """
 
+from bubblecal._lazy import lazy_exports
+from bubblecal.workflows.calibrate.agent_worker import (
+    LATE_MODULES,
+    RUN_MODULES,
+    AgentHeader,
+    AgentOutcome,
+    outcome_of,
+    preload,
+)
 from bubblecal.workflows.calibrate.config import (
     DEFAULT_PHASE2_SAMPLES,
     DEFAULT_POPULATION,
@@ -64,50 +74,49 @@ from bubblecal.workflows.calibrate.config import (
     phase_tmcmc_options,
 )
 from bubblecal.workflows.calibrate.device import check_device, on_device, usable_cores
-from bubblecal.workflows.calibrate.export import (
-    PHASE2_LOGLIK,
-    joint_export,
-    phase2_log_likelihood,
-    phase2_pareto_k,
-    phase_exports,
-)
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.parallel import (
     MAX_AUTO_JOBS,
-    AgentOutcome,
     AgentProcesses,
     agent_groups,
     agent_jobs,
     gpu_memory_shared,
-    outcome_of,
 )
-from bubblecal.workflows.calibrate.phase_files import (
-    PhaseFileError,
-    phase_format,
-    phase_inference_data,
-    phase_inference_parts,
-    read_phase,
-    read_pointwise,
-    write_phase,
-)
-from bubblecal.workflows.calibrate.plan import AgentPlan, Plan, make_plan, resolve_bundle, run_config, run_plan
-from bubblecal.workflows.calibrate.run import AgentResult, run_agent, run_agent_with_report, run_calibration
-from bubblecal.workflows.calibrate.served import acoustic_label, served_lines, surrogate_label
-from bubblecal.workflows.calibrate.store import (
-    PhaseStore,
-    array_hash,
-    bundle_hashes,
-    config_hash,
-    phase_dependencies,
-    phase_hashes,
-)
-from bubblecal.workflows.calibrate.user_data import PRIORS_FOR_ALL, user_agent_plans
 from bubblecal.workflows.calibrate.writer import (
     MAX_WRITER_PROCESSES,
     WRITER_PROCESS_MIN_CPUS,
     PhaseWriter,
     writer_processes,
 )
+
+#: Exported name -> defining module, imported on first access: the configuration, the device, the lock and the
+#: worker processes load no JAX, so the CLI starts (and spawns its workers) before JAX is imported.
+_LAZY = {
+    "PHASE2_LOGLIK": "bubblecal.workflows.calibrate.export", "joint_export": "bubblecal.workflows.calibrate.export",
+    "phase2_log_likelihood": "bubblecal.workflows.calibrate.export",
+    "phase2_pareto_k": "bubblecal.workflows.calibrate.export",
+    "phase_exports": "bubblecal.workflows.calibrate.export",
+    "PhaseFileError": "bubblecal.workflows.calibrate.phase_files",
+    "phase_format": "bubblecal.workflows.calibrate.phase_files",
+    "phase_inference_data": "bubblecal.workflows.calibrate.phase_files",
+    "phase_inference_parts": "bubblecal.workflows.calibrate.phase_files",
+    "read_phase": "bubblecal.workflows.calibrate.phase_files",
+    "read_pointwise": "bubblecal.workflows.calibrate.phase_files",
+    "write_phase": "bubblecal.workflows.calibrate.phase_files", "AgentPlan": "bubblecal.workflows.calibrate.plan",
+    "Plan": "bubblecal.workflows.calibrate.plan", "make_plan": "bubblecal.workflows.calibrate.plan",
+    "resolve_bundle": "bubblecal.workflows.calibrate.plan", "run_config": "bubblecal.workflows.calibrate.plan",
+    "run_plan": "bubblecal.workflows.calibrate.plan", "AgentResult": "bubblecal.workflows.calibrate.run",
+    "run_agent": "bubblecal.workflows.calibrate.run", "run_agent_with_report": "bubblecal.workflows.calibrate.run",
+    "run_calibration": "bubblecal.workflows.calibrate.run", "acoustic_label": "bubblecal.workflows.calibrate.served",
+    "served_lines": "bubblecal.workflows.calibrate.served",
+    "surrogate_label": "bubblecal.workflows.calibrate.served", "PhaseStore": "bubblecal.workflows.calibrate.store",
+    "array_hash": "bubblecal.workflows.calibrate.store", "bundle_hashes": "bubblecal.workflows.calibrate.store",
+    "config_hash": "bubblecal.workflows.calibrate.store",
+    "phase_dependencies": "bubblecal.workflows.calibrate.store",
+    "phase_hashes": "bubblecal.workflows.calibrate.store",
+    "PRIORS_FOR_ALL": "bubblecal.workflows.calibrate.user_data",
+    "user_agent_plans": "bubblecal.workflows.calibrate.user_data",
+}
 
 __all__ = [
     "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "PHASE3_STARTS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
@@ -126,5 +135,7 @@ __all__ = [
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
     "PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES",
     "AgentOutcome", "AgentProcesses", "agent_groups", "agent_jobs", "gpu_memory_shared", "outcome_of",
-    "MAX_AUTO_JOBS",
+    "MAX_AUTO_JOBS", "preload", "LATE_MODULES", "RUN_MODULES", "AgentHeader",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

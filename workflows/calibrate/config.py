@@ -109,8 +109,9 @@ class CalibrationConfig:
     surrogates : str or None
         Surrogates of the published study (:data:`SURROGATE_CHOICES`): 'over-diameter' (the networks over the
         diameter, role ``networks``, and the acoustic laws; the per-diameter file where none covers a diameter)
-        or 'per-diameter' (the files fitted at each published diameter: the paper's set-up). None: see
-        :attr:`resolved_surrogates`. ``data`` always uses the networks over the diameter.
+        or 'per-diameter' (the files fitted at each published diameter: the paper's set-up). None:
+        'over-diameter', also with ``paper`` (:attr:`resolved_surrogates`). ``data`` always uses the networks over
+        the diameter.
     curves : tuple of str
         Restrict to these curve names (e.g. 'definity_compression_2.1um'); empty: all.
     phase2_samples : int or None
@@ -205,13 +206,12 @@ class CalibrationConfig:
 
     @property
     def resolved_surrogates(self) -> str:
-        """The surrogates this run uses (:data:`SURROGATE_CHOICES`): ``surrogates`` when set, else 'per-diameter'
-        with ``paper`` and 'over-diameter' otherwise; always 'over-diameter' with ``data``."""
+        """The surrogates this run uses (:data:`SURROGATE_CHOICES`): ``surrogates`` when set, else 'over-diameter'
+        (with ``paper`` too: the paper's sampler settings on the default surrogates; its per-diameter networks are
+        'per-diameter'); always 'over-diameter' with ``data``."""
         if self.data is not None:
             return "over-diameter"
-        if self.surrogates is not None:
-            return self.surrogates
-        return "per-diameter" if self.paper else "over-diameter"
+        return self.surrogates if self.surrogates is not None else "over-diameter"
 
     def surrogate_lookup(self) -> dict[str, str]:
         """``prefer`` (:attr:`resolved_surrogates`) and ``network`` of :meth:`bubblecal.surrogates.Bundle.get`:

@@ -5,90 +5,35 @@ stack is process-global) with waits on the device in between; two agents in two 
 waits and lower their programs side by side (docs/decisions.md, "Agents in parallel processes").  The results are
 those of a serial run: each agent draws from its own seed and reads only its own inputs.
 
-Protocol: the caller validates the whole plan (``make_plan(config, check_likelihoods=False)``), starts the workers
-(:class:`AgentProcesses`), runs the preflight of its own group, then :meth:`AgentProcesses.wait_ready` collects
-every worker's preflight (no agent samples before every dataset of every agent passed it) and
-:meth:`AgentProcesses.go` lets them run.  Workers report progress, TMCMC stages and a picklable
-:class:`AgentOutcome` per agent through one queue, drained by :meth:`AgentProcesses.listen`.
+Protocol: the command prestarts the workers before it imports JAX (:meth:`AgentProcesses.prestart`: interpreter,
+imports, device), validates the whole plan (``make_plan(config, check_likelihoods=False)``), hands each worker its
+agents (:meth:`AgentProcesses.start`; prestarted workers not needed end), runs the preflight of its own group, then
+:meth:`AgentProcesses.wait_ready` collects every worker's preflight (no agent samples before every dataset of every
+agent passed it) and :meth:`AgentProcesses.go` lets them run.  Workers
+(:mod:`~bubblecal.workflows.calibrate.agent_worker`) report progress, TMCMC stages and a picklable
+:class:`~bubblecal.workflows.calibrate.AgentOutcome` per agent through one queue, drained by
+:meth:`AgentProcesses.listen`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import multiprocessing
 import os
 import queue as queue_module
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
 
+from bubblecal.workflows.calibrate.agent_worker import AgentOutcome, _worker
 from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
 from bubblecal.workflows.calibrate.device import usable_cores
 
-__all__ = ["AgentHeader", "AgentOutcome", "AgentProcesses", "MAX_AUTO_JOBS", "agent_groups", "agent_jobs",
-           "gpu_memory_shared", "outcome_of"]
+__all__ = ["AgentProcesses", "MAX_AUTO_JOBS", "agent_groups", "agent_jobs", "gpu_memory_shared"]
 
 #: Most agent processes that ``jobs=None`` (automatic) starts.
 MAX_AUTO_JOBS = 4
 
 #: Seconds between checks that the workers are alive while their queue is quiet.
 _POLL_S = 0.5
-
-
-@dataclass(frozen=True)
-class AgentHeader:
-    """What the summary table of an agent names: agent (label), workflow, priors and output folder."""
-
-    agent: str
-    workflow: str
-    spec: object
-    out_dir: Path
-
-
-@dataclass
-class AgentOutcome:
-    """One agent's finished run as a worker process returns it (host data only, picklable).
-
-    Parameters
-    ----------
-    plan : AgentHeader
-        Agent, workflow, priors (:class:`bubblecal.priors.PriorSpec`) and output folder.
-    summary : pandas.DataFrame or None
-        ``summary.csv``.
-    ess : pandas.DataFrame or None
-        ``ess.csv``.
-    seconds : dict of str to float
-        Wall seconds per phase, of the sampling and of the summaries.
-    reused : list of str
-        Phases read back from disk.
-    figures : list of Path
-    report : Path or None
-    """
-
-    plan: AgentHeader
-    summary: object
-    ess: object | None
-    seconds: dict[str, float]
-    reused: list[str]
-    figures: list[Path] = field(default_factory=list)
-    report: Path | None = None
-
-
-def outcome_of(result) -> AgentOutcome:
-    """The :class:`AgentOutcome` of an :class:`~bubblecal.workflows.calibrate.AgentResult`.
-
-    Parameters
-    ----------
-    result : bubblecal.workflows.calibrate.AgentResult
-
-    Returns
-    -------
-    AgentOutcome
-    """
-    ap = result.plan
-    return AgentOutcome(AgentHeader(ap.agent, ap.workflow, ap.spec, Path(ap.out_dir)), result.summary, result.ess,
-                        dict(result.seconds), list(result.reused), list(result.figures), result.report)
 
 
 def agent_jobs(jobs: int | None, n_agents: int, cores: int | None = None) -> int:
@@ -148,95 +93,99 @@ def agent_groups(costs: Mapping[str, float], jobs: int) -> list[tuple[str, ...]]
     return [tuple(sorted(groups[i], key=order.index)) for i in ranked if groups[i]]
 
 
-def _stage_row(row: Mapping) -> dict:
-    """A TMCMC stage row as plain floats and ints (it crosses a process boundary)."""
-    out = {}
-    for k, v in dict(row).items():
-        with contextlib.suppress(TypeError, ValueError):
-            out[k] = v if isinstance(v, int | str) else float(v)
-    return out
-
-
-def _worker(config: CalibrationConfig, agents: tuple[str, ...], index: int, cache: bool, queue, go) -> None:
-    """A worker process: plan and preflight its agents, report ready, wait for ``go``, run them one by one."""
-    try:
-        _work(config, agents, index, cache, queue, go)
-    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the caller reports it, once
-        return
-
-
-def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, cache: bool, queue, go) -> None:
-    """The body of :func:`_worker`."""
-    def say(message: str) -> None:
-        queue.put(("warning", index, message))
-
-    try:
-        if cache:
-            from bubblecal.workflows.compile_cache import enable_compilation_cache
-
-            enable_compilation_cache(say=say)
-        from bubblecal.workflows.calibrate.plan import make_plan
-
-        plan = make_plan(config, agents=agents)
-    except CalibrationError as exc:
-        queue.put(("error", index, str(exc)))
-        return
-    except Exception as exc:  # noqa: BLE001 - reported by the parent, which owns the console
-        queue.put(("error", index, f"{type(exc).__name__}: {exc}"))
-        return
-    queue.put(("ready", index, None))
-    go.wait()
-    from bubblecal.workflows.calibrate.run import run_agent_with_report
-
-    for ap in plan.agents:
-        try:
-            result = run_agent_with_report(
-                plan, ap, progress=lambda m, a=ap.agent: queue.put(("progress", a, m)),
-                stages=lambda r, row, a=ap.agent: queue.put(("stage", a, (r, _stage_row(row)))))
-            queue.put(("done", ap.agent, outcome_of(result)))
-        except Exception as exc:  # noqa: BLE001 - one agent's failure is reported, the next agent still runs
-            text = str(exc) if isinstance(exc, RuntimeError) else f"{type(exc).__name__}: {exc}"
-            queue.put(("failed", ap.agent, text))
-    queue.put(("exit", index, None))
-
-
 class AgentProcesses:
     """Worker processes, one per group of agents, started from a validated configuration.
 
     Parameters
     ----------
-    config : CalibrationConfig
-        The run's configuration (each worker plans its own agents from it).
+    config : CalibrationConfig or None
+        The run's configuration (each worker plans its own agents from it); None: given to :meth:`start`.
     groups : sequence of tuple of str
-        One group of agents per worker.
+        One group of agents per worker (or given to :meth:`start`).
     cache : bool
         Switch the persistent compilation cache on in the workers (as in the caller).
+    device : str or None
+        'gpu': each worker starts its GPU while it waits for its agents (:meth:`prestart`).
 
     Notes
     -----
     Workers are spawned, never forked (JAX is not fork-safe), and inherit the environment: the caller sets
-    ``XLA_FLAGS`` and the GPU memory settings before :meth:`start`.
+    ``XLA_FLAGS`` and the GPU memory settings before :meth:`prestart` or :meth:`start`.
     """
 
-    def __init__(self, config: CalibrationConfig, groups: Sequence[tuple[str, ...]], *, cache: bool = True):
+    def __init__(self, config: CalibrationConfig | None = None, groups: Sequence[tuple[str, ...]] = (), *,
+                 cache: bool = True, device: str | None = None):
         self._ctx = multiprocessing.get_context("spawn")
         self.config = config
         self.groups = [tuple(g) for g in groups]
         self.cache = bool(cache)
+        self.device = device
         self.queue = self._ctx.Queue()
         self._go = self._ctx.Event()
         self.processes: list = []
+        self._inboxes: list = []
+        self._spare: list = []
         self._exited: set[int] = set()
         self.outcomes: dict[str, AgentOutcome] = {}
         self.failures: dict[str, str] = {}
 
-    def start(self) -> None:
-        """Spawn the workers; they plan and run their preflight at once, then wait for :meth:`go`."""
-        for k, group in enumerate(self.groups):
-            p = self._ctx.Process(target=_worker, args=(self.config, group, k, self.cache, self.queue, self._go),
-                                  name=f"bubblecal-agents-{k}", daemon=False)
-            p.start()
-            self.processes.append(p)
+    def prestart(self, n: int) -> None:
+        """Spawn ``n`` workers before the run is planned: their interpreter start, imports and device start-up
+        overlap the caller's planning; :meth:`start` then hands them their agents (and ends those not needed).
+
+        Parameters
+        ----------
+        n : int
+            Workers to spawn now (>= 0).
+        """
+        for _ in range(int(n)):
+            self._spawn()
+
+    def _spawn(self) -> None:
+        """Spawn one worker, waiting for its agents."""
+        inbox = self._ctx.Queue()
+        k = len(self.processes)
+        p = self._ctx.Process(target=_worker, args=(k, self.cache, self.device, self.queue, self._go, inbox),
+                              name=f"bubblecal-agents-{k}", daemon=False)
+        p.start()
+        self.processes.append(p)
+        self._inboxes.append(inbox)
+
+    def start(self, config: CalibrationConfig | None = None, groups: Sequence[tuple[str, ...]] | None = None) -> None:
+        """Give each worker its group (spawning those not prestarted); they plan and run their preflight at once,
+        then wait for :meth:`go`. Prestarted workers beyond the groups are ended.
+
+        Parameters
+        ----------
+        config : CalibrationConfig or None
+            The run's configuration (default: the constructor's).
+        groups : sequence of tuple of str or None
+            One group of agents per worker (default: the constructor's).
+        """
+        if config is not None:
+            self.config = config
+        if groups is not None:
+            self.groups = [tuple(g) for g in groups]
+        while len(self.processes) < len(self.groups):
+            self._spawn()
+        self.dismiss(len(self.groups))
+        for inbox, group in zip(self._inboxes, self.groups, strict=True):
+            inbox.put((self.config, group))
+
+    def dismiss(self, keep: int = 0) -> None:
+        """End the workers from index ``keep`` on that have no agents yet (they exit at once; :meth:`stop` joins
+        them).
+
+        Parameters
+        ----------
+        keep : int
+            Workers kept.
+        """
+        for inbox in self._inboxes[keep:]:
+            inbox.put(None)
+        # the inboxes stay referenced: a spawned process opens its queue's semaphores by name when it starts
+        self._spare += list(zip(self.processes[keep:], self._inboxes[keep:], strict=True))
+        del self.processes[keep:], self._inboxes[keep:]
 
     def _get(self):
         """The next message, or None when the queue was quiet for a poll interval."""
@@ -344,10 +293,11 @@ class AgentProcesses:
 
     def stop(self) -> None:
         """Terminate every worker still running (finished phases stay on disk and are reused on rerun)."""
-        for p in self.processes:
+        every = [*self.processes, *(p for p, _ in self._spare)]
+        for p in every:
             if p.is_alive():
                 p.terminate()
-        for p in self.processes:
+        for p in every:
             p.join(timeout=10)
 
 

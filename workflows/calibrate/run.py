@@ -149,7 +149,7 @@ def _dataset_objects(ap: AgentPlan, pad: bool = False):
 
 def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | None = None,
               inject: Callable[[str], None] | None = None,
-              stages: Callable[[int, Mapping], None] | None = None) -> AgentResult:
+              stages: Callable[[int, Mapping], None] | None = None, report: bool = False) -> AgentResult:
     """Run one agent (staged TMCMC or joint NUTS), then its summaries; writes ``manifest.json`` throughout.
 
     Parameters
@@ -165,12 +165,16 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     stages : callable or None
         ``stages(replica, row)``: each TMCMC stage of each phase (the ``progress`` reporter of
         :class:`~bubblecal.inference.TMCMC`; row = stage, beta, ess, acceptance, log_evidence, ...).
+    report : bool
+        Also draw the figures and write ``report.md`` when ``config.figures`` is on (while the phase files are
+        still being written; :func:`run_agent_with_report`).
 
     Returns
     -------
     AgentResult
         With ``summary``, ``ess`` and the population predictive filled unless ``config.summaries`` and
-        ``config.figures`` are both off; figures and report are drawn by :func:`run_calibration`.
+        ``config.figures`` are both off; ``figures`` and ``report`` with ``report``. Every phase file is
+        complete and in ``manifest.json`` when it returns.
 
     Raises
     ------
@@ -212,8 +216,10 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
 
         def load(name):
             result = store.load(name)
-            if result is None and inject is not None:
-                inject(name)
+            if result is None:
+                store.start_writers()  # a phase will run: the writers start while its programs load
+                if inject is not None:
+                    inject(name)
             return result
 
         o1, o23 = phase_tmcmc_options(config)
@@ -236,8 +242,9 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
                                     phase2_max_samples=phase2_samples(config, len(datasets)), load=load,
                                     save=store.save, progress=say, phase3_reweight=reweight,
                                     phase3_tempered=(POPULATION_SITE,) if config.phase3_start == "phase1" else None)
-            finally:  # a failing phase still leaves the finished ones on disk and in the manifest
+            except BaseException:  # a failing phase still leaves the finished ones on disk and in the manifest
                 store.flush()
+                raise
             if staged.phase3_ess:
                 say("phase 3 leave-one-out importance ESS: "
                     + ", ".join(f"{k} {v:.0f}" for k, v in staged.phase3_ess.items()))
@@ -248,15 +255,25 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
         seconds["joint_nuts"] = joint.seconds
     seconds["sampling_total"] = time.perf_counter() - t_start
 
-    t0 = time.perf_counter()
-    result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
-                         population_predictive=None, seconds=seconds, reused=list(store.reused),
-                         pointwise=store.pointwise)
-    if config.summaries or config.figures:
-        from bubblecal.workflows.summary import summarise_agent
+    # summaries, figures and report read the draws in memory: they run while the writers finish the phase files
+    try:
+        t0 = time.perf_counter()
+        result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
+                             population_predictive=None, seconds=seconds, reused=list(store.reused),
+                             pointwise=store.pointwise)
+        if config.summaries or config.figures:
+            from bubblecal.workflows.summary import summarise_agent
 
-        summarise_agent(result, config)
-    seconds["summaries"] = time.perf_counter() - t0
+            summarise_agent(result, config)
+        seconds["summaries"] = time.perf_counter() - t0
+        if report and config.figures:
+            from bubblecal.workflows.figures import agent_figures
+            from bubblecal.workflows.report import write_report
+
+            result.figures = agent_figures(result, plan)
+            result.report = write_report(result, plan)
+    finally:
+        store.flush()
     store.manifest["summary"] = {"wall_seconds": seconds, "reused": store.reused}
     store.write_manifest()
     return result
@@ -340,11 +357,4 @@ def run_agent_with_report(plan: Plan, ap: AgentPlan, *, progress: Callable[[str]
     RuntimeError
         A phase failed (see :func:`run_agent`).
     """
-    result = run_agent(plan, ap, progress=progress, inject=inject, stages=stages)
-    if plan.config.figures:
-        from bubblecal.workflows.figures import agent_figures
-        from bubblecal.workflows.report import write_report
-
-        result.figures = agent_figures(result, plan)
-        result.report = write_report(result, plan)
-    return result
+    return run_agent(plan, ap, progress=progress, inject=inject, stages=stages, report=True)

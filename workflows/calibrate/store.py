@@ -171,6 +171,17 @@ class PhaseStore:
         self.writers = writers
         self._writer = None
 
+    def start_writers(self) -> None:
+        """Start the background writers now (their process start and imports overlap the work before the first
+        phase ends); :meth:`save` starts them otherwise. Nothing for a store without ``background``."""
+        if not self.background or self._writer is not None:
+            return
+        from bubblecal.workflows.calibrate.writer import PhaseWriter
+
+        self._writer = PhaseWriter(self.writers)
+        if self.netcdf:
+            self._writer.start()
+
     def _read_manifest(self) -> dict:
         """The folder's manifest, or an empty one when absent or unreadable."""
         if self.manifest_path.is_file():
@@ -284,10 +295,7 @@ class PhaseStore:
             self._record(name, entry)
             return
         parts = phase_inference_parts(result, loglik, info=info, pointwise=pointwise) if self.netcdf else None
-        if self._writer is None:
-            from bubblecal.workflows.calibrate.writer import PhaseWriter
-
-            self._writer = PhaseWriter(self.writers)
+        self.start_writers()
         self._writer.submit(lambda: self._record(name, entry), path, result, loglik, attrs, info=info,
                             pointwise=pointwise, parts=parts)
 

@@ -10,6 +10,7 @@ to a writer is host arrays and metadata.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -51,6 +52,16 @@ def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -
     return write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
 
 
+def _warm() -> None:
+    """Import what a NetCDF write needs (once per writer process, before its first file); a missing module is
+    left for the write itself to report."""
+    import importlib
+
+    for name in ("arviz", "h5netcdf", "bubblecal.inference.idata", "bubblecal.workflows.calibrate.phase_files"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+
+
 def _host(obj):
     """``obj`` with every device array replaced by a NumPy array (mappings, sequences and ExportInfo walked)."""
     if isinstance(obj, np.ndarray | np.generic | str | bytes | int | float | bool) or obj is None:
@@ -85,6 +96,7 @@ class PhaseWriter:
         self._pool = None
         self._pending: list[tuple] = []
         self._errors: list[BaseException] = []
+        self._warm: list = []
 
     def _executor(self):
         """The thread or process pool, started on first use."""
@@ -98,6 +110,15 @@ class PhaseWriter:
             else:
                 self._pool = ThreadPoolExecutor(1, thread_name_prefix="bubblecal-phase-writer")
         return self._pool
+
+    def start(self) -> None:
+        """Start the writers now, each importing what a write needs, so that the first file does not wait for a
+        process start and its imports (a no-op for the writer thread and for writers already started)."""
+        if self._pool is not None or self.processes == 0:
+            return
+        pool = self._executor()
+        # one warm-up task per process: the pool spawns a process for each task that finds none idle
+        self._warm = [pool.submit(_warm) for _ in range(self.processes)]
 
     def submit(self, on_done: Callable[[], None], path: Path, result, loglik, attrs: Mapping, *, info=None,
                pointwise=None, parts: Mapping | None = None) -> None:

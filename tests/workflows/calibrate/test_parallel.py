@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from bubblecal.workflows.calibrate import (
     MAX_AUTO_JOBS,
+    AgentHeader,
     AgentOutcome,
     AgentProcesses,
     CalibrationConfig,
@@ -20,7 +21,6 @@ from bubblecal.workflows.calibrate import (
     agent_jobs,
     gpu_memory_shared,
 )
-from bubblecal.workflows.calibrate.parallel import AgentHeader
 from bubblecal.workflows.cli import app
 
 
@@ -141,6 +141,25 @@ def test_a_real_worker_reports_its_planning_error(synthetic_bundle, tmp_path):
     finally:
         workers.stop()
     assert all(p.exitcode is not None for p in workers.processes)
+
+
+def test_prestarted_workers_take_their_agents_in_order_and_the_spare_ones_end(synthetic_bundle, tmp_path):
+    """Workers spawned before the plan: the first gets the group (and reports its planning error), the spare one
+    ends by itself once it has started."""
+    config = CalibrationConfig(agents=("definity",), workflow="reduced", bundle=synthetic_bundle, population=120,
+                               out=tmp_path / "cal", phase2_samples=120, curves=("definity_compression_2.1um",))
+    workers = AgentProcesses(cache=False)
+    workers.prestart(2)
+    workers.start(config, [("sonovue",)])
+    try:
+        assert len(workers.processes) == 1
+        spare = workers._spare[0][0]
+        spare.join(timeout=120)
+        assert spare.exitcode == 0
+        with pytest.raises(CalibrationError, match="plans no agent sonovue"):
+            workers.wait_ready()
+    finally:
+        workers.stop()
 
 
 def test_two_agents_at_once_write_what_one_after_the_other_writes(synthetic_bundle, tmp_path):

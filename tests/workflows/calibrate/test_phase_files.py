@@ -74,14 +74,20 @@ def test_joint_file_chains_are_concatenated_on_read(tmp_path):
     np.testing.assert_array_equal(loglik, -np.arange(12.0))
 
 
-@pytest.mark.parametrize("writers", [0, 2], ids=["thread", "processes"])
-def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path, writers):
+@pytest.mark.parametrize(("writers", "started"), [(0, False), (2, False), (2, True)],
+                         ids=["thread", "processes", "processes started ahead"])
+def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path, writers, started):
+    """Also with the writers started (and warmed up) before the first phase: the same files, the same manifest."""
     import json
 
     import xarray as xr
 
     direct, later = _store(tmp_path / "direct"), PhaseStore(tmp_path / "later", background=True, writers=writers)
     later.expected = direct.expected
+    if started:
+        later.start_writers()
+        later.start_writers()  # a second call starts nothing more
+        assert later._writer is not None and len(later._writer._warm) == writers
     for k, n in enumerate(NAMES):
         res = PhaseResult(n, {"ka": np.arange(5.0) + k, "kb": np.ones(5) * k}, -1.0 - k, 0.1, "converged", 1.0)
         direct.save(res)

@@ -1,5 +1,6 @@
-"""`calibrate --surrogates`: the published study on the networks over the diameter and the acoustic laws by default,
-on the per-diameter files with --paper; the run's choice recorded and reused by whatever rebuilds its surrogates.
+"""`calibrate --surrogates`: the published study on the networks over the diameter and the acoustic laws by default
+(--paper too), on the per-diameter files when asked; the run's choice recorded and reused by whatever rebuilds its
+surrogates.
 
 Plans only (``check_likelihoods=False``): nothing is sampled."""
 
@@ -53,8 +54,12 @@ def test_default_serves_every_published_curve_from_the_fast_networks_and_the_law
         assert lines[-1].startswith(ap.acoustic[0].name) and "acoustic law over 1.5-" in lines[-1]
 
 
-def test_paper_keeps_the_per_diameter_files_and_quadratics(tmp_path):
-    plan = _plan(tmp_path, paper=True)
+def test_paper_runs_on_the_networks_over_the_diameter_unless_asked_for_the_per_diameter_files(tmp_path):
+    """--paper sets the sampler; the surrogates stay the default's, and --surrogates per-diameter is the paper's
+    exact set-up: the per-diameter files and quadratics."""
+    assert _plan(tmp_path / "a", paper=True).config.resolved_surrogates == "over-diameter"
+    assert all(s.over_diameter for ap in _plan(tmp_path / "a", paper=True).agents for s in ap.surrogates)
+    plan = _plan(tmp_path, paper=True, surrogates="per-diameter")
     assert plan.config.resolved_surrogates == "per-diameter"
     definity, sonovue = plan.agents
     assert _files(definity) == ["compression_2.1um.npz", "compression_2.9um.npz", "compression_3um.npz"]
@@ -66,6 +71,7 @@ def test_paper_keeps_the_per_diameter_files_and_quadratics(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs, over", [({"surrogates": "per-diameter"}, False),
+                                          ({"surrogates": "per-diameter", "paper": True}, False),
                                           ({"surrogates": "over-diameter", "paper": True}, True)])
 def test_explicit_choice_overrides_the_default_both_ways(tmp_path, kwargs, over):
     plan = _plan(tmp_path, agents=("sonovue",), **kwargs)
@@ -116,7 +122,9 @@ def test_the_manifest_records_the_choice_and_old_manifests_read_per_diameter(tmp
     assert (d["surrogates"], d["networks"]) == ("over-diameter", "accurate")
     back = CalibrationConfig.from_dict(d)
     assert back == dataclasses.replace(config, surrogates="over-diameter")
-    assert CalibrationConfig.from_dict(CalibrationConfig(paper=True).as_dict()).resolved_surrogates == "per-diameter"
+    assert CalibrationConfig.from_dict(CalibrationConfig(paper=True).as_dict()).resolved_surrogates == "over-diameter"
+    paper_run = CalibrationConfig(paper=True, surrogates="per-diameter").as_dict()
+    assert CalibrationConfig.from_dict(paper_run).resolved_surrogates == "per-diameter"
     old = {k: v for k, v in d.items() if k not in ("surrogates", "networks")}
     assert CalibrationConfig.from_dict(old).surrogate_lookup() == {"prefer": "per-diameter", "network": "accurate"}
     # a measured-bubbles run always ran on the networks over the diameter
@@ -163,7 +171,7 @@ def test_confirm_and_evidence_ask_another_bundle_for_the_runs_kind(tmp_path, syn
 
     root = tmp_path / "cal"
     config = CalibrationConfig(agents=("definity",), workflow="reduced", bundle=synthetic_bundle, out=root,
-                               paper=True, curves=("definity_compression_2.1um",))
+                               paper=True, surrogates="per-diameter", curves=("definity_compression_2.1um",))
     folder = _write_manifest(root / "definity" / "reduced", config)
     fake = _RecordingBundle()
     with pytest.raises(LookupError, match="recorded"):

@@ -1,0 +1,167 @@
+"""The body of an agent worker process and what crosses back from it (:mod:`bubblecal.workflows.calibrate.parallel`).
+
+A worker starts before the run is planned: it switches the compilation cache on, imports what planning and sampling
+need (:data:`RUN_MODULES`) and starts the GPU, then takes its agents from its inbox, plans them, runs their
+preflight, reports ready, waits for the go and runs them one by one. Everything it returns is host data
+(:class:`AgentOutcome`), and it ends without the interpreter's teardown once its messages are queued.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
+
+__all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "outcome_of", "preload"]
+
+
+@dataclass(frozen=True)
+class AgentHeader:
+    """What the summary table of an agent names: agent (label), workflow, priors and output folder."""
+
+    agent: str
+    workflow: str
+    spec: object
+    out_dir: Path
+
+
+@dataclass
+class AgentOutcome:
+    """One agent's finished run as a worker process returns it (host data only, picklable).
+
+    Parameters
+    ----------
+    plan : AgentHeader
+        Agent, workflow, priors (:class:`bubblecal.priors.PriorSpec`) and output folder.
+    summary : pandas.DataFrame or None
+        ``summary.csv``.
+    ess : pandas.DataFrame or None
+        ``ess.csv``.
+    seconds : dict of str to float
+        Wall seconds per phase, of the sampling and of the summaries.
+    reused : list of str
+        Phases read back from disk.
+    figures : list of Path
+    report : Path or None
+    """
+
+    plan: AgentHeader
+    summary: object
+    ess: object | None
+    seconds: dict[str, float]
+    reused: list[str]
+    figures: list[Path] = field(default_factory=list)
+    report: Path | None = None
+
+
+def outcome_of(result) -> AgentOutcome:
+    """The :class:`AgentOutcome` of an :class:`~bubblecal.workflows.calibrate.AgentResult`.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+
+    Returns
+    -------
+    AgentOutcome
+    """
+    ap = result.plan
+    return AgentOutcome(AgentHeader(ap.agent, ap.workflow, ap.spec, Path(ap.out_dir)), result.summary, result.ess,
+                        dict(result.seconds), list(result.reused), list(result.figures), result.report)
+
+
+def _stage_row(row: Mapping) -> dict:
+    """A TMCMC stage row as plain floats and ints (it crosses a process boundary)."""
+    out = {}
+    for k, v in dict(row).items():
+        with contextlib.suppress(TypeError, ValueError):
+            out[k] = v if isinstance(v, int | str) else float(v)
+    return out
+
+
+#: Modules a worker needs to plan, check and sample its agents: imported while it waits for them.
+RUN_MODULES = ("bubblecal.workflows.calibrate.plan", "bubblecal.workflows.calibrate.preflight",
+               "bubblecal.workflows.calibrate.run")
+
+
+def preload(modules: Sequence[str] = RUN_MODULES) -> None:
+    """Import ``modules`` now (one that is not installed is skipped: the code that needs it reports it).
+
+    Parameters
+    ----------
+    modules : sequence of str
+        Module names (default :data:`RUN_MODULES`).
+    """
+    import importlib
+
+    for name in modules:
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+
+
+#: Libraries an agent's summaries and figures import (none imports bubblecal): the calling process imports them
+#: while it waits for the workers' preflight (:func:`preload`).
+LATE_MODULES = ("pandas", "matplotlib.figure", "matplotlib.backends.backend_agg")
+
+
+def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> None:
+    """A worker process: start (cache, imports, device), wait for its agents in ``inbox`` (None: not needed, exit),
+    then plan and preflight them, report ready, wait for ``go`` and run them one by one."""
+    try:
+        if cache:
+            from bubblecal.workflows.compile_cache import enable_compilation_cache
+
+            enable_compilation_cache(say=lambda m: queue.put(("warning", index, m)))
+        preload()
+        if device == "gpu":  # the device's start-up (CUDA context) before the agents arrive
+            with contextlib.suppress(Exception):
+                import jax
+
+                jax.devices("gpu")
+        assignment = inbox.get()
+        if assignment is None:
+            return
+        _work(*assignment, index, queue, go)
+    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the caller reports it, once
+        return
+    # every file is closed and every message queued: end without the interpreter's teardown (the device
+    # backend's, about a second), which the caller would otherwise wait for
+    queue.close()
+    queue.join_thread()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(0)
+
+
+def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, queue, go) -> None:
+    """The planning and the runs of :func:`_worker`."""
+    try:
+        from bubblecal.workflows.calibrate.plan import make_plan
+
+        plan = make_plan(config, agents=agents)
+    except CalibrationError as exc:
+        queue.put(("error", index, str(exc)))
+        return
+    except Exception as exc:  # noqa: BLE001 - reported by the parent, which owns the console
+        queue.put(("error", index, f"{type(exc).__name__}: {exc}"))
+        return
+    queue.put(("ready", index, None))
+    go.wait()
+    from bubblecal.workflows.calibrate.run import run_agent_with_report
+
+    for ap in plan.agents:
+        try:
+            result = run_agent_with_report(
+                plan, ap, progress=lambda m, a=ap.agent: queue.put(("progress", a, m)),
+                stages=lambda r, row, a=ap.agent: queue.put(("stage", a, (r, _stage_row(row)))))
+            queue.put(("done", ap.agent, outcome_of(result)))
+        except Exception as exc:  # noqa: BLE001 - one agent's failure is reported, the next agent still runs
+            text = str(exc) if isinstance(exc, RuntimeError) else f"{type(exc).__name__}: {exc}"
+            queue.put(("failed", ap.agent, text))
+    queue.put(("exit", index, None))
