@@ -10,9 +10,9 @@ naming them in a mapping and installing the two module hooks this helper returns
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
-__all__ = ["lazy_exports"]
+__all__ = ["by_module", "lazy_exports"]
 
 
 def lazy_exports(package: str, names: Mapping[str, str],
@@ -51,3 +51,30 @@ def lazy_exports(package: str, names: Mapping[str, str],
         return sorted(set(namespace) | set(names))
 
     return __getattr__, __dir__
+
+
+def by_module(groups: Mapping[str, Iterable[str]]) -> dict[str, str]:
+    """The ``names`` mapping of :func:`lazy_exports` from the exports of each module.
+
+    Parameters
+    ----------
+    groups : mapping of str to iterable of str
+        Absolute module name -> the names the package exports from it.
+
+    Returns
+    -------
+    dict of str to str
+        Exported name -> its module.
+
+    Raises
+    ------
+    ValueError
+        A name listed under two modules.
+    """
+    out: dict[str, str] = {}
+    for module, names in groups.items():
+        for name in names:
+            if name in out:
+                raise ValueError(f"{name} is exported from both {out[name]} and {module}")
+            out[name] = module
+    return out

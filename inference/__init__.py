@@ -21,34 +21,25 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
   only when it runs).
 """
 
-from bubblecal._lazy import lazy_exports
+from bubblecal._lazy import by_module, lazy_exports
 
 #: Exported name -> defining module, imported on first access: importing the layer (the CLI's option defaults,
 #: a configuration) loads neither JAX nor SciPy; every name keeps its one path ``from bubblecal.inference import X``.
-_LAZY = {
-    "Comparison": "bubblecal.inference.compare", "compare_posteriors": "bubblecal.inference.compare",
-    "compare_staged_joint": "bubblecal.inference.compare", "CRPSResult": "bubblecal.inference.crps",
-    "crps_ensemble": "bubblecal.inference.crps", "gaussian_crps": "bubblecal.inference.crps",
-    "predictive_crps": "bubblecal.inference.crps", "ESS_PREFIX": "bubblecal.inference.hierarchical",
-    "Dataset": "bubblecal.inference.hierarchical", "PhaseResult": "bubblecal.inference.hierarchical",
-    "StagedResult": "bubblecal.inference.hierarchical", "ess_table": "bubblecal.inference.hierarchical",
-    "run_phase": "bubblecal.inference.hierarchical", "run_staged": "bubblecal.inference.hierarchical",
-    "ExportInfo": "bubblecal.inference.idata", "build_inference_data": "bubblecal.inference.idata",
-    "pointwise_log_likelihood": "bubblecal.inference.idata", "NUTSResult": "bubblecal.inference.nuts",
-    "run_nuts": "bubblecal.inference.nuts", "PredictiveBand": "bubblecal.inference.predictive",
-    "coverage": "bubblecal.inference.predictive", "map_estimate": "bubblecal.inference.predictive",
-    "map_index": "bubblecal.inference.predictive", "mixture_cdf": "bubblecal.inference.predictive",
-    "mixture_quantile": "bubblecal.inference.predictive", "predictive_band": "bubblecal.inference.predictive",
-    "pareto_k": "bubblecal.inference.psis", "SobolResult": "bubblecal.inference.sensitivity",
-    "saltelli_design": "bubblecal.inference.sensitivity", "sobol_along": "bubblecal.inference.sensitivity",
-    "sobol_indices": "bubblecal.inference.sensitivity", "TMCMC": "bubblecal.inference.tmcmc",
-    "BatchStructureError": "bubblecal.inference.tmcmc", "KernelMove": "bubblecal.inference.tmcmc",
-    "RandomWalk": "bubblecal.inference.tmcmc", "RunSpec": "bubblecal.inference.tmcmc",
-    "TMCMCKernel": "bubblecal.inference.tmcmc", "clear_program_cache": "bubblecal.inference.tmcmc",
-    "compile_ahead": "bubblecal.inference.tmcmc", "enable_program_store": "bubblecal.inference.tmcmc",
-    "hmc_move": "bubblecal.inference.tmcmc", "nuts_move": "bubblecal.inference.tmcmc",
-    "run_batched": "bubblecal.inference.tmcmc",
-}
+_LAZY = by_module({
+    "bubblecal.inference.compare": ("Comparison", "compare_posteriors", "compare_staged_joint"),
+    "bubblecal.inference.crps": ("CRPSResult", "crps_ensemble", "gaussian_crps", "predictive_crps"),
+    "bubblecal.inference.hierarchical": ("ESS_PREFIX", "Dataset", "PhaseResult", "StagedResult", "ess_table",
+        "run_phase", "run_staged"),
+    "bubblecal.inference.idata": ("ExportInfo", "build_inference_data", "pointwise_log_likelihood"),
+    "bubblecal.inference.nuts": ("NUTSResult", "run_nuts"),
+    "bubblecal.inference.predictive": ("PredictiveBand", "coverage", "map_estimate", "map_index", "mixture_cdf",
+        "mixture_quantile", "predictive_band"),
+    "bubblecal.inference.psis": ("pareto_k",),
+    "bubblecal.inference.sensitivity": ("SobolResult", "saltelli_design", "sobol_along", "sobol_indices"),
+    "bubblecal.inference.tmcmc": ("TMCMC", "BatchStructureError", "KernelMove", "RandomWalk", "RunSpec",
+        "TMCMCKernel", "clear_program_cache", "compile_ahead", "enable_program_store", "hmc_move", "nuts_move",
+        "run_batched"),
+})
 
 __all__ = [
     # TMCMC

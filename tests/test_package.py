@@ -225,3 +225,12 @@ def test_the_command_line_starts_without_jax_or_scipy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+def test_lazy_exports_by_module_name_each_export_once():
+    """`by_module` inverts {module: names}; a name under two modules is refused, naming both."""
+    from bubblecal._lazy import by_module
+
+    assert by_module({"a.b": ("x", "y"), "a.c": ("z",)}) == {"x": "a.b", "y": "a.b", "z": "a.c"}
+    with pytest.raises(ValueError, match="x is exported from both a.b and a.c"):
+        by_module({"a.b": ("x",), "a.c": ("x",)})

@@ -39,7 +39,7 @@ MAP = the posterior draw with the largest log likelihood + log prior; every prio
 uniform (the phase-3 population prior is a likelihood factor), so this is the largest stored log likelihood.
 """
 
-from bubblecal._lazy import lazy_exports
+from bubblecal._lazy import by_module, lazy_exports
 from bubblecal.workflows.calibrate.agent_worker import (
     LATE_MODULES,
     RUN_MODULES,
@@ -91,32 +91,19 @@ from bubblecal.workflows.calibrate.writer import (
 
 #: Exported name -> defining module, imported on first access: the configuration, the device, the lock and the
 #: worker processes load no JAX, so the CLI starts (and spawns its workers) before JAX is imported.
-_LAZY = {
-    "PHASE2_LOGLIK": "bubblecal.workflows.calibrate.export", "joint_export": "bubblecal.workflows.calibrate.export",
-    "phase2_log_likelihood": "bubblecal.workflows.calibrate.export",
-    "phase2_pareto_k": "bubblecal.workflows.calibrate.export",
-    "phase_exports": "bubblecal.workflows.calibrate.export",
-    "PhaseFileError": "bubblecal.workflows.calibrate.phase_files",
-    "phase_format": "bubblecal.workflows.calibrate.phase_files",
-    "phase_inference_data": "bubblecal.workflows.calibrate.phase_files",
-    "phase_inference_parts": "bubblecal.workflows.calibrate.phase_files",
-    "read_phase": "bubblecal.workflows.calibrate.phase_files",
-    "read_pointwise": "bubblecal.workflows.calibrate.phase_files",
-    "write_phase": "bubblecal.workflows.calibrate.phase_files", "AgentPlan": "bubblecal.workflows.calibrate.plan",
-    "Plan": "bubblecal.workflows.calibrate.plan", "make_plan": "bubblecal.workflows.calibrate.plan",
-    "resolve_bundle": "bubblecal.workflows.calibrate.plan", "run_config": "bubblecal.workflows.calibrate.plan",
-    "run_plan": "bubblecal.workflows.calibrate.plan", "AgentResult": "bubblecal.workflows.calibrate.run",
-    "run_agent": "bubblecal.workflows.calibrate.run", "run_agent_with_report": "bubblecal.workflows.calibrate.run",
-    "run_calibration": "bubblecal.workflows.calibrate.run", "acoustic_label": "bubblecal.workflows.calibrate.served",
-    "served_lines": "bubblecal.workflows.calibrate.served",
-    "surrogate_label": "bubblecal.workflows.calibrate.served", "PhaseStore": "bubblecal.workflows.calibrate.store",
-    "array_hash": "bubblecal.workflows.calibrate.store", "bundle_hashes": "bubblecal.workflows.calibrate.store",
-    "config_hash": "bubblecal.workflows.calibrate.store",
-    "phase_dependencies": "bubblecal.workflows.calibrate.store",
-    "phase_hashes": "bubblecal.workflows.calibrate.store",
-    "PRIORS_FOR_ALL": "bubblecal.workflows.calibrate.user_data",
-    "user_agent_plans": "bubblecal.workflows.calibrate.user_data",
-}
+_LAZY = by_module({
+    "bubblecal.workflows.calibrate.export": ("PHASE2_LOGLIK", "joint_export", "phase2_log_likelihood",
+        "phase2_pareto_k", "phase_exports"),
+    "bubblecal.workflows.calibrate.phase_files": ("PhaseFileError", "phase_format", "phase_inference_data",
+        "phase_inference_parts", "read_phase", "read_pointwise", "write_phase"),
+    "bubblecal.workflows.calibrate.plan": ("AgentPlan", "Plan", "make_plan", "resolve_bundle", "run_config",
+        "run_plan"),
+    "bubblecal.workflows.calibrate.run": ("AgentResult", "run_agent", "run_agent_with_report", "run_calibration"),
+    "bubblecal.workflows.calibrate.served": ("acoustic_label", "served_lines", "surrogate_label"),
+    "bubblecal.workflows.calibrate.store": ("PhaseStore", "array_hash", "bundle_hashes", "config_hash",
+        "phase_dependencies", "phase_hashes"),
+    "bubblecal.workflows.calibrate.user_data": ("PRIORS_FOR_ALL", "user_agent_plans"),
+})
 
 __all__ = [
     "WORKFLOWS", "SAMPLERS", "PHASE3_TARGETS", "PHASE3_STARTS", "DEVICES", "NETWORKS", "SURROGATE_CHOICES",
