@@ -43,7 +43,7 @@ _LAZY = by_module({
         "check_log_inputs", "network_inputs", "radius_of_diameter", "response_scale", "x_per_size"),
     "bubblecal.surrogates.law_fit": ("compare_forms", "fit_law", "leave_diameters_out"),
     "bubblecal.surrogates.mlp": ("flops_per_point", "matmul_floor_forward", "mlp_forward", "standardised_forward",
-        "surrogate_inputs", "xavier_uniform_weights"),
+        "xavier_uniform_weights"),
     "bubblecal.surrogates.resonance": ("DiameterFit", "fit_quadratic"),
     "bubblecal.surrogates.resonance_law": ("DEFAULT_LAW_FORM", "LAW_FORMS", "LawForm", "LawFormatError",
         "ResonanceLaw"),
@@ -77,7 +77,7 @@ __all__ = [
     "AcousticLawSurrogate", "ACOUSTIC_LAW_FORMAT_VERSION", "ResonanceLaw", "LawForm", "LAW_FORMS", "DEFAULT_LAW_FORM",
     "LawFormatError", "fit_law", "leave_diameters_out", "compare_forms", "classical_f0", "diameter_exponent",
     # the JAX forward pass
-    "surrogate_inputs", "mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
+    "mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
     "xavier_uniform_weights",
     # the SYNTHETIC development bundle
     "write_synthetic_bundle", "development_bundle_path", "is_synthetic_bundle", "SYNTHETIC_NOTE", "TRAINING_BOXES",

@@ -20,41 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["surrogate_inputs", "mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
+__all__ = ["mlp_forward", "standardised_forward", "matmul_floor_forward", "flops_per_point",
            "xavier_uniform_weights"]
-
-
-def surrogate_inputs(params, x, param_names: Sequence[str]):
-    """Raw network inputs: the parameters broadcast against the loading coordinate, which is appended last.
-
-    Parameters
-    ----------
-    params : array_like, shape (..., n)
-        Parameters in ``param_names`` order [DPD units].
-    x : array_like
-        Loading coordinate [DPD length (displacement) or DPD force]; broadcasts against ``params[..., 0]``.
-    param_names : sequence of str
-        Names of the n parameters (for the error message).
-
-    Returns
-    -------
-    jax.Array, shape (broadcast shape, n + 1)
-        The inputs ``u``.
-
-    Raises
-    ------
-    ValueError
-        When the last axis of ``params`` does not have length n.
-    """
-    params = jnp.asarray(params)
-    x = jnp.asarray(x)
-    if params.ndim == 0 or params.shape[-1] != len(param_names):
-        raise ValueError(f"params must have a last axis of length {len(param_names)} "
-                         f"({', '.join(param_names)}), got shape {params.shape}")
-    shape = jnp.broadcast_shapes(params.shape[:-1], x.shape)
-    p = jnp.broadcast_to(params, shape + (params.shape[-1],))
-    xx = jnp.broadcast_to(x, shape)[..., None].astype(p.dtype)
-    return jnp.concatenate([p, xx], axis=-1)
 
 
 def standardised_forward(weights: Sequence, biases: Sequence, z, xp=jnp):

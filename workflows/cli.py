@@ -8,6 +8,7 @@ that ``bubblecal --help`` stays fast.
 from __future__ import annotations
 
 import contextlib
+import gc
 import importlib
 import logging
 import os
@@ -96,7 +97,9 @@ def run() -> NoReturn:
 
     Every command has closed its files, joined its processes and printed its last line when :func:`main` returns;
     the interpreter's own teardown (unloading a device backend's compiled programs: 1-2 s after a GPU calibration)
-    would only delay the shell. Output streams and logging are flushed first.
+    would only delay the shell. Unreferenced objects are collected first (the finalizers of the run's
+    multiprocessing queues and locks release their semaphores, which the resource tracker would otherwise report
+    as leaked), then output streams and logging are flushed.
 
     Raises
     ------
@@ -113,6 +116,7 @@ def run() -> NoReturn:
     elif not isinstance(code, int):  # a message as the status: print it, exit 1 (as the interpreter would)
         print(code, file=sys.stderr)
         code = 1
+    gc.collect()  # finalizers of the run's queues and locks: their semaphores are released, not reported leaked
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()

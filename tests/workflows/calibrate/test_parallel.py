@@ -194,6 +194,23 @@ def test_two_agents_at_once_write_what_one_after_the_other_writes(synthetic_bund
         pd.testing.assert_frame_equal(pd.read_csv(a / "summary.csv"), pd.read_csv(b / "summary.csv"))
 
 
+def test_the_command_ends_cleanly_with_a_worker(synthetic_bundle, tmp_path):
+    """`python -m bubblecal.workflows.cli calibrate` with two agents (one in a worker): exit status 0, both agents
+    written, and no leaked-semaphore report from multiprocessing although the process skips its teardown."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "cal"
+    proc = subprocess.run([sys.executable, "-m", "bubblecal.workflows.cli", "calibrate", "--bundle",
+                           str(synthetic_bundle), "--workflow", "reduced", "--curve", "definity_compression_2.1um",
+                           "--curve", "sonovue_indentation_3.2um", "--population", "120", "--phase2-samples", "120",
+                           "--mcmc-steps", "2", "--no-figures", "--jobs", "2", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "definity: wrote" in proc.stdout and "sonovue: wrote" in proc.stdout
+    assert "leaked" not in proc.stderr, proc.stderr[-2000:]
+
+
 def test_a_failed_agent_does_not_stop_the_other_and_is_named(synthetic_bundle, tmp_path, monkeypatch):
     """Agents at once: Definity (equal cost, first in run order: this process's group) fails, SonoVue (a worker)
     still finishes; exit status 1 names Definity and its folder."""
