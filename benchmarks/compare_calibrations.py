@@ -158,12 +158,12 @@ def median_shifts(before: Path, after: Path) -> list[dict]:
     for key in sorted(set(a) & set(b)):
         ra, rb = a[key], b[key]
         try:
-            width = 0.5 * (float(ra["q95"]) - float(ra["q05"]) + float(rb["q95"]) - float(rb["q05"]))
-            shift = abs(float(rb["median"]) - float(ra["median"])) / width
+            wa, wb = (float(r["q95"]) - float(r["q05"]) for r in (ra, rb))
+            shift = abs(float(rb["median"]) - float(ra["median"])) / (0.5 * (wa + wb))
+            ratio = wb / wa
         except (ValueError, ZeroDivisionError):
             continue
         if math.isfinite(shift):
-            ratio = (float(rb["q95"]) - float(rb["q05"])) / (float(ra["q95"]) - float(ra["q05"]))
             shifts.append({"run": key[0], "dataset": key[1], "parameter": key[2], "shift": shift,
                            "width_ratio": ratio})
     return sorted(shifts, key=lambda r: -r["shift"])

@@ -7,10 +7,7 @@ that ``bubblecal --help`` stays fast.
 
 from __future__ import annotations
 
-import contextlib
-import gc
 import importlib
-import logging
 import os
 import sys
 from typing import NoReturn
@@ -23,7 +20,7 @@ import typer
 
 from bubblecal import __version__
 from bubblecal._extras import MissingExtraError
-from bubblecal.workflows.console import fail
+from bubblecal.workflows.console import end_process, fail
 
 #: The exit-status convention of every command (docs/data-formats.md, "Exit status").
 EXIT_STATUS_HELP = ("Exit status of every command: 0 success; 1 the run failed or an input is unusable (the message "
@@ -95,11 +92,8 @@ def main() -> None:
 def run() -> NoReturn:
     """The ``bubblecal`` command: :func:`main`, then the process ends with its exit status at once.
 
-    Every command has closed its files, joined its processes and printed its last line when :func:`main` returns;
-    the interpreter's own teardown (unloading a device backend's compiled programs: 1-2 s after a GPU calibration)
-    would only delay the shell. Unreferenced objects are collected first (the finalizers of the run's
-    multiprocessing queues and locks release their semaphores, which the resource tracker would otherwise report
-    as leaked), then output streams and logging are flushed.
+    Every command has closed its files, joined its processes and printed its last line when :func:`main` returns,
+    so the interpreter's own teardown would only delay the shell (:func:`~bubblecal.workflows.console.end_process`).
 
     Raises
     ------
@@ -116,13 +110,7 @@ def run() -> NoReturn:
     elif not isinstance(code, int):  # a message as the status: print it, exit 1 (as the interpreter would)
         print(code, file=sys.stderr)
         code = 1
-    gc.collect()  # finalizers of the run's queues and locks: their semaphores are released, not reported leaked
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    logging.shutdown()
-    os._exit(code)
-
+    end_process(code)
 
 if __name__ == "__main__":
     run()

@@ -1,6 +1,13 @@
-"""Shared rich console and error reporting for the command line."""
+"""Shared rich console, error reporting and the end of a command's process."""
 
 from __future__ import annotations
+
+import contextlib
+import gc
+import logging
+import os
+import sys
+from typing import NoReturn
 
 import typer
 from rich.console import Console
@@ -50,3 +57,24 @@ def make_table(title: str, headers: tuple[str, ...] | list[str], caption: str | 
     for header in headers:
         table.add_column(escape(header), min_width=min(len(header), 24))
     return table
+
+
+def end_process(code: int) -> NoReturn:
+    """End this process at once with exit status ``code``, without the interpreter's teardown.
+
+    For a process whose work is done (files closed, child processes joined, messages queued): the teardown would
+    unload a device backend's compiled programs, 1-2 s after a GPU calibration. Unreferenced objects are collected
+    first (the finalizers of multiprocessing queues and locks release their semaphores, which the resource tracker
+    would otherwise report as leaked), then the output streams and logging are flushed.
+
+    Parameters
+    ----------
+    code : int
+        Exit status.
+    """
+    gc.collect()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    logging.shutdown()
+    os._exit(code)

@@ -9,8 +9,6 @@ preflight, reports ready, waits for the go and runs them one by one. Everything 
 from __future__ import annotations
 
 import contextlib
-import os
-import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -129,14 +127,12 @@ def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> No
         _work(*assignment, index, queue, go)
     except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the caller reports it, once
         return
-    # every file is closed and every message queued: end without the interpreter's teardown (the device
-    # backend's, about a second), which the caller would otherwise wait for
+    # every file is closed: once the messages are out, end without the teardown the caller would wait for
     queue.close()
     queue.join_thread()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    os._exit(0)
+    from bubblecal.workflows.console import end_process
+
+    end_process(0)
 
 
 def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, queue, go) -> None:

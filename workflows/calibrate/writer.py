@@ -10,13 +10,13 @@ to a writer is host arrays and metadata.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
+from bubblecal.workflows.calibrate.agent_worker import preload
 from bubblecal.workflows.calibrate.device import usable_cores
 
 __all__ = ["PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES"]
@@ -25,6 +25,8 @@ __all__ = ["PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WR
 WRITER_PROCESS_MIN_CPUS = 8
 #: Most writer processes (a quarter of the cores, at most this many).
 MAX_WRITER_PROCESSES = 4
+#: What a NetCDF write imports: each writer process imports it when it starts (:meth:`PhaseWriter.start`).
+WRITE_MODULES = ("arviz", "h5netcdf", "bubblecal.inference.idata", "bubblecal.workflows.calibrate.phase_files")
 
 
 def writer_processes(cpus: int | None = None) -> int:
@@ -50,16 +52,6 @@ def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -
     from bubblecal.workflows.calibrate.phase_files import write_phase
 
     return write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
-
-
-def _warm() -> None:
-    """Import what a NetCDF write needs (once per writer process, before its first file); a missing module is
-    left for the write itself to report."""
-    import importlib
-
-    for name in ("arviz", "h5netcdf", "bubblecal.inference.idata", "bubblecal.workflows.calibrate.phase_files"):
-        with contextlib.suppress(ImportError):
-            importlib.import_module(name)
 
 
 def _host(obj):
@@ -118,7 +110,7 @@ class PhaseWriter:
             return
         pool = self._executor()
         # one warm-up task per process: the pool spawns a process for each task that finds none idle
-        self._warm = [pool.submit(_warm) for _ in range(self.processes)]
+        self._warm = [pool.submit(preload, WRITE_MODULES) for _ in range(self.processes)]
 
     def submit(self, on_done: Callable[[], None], path: Path, result, loglik, attrs: Mapping, *, info=None,
                pointwise=None, parts: Mapping | None = None) -> None:
