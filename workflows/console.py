@@ -63,7 +63,7 @@ def end_process(code: int) -> NoReturn:
     """End this process at once with exit status ``code``, without the interpreter's teardown.
 
     For a process whose work is done (files closed, child processes joined, messages queued): the teardown would
-    unload a device backend's compiled programs, 1-2 s after a GPU calibration. Unreferenced objects are collected
+    only unload a device backend's compiled programs one by one. Unreferenced objects are collected
     first (the finalizers of multiprocessing queues and locks release their semaphores, which the resource tracker
     would otherwise report as leaked), then the output streams and logging are flushed.
 
