@@ -16,7 +16,8 @@ Every function takes a NumPyro model (built by :mod:`bubblecal.models`) or plain
 - posterior-predictive metrics (section 7): :func:`predictive_band`, :func:`coverage`,
   :func:`predictive_crps`, :func:`map_index`, ...;
 - :class:`ExportInfo`, :func:`build_inference_data`, :func:`pointwise_log_likelihood` — ArviZ-complete exports
-  (named dims, units, pointwise log likelihood); :func:`pareto_k` — PSIS Pareto k̂ (ArviZ's, in NumPy alone);
+  (named dims, units, pointwise log likelihood); :func:`write_netcdf` — such an export as ArviZ's NetCDF file,
+  in one open of the file; :func:`pareto_k` — PSIS Pareto k̂ (ArviZ's, in NumPy alone);
 - :func:`sobol_along` — Sobol sensitivity along a loading coordinate (section 8; SALib is imported
   only when it runs).
 """
@@ -28,9 +29,10 @@ from bubblecal._lazy import by_module, lazy_exports
 _LAZY = by_module({
     "bubblecal.inference.compare": ("Comparison", "compare_posteriors", "compare_staged_joint"),
     "bubblecal.inference.crps": ("CRPSResult", "crps_ensemble", "gaussian_crps", "predictive_crps"),
-    "bubblecal.inference.hierarchical": ("ESS_PREFIX", "Dataset", "PhaseResult", "StagedResult", "ess_table",
-        "run_phase", "run_staged"),
+    "bubblecal.inference.hierarchical": ("Dataset", "run_phase", "run_staged"),
+    "bubblecal.inference.phase_results": ("ESS_PREFIX", "PhaseResult", "StagedResult", "ess_table"),
     "bubblecal.inference.idata": ("ExportInfo", "build_inference_data", "pointwise_log_likelihood"),
+    "bubblecal.inference.netcdf": ("write_netcdf",),
     "bubblecal.inference.nuts": ("NUTSResult", "run_nuts"),
     "bubblecal.inference.predictive": ("PredictiveBand", "coverage", "map_estimate", "map_index", "mixture_cdf",
         "mixture_quantile", "predictive_band"),
@@ -51,7 +53,7 @@ __all__ = [
     "Dataset", "PhaseResult", "StagedResult", "run_phase", "run_staged", "ess_table", "compare_staged_joint",
     "ESS_PREFIX",
     # ArviZ export and PSIS
-    "ExportInfo", "build_inference_data", "pointwise_log_likelihood", "pareto_k",
+    "ExportInfo", "build_inference_data", "pointwise_log_likelihood", "pareto_k", "write_netcdf",
     # posterior-predictive metrics
     "PredictiveBand", "CRPSResult", "mixture_cdf", "mixture_quantile", "predictive_band", "coverage",
     "gaussian_crps", "crps_ensemble", "predictive_crps", "map_index", "map_estimate",

@@ -18,7 +18,6 @@ The method is ``docs/inference.md`` section 4. Physics-free: the caller supplies
 from __future__ import annotations
 
 import functools
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -28,13 +27,10 @@ import jax
 import numpy as np
 
 from bubblecal.inference._phase_batch import run_phases
+from bubblecal.inference.phase_results import ESS_PREFIX, PhaseResult, StagedResult, ess_table, phase_draws
 from bubblecal.inference.tmcmc import TMCMC
 
 __all__ = ["Dataset", "PhaseResult", "StagedResult", "run_phase", "run_staged", "ess_table", "ESS_PREFIX"]
-
-#: Prefix of the phase-2 deterministic sites that hold the per-dataset IS effective sample size.
-ESS_PREFIX = "is_ess_"
-
 
 @dataclass(frozen=True)
 class Dataset:
@@ -56,97 +52,6 @@ class Dataset:
     model: Callable
     args: tuple = ()
     kwargs: Mapping[str, Any] = field(default_factory=dict)
-
-
-@dataclass
-class PhaseResult:
-    """Outcome of one TMCMC run of a phase.
-
-    Parameters
-    ----------
-    name : str
-        Phase name (``phase1_<dataset>``, ``phase2``, ``phase3_<dataset>``).
-    samples : dict of str to numpy.ndarray
-        Constrained samples, deterministic sites included.
-    log_evidence, log_evidence_se : float
-        Log evidence (mean over replicas) and its standard error.
-    status : str
-        TMCMC status.
-    seconds : float
-        Wall time of the run.
-    sampler : TMCMC or None
-        The sampler (None for a result loaded from disk).
-    """
-
-    name: str
-    samples: dict[str, np.ndarray]
-    log_evidence: float
-    log_evidence_se: float
-    status: str
-    seconds: float
-    sampler: TMCMC | None = None
-
-    def to_inference_data(self):
-        """The run as ArviZ InferenceData (stage table and evidence in the attrs).
-
-        Returns
-        -------
-        arviz.InferenceData
-        """
-        if self.sampler is not None:
-            return self.sampler.to_inference_data()
-        import arviz as az
-
-        idata = az.from_dict(posterior={k: v[None] for k, v in self.samples.items()})
-        idata.posterior.attrs.update({"log_evidence": self.log_evidence, "log_evidence_se": self.log_evidence_se,
-                                      "status": self.status, "phase": self.name})
-        return idata
-
-
-@dataclass
-class StagedResult:
-    """Phases 1, 2 and 3 of a staged hierarchy.
-
-    Parameters
-    ----------
-    phase1 : list of PhaseResult
-        One per dataset.
-    phase2 : PhaseResult
-        The hyperparameters ψ.
-    phase3 : list of PhaseResult
-        One per dataset.
-    phase3_ess : dict of str to float
-        Importance ESS of the phase-3 re-weighting per dataset (empty for the published phase 3).
-    phase2_max_samples : int or None
-        Phase-1 draws per dataset phase 2 used at most (None: all).
-    """
-
-    phase1: list[PhaseResult]
-    phase2: PhaseResult
-    phase3: list[PhaseResult]
-    phase3_ess: dict[str, float] = field(default_factory=dict)
-    phase2_max_samples: int | None = None
-
-    @property
-    def psi_samples(self) -> dict[str, np.ndarray]:
-        """Posterior draws of the hyperparameters (sites m_*, tau_*)."""
-        return {k: v for k, v in self.phase2.samples.items() if k.startswith(("m_", "tau_"))}
-
-    def ess(self):
-        """Per-dataset importance-sampling ESS summary (fractions of the draws phase 2 used).
-
-        Returns
-        -------
-        pandas.DataFrame
-            See :func:`ess_table`.
-        """
-        cap = self.phase2_max_samples or math.inf
-        return ess_table(self.phase2.samples, {r.name: int(min(_num_draws(r), cap)) for r in self.phase1})
-
-
-def _num_draws(result: PhaseResult) -> int:
-    """Number of draws of a phase."""
-    return int(next(iter(result.samples.values())).shape[0])
 
 
 def run_phase(name: str, model: Callable, args: tuple, kwargs: Mapping, rng_key, tmcmc_options: Mapping,
@@ -339,7 +244,7 @@ def run_staged(
 def _phase1_start(phase1: PhaseResult, num: int) -> dict[str, Any]:
     """``TMCMC.run`` arguments that start a run from ``num`` of phase 1's equal-weight draws (evenly spaced, so
     repeated only where phase 1 holds fewer) with phase 1's log evidence."""
-    size = _num_draws(phase1)
+    size = phase_draws(phase1)
     idx = np.linspace(0, size - 1, num).round().astype(int)
     return {"init_samples": {k: np.asarray(v)[idx] for k, v in phase1.samples.items()},
             "init_log_evidence": float(phase1.log_evidence)}
@@ -352,35 +257,3 @@ def _thin(samples: Mapping[str, np.ndarray], max_samples: int | None) -> dict[st
         return dict(samples)
     index = np.linspace(0, n - 1, max_samples).round().astype(int)  # deterministic thinning keeps stratification
     return {k: np.asarray(v)[index] for k, v in samples.items()}
-
-
-def ess_table(phase2_samples: Mapping[str, np.ndarray], num_draws: Mapping[str, int] | None = None):
-    """Per dataset: importance-sampling effective sample size over the phase-2 posterior.
-
-    A collapse (ESS ≈ 1) means phase 1 did not cover what ψ proposes.
-
-    Parameters
-    ----------
-    phase2_samples : mapping of str to array_like
-        Phase-2 samples; the sites ``is_ess_<dataset>`` are read.
-    num_draws : mapping of str to int or None
-        Phase-1 draws per dataset (keys ``phase1_<dataset>`` or ``<dataset>``), for the fraction.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Columns dataset, ess_min, ess_p05, ess_median, ess_median_fraction (NaN without ``num_draws``).
-    """
-    import pandas as pd
-
-    rows = []
-    for key, values in phase2_samples.items():
-        if not key.startswith(ESS_PREFIX):
-            continue
-        name = key[len(ESS_PREFIX):]
-        v = np.asarray(values, dtype=float)
-        n = (num_draws or {}).get(f"phase1_{name}", (num_draws or {}).get(name))
-        rows.append({"dataset": name, "ess_min": float(v.min()), "ess_p05": float(np.quantile(v, 0.05)),
-                     "ess_median": float(np.median(v)),
-                     "ess_median_fraction": float(np.median(v)) / n if n else math.nan})
-    return pd.DataFrame(rows)

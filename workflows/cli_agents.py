@@ -73,12 +73,12 @@ def run_agents(plan, jobs: int, cache: bool, workers=None) -> None:
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     from bubblecal.workflows.calibrate import (
-        LATE_MODULES,
         AgentProcesses,
         CalibrationError,
         agent_groups,
+        late_modules,
         outcome_of,
-        preload,
+        preload_soon,
         run_agent_with_report,
     )
     from bubblecal.workflows.calibrate.preflight import preflight
@@ -102,7 +102,7 @@ def run_agents(plan, jobs: int, cache: bool, workers=None) -> None:
         try:
             preflight(own)
             if workers is not None:
-                preload(LATE_MODULES)  # imported later anyway: now, while the workers finish their preflight
+                preload_soon(late_modules())  # imported later anyway: while the workers finish their preflight
                 workers.wait_ready(on_warning=warn)
         except CalibrationError as exc:
             raise fail(str(exc)) from None

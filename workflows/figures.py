@@ -26,7 +26,8 @@ from bubblecal.workflows.figures_population import diameter_figure, forest_figur
 from bubblecal.workflows.host_programs import frequency_program
 from bubblecal.workflows.plotting import COLOURS, figure_title, new_figure, save_figure, styled
 
-__all__ = ["agent_figures", "ka_kb_figure", "population_figure", "acoustic_figure"]
+__all__ = ["agent_figures", "draw_figure", "FIGURES", "ka_kb_figure", "population_figure", "acoustic_figure",
+           "acoustic_band"]
 
 #: Up to this many curves ``ka_kb.png`` draws one coloured cloud (and legend entry) per curve.
 _FEW_CLOUDS = 6
@@ -160,8 +161,40 @@ def population_figure(result, plan, path: Path) -> Path | None:
     return save_figure(fig, path)
 
 
+def acoustic_band(result) -> dict | None:
+    """The f_res(D) band of ``acoustic.png``: frequencies of the population-predictive k_a on the surrogate's
+    diameters near the data (evaluated by a compiled program: call it where JAX runs).
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run.
+
+    Returns
+    -------
+    dict or None
+        'diameter_um' (the surrogate's diameters within 0.6 um of the data), 'lo_d' and 'hi_d' (the axis range
+        [um]) and, with population-predictive k_a draws, 'q' ((3, diameters): 5, 50, 95 % quantiles [MHz]);
+        None without acoustic data or surrogate.
+    """
+    ap = result.plan
+    if not ap.acoustic or ap.f_res is None:
+        return None
+    diam_grid = np.array([d for d in ap.f_res.diameters])
+    obs_d = np.concatenate([np.atleast_1d(ds.diameter_um) for ds in ap.acoustic])
+    lo_d, hi_d = obs_d.min() - 0.6, obs_d.max() + 0.6
+    diam_grid = diam_grid[(diam_grid >= lo_d) & (diam_grid <= hi_d)]
+    band = {"diameter_um": diam_grid, "lo_d": lo_d, "hi_d": hi_d}
+    pop = result.population_predictive
+    if pop is not None and "ka" in pop and diam_grid.size:
+        ka = pop["ka"][:2000]
+        f = frequency_program(ap.f_res)(ka[:, None], diam_grid[None, :])
+        band["q"] = np.quantile(f, [0.05, 0.5, 0.95], axis=0)
+    return band
+
+
 @styled
-def acoustic_figure(result, plan, path: Path) -> Path | None:
+def acoustic_figure(result, plan, path: Path, band: dict | None = None) -> Path | None:
     """``acoustic.png``: measured resonance frequencies [MHz] against diameter [um] with the f_res(D) band
     of the population-predictive k_a and each dataset's predictive interval.
 
@@ -171,6 +204,8 @@ def acoustic_figure(result, plan, path: Path) -> Path | None:
     plan : bubblecal.workflows.calibrate.Plan
     path : Path
         PNG to write.
+    band : dict or None
+        :func:`acoustic_band` of the run (None: computed here).
 
     Returns
     -------
@@ -178,18 +213,13 @@ def acoustic_figure(result, plan, path: Path) -> Path | None:
         ``path``; None without acoustic data.
     """
     ap = result.plan
-    if not ap.acoustic or ap.f_res is None:
+    band = acoustic_band(result) if band is None else band
+    if band is None:
         return None
     fig, ax = new_figure(figsize=(4.6, 3.5))
-    pop = result.population_predictive
-    diam_grid = np.array([d for d in ap.f_res.diameters])
-    obs_d = np.concatenate([np.atleast_1d(ds.diameter_um) for ds in ap.acoustic])
-    lo_d, hi_d = obs_d.min() - 0.6, obs_d.max() + 0.6
-    diam_grid = diam_grid[(diam_grid >= lo_d) & (diam_grid <= hi_d)]
-    if pop is not None and "ka" in pop and diam_grid.size:
-        ka = pop["ka"][:2000]
-        f = frequency_program(ap.f_res)(ka[:, None], diam_grid[None, :])
-        q = np.quantile(f, [0.05, 0.5, 0.95], axis=0)
+    diam_grid, lo_d, hi_d = band["diameter_um"], band["lo_d"], band["hi_d"]
+    if "q" in band:
+        q = band["q"]
         ax.fill_between(diam_grid, q[0], q[2], color=COLOURS[0], alpha=0.2, lw=0,
                         label="$f_{res}(D)$, population-predictive $k_a$ (90 %)")
         ax.plot(diam_grid, q[1], color=COLOURS[0], lw=1.4, label="median")
@@ -212,7 +242,39 @@ def acoustic_figure(result, plan, path: Path) -> Path | None:
     return save_figure(fig, path)
 
 
-def agent_figures(result, plan) -> list[Path]:
+#: Every figure of an agent in drawing order: (function, file name); ``fit_figure`` returns a list of pages.
+FIGURES = (("fit_figure", "fit.png"), ("forest_figure", "forest.png"), ("diameter_figure", "diameter.png"),
+           ("ka_kb_figure", "ka_kb.png"), ("population_figure", "population.png"), ("acoustic_figure", "acoustic.png"))
+
+
+def draw_figure(name: str, result, plan, path: Path, **kwargs) -> list[Path]:
+    """Draw one figure of :data:`FIGURES` (module level: a figure process unpickles it).
+
+    Parameters
+    ----------
+    name : str
+        A function name of :data:`FIGURES`.
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run.
+    plan : bubblecal.workflows.calibrate.Plan
+    path : Path
+        PNG to write (the first page for ``fit_figure``).
+    **kwargs
+        Passed to the figure (``band`` of ``acoustic_figure``).
+
+    Returns
+    -------
+    list of Path
+        The written files (empty when the figure does not apply to the run).
+    """
+    draw = {"fit_figure": fit_figure, "forest_figure": forest_figure, "diameter_figure": diameter_figure,
+            "ka_kb_figure": ka_kb_figure, "population_figure": population_figure,
+            "acoustic_figure": acoustic_figure}[name]
+    out = draw(result, plan, path, **kwargs)
+    return [p for p in (out if isinstance(out, list) else [out]) if p is not None]
+
+
+def agent_figures(result, plan, *, processes=None) -> list[Path]:
     """Draw every figure of one agent under ``out/<agent>/<workflow>/figures/``.
 
     Parameters
@@ -220,6 +282,8 @@ def agent_figures(result, plan) -> list[Path]:
     result : bubblecal.workflows.calibrate.AgentResult
         A summarised run.
     plan : bubblecal.workflows.calibrate.Plan
+    processes : bubblecal.workflows.calibrate.figure_processes.FigureProcesses or None
+        Draw the figures in these processes, at once (None: one after the other in this one).
 
     Returns
     -------
@@ -229,8 +293,9 @@ def agent_figures(result, plan) -> list[Path]:
     """
     folder = result.plan.out_dir / "figures"
     folder.mkdir(parents=True, exist_ok=True)
-    out = [*fit_figure(result, plan, folder / "fit.png"), forest_figure(result, plan, folder / "forest.png"),
-           diameter_figure(result, plan, folder / "diameter.png"), ka_kb_figure(result, plan, folder / "ka_kb.png"),
-           population_figure(result, plan, folder / "population.png"),
-           acoustic_figure(result, plan, folder / "acoustic.png")]
-    return [p for p in out if p is not None]
+    # the one figure that evaluates a compiled program does so here: the figure processes run no JAX
+    figures = [(name, folder / file, {"band": acoustic_band(result)} if name == "acoustic_figure" else {})
+               for name, file in FIGURES]
+    if processes is not None:
+        return processes.draw(result, plan, figures)
+    return [p for name, path, kwargs in figures for p in draw_figure(name, result, plan, path, **kwargs)]

@@ -45,8 +45,10 @@ from bubblecal.workflows.calibrate.agent_worker import (
     RUN_MODULES,
     AgentHeader,
     AgentOutcome,
+    late_modules,
     outcome_of,
     preload,
+    preload_soon,
 )
 from bubblecal.workflows.calibrate.config import (
     DEFAULT_PHASE2_SAMPLES,
@@ -74,6 +76,12 @@ from bubblecal.workflows.calibrate.config import (
     phase_tmcmc_options,
 )
 from bubblecal.workflows.calibrate.device import check_device, on_device, usable_cores
+from bubblecal.workflows.calibrate.figure_processes import (
+    FIGURE_PROCESS_MIN_CPUS,
+    MAX_FIGURE_PROCESSES,
+    FigureProcesses,
+    figure_processes,
+)
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.parallel import (
     MAX_AUTO_JOBS,
@@ -121,8 +129,9 @@ __all__ = [
     "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
     "PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES",
+    "FigureProcesses", "figure_processes", "FIGURE_PROCESS_MIN_CPUS", "MAX_FIGURE_PROCESSES",
     "AgentOutcome", "AgentProcesses", "agent_groups", "agent_jobs", "gpu_memory_shared", "outcome_of",
-    "MAX_AUTO_JOBS", "preload", "LATE_MODULES", "RUN_MODULES", "AgentHeader",
+    "MAX_AUTO_JOBS", "preload", "preload_soon", "late_modules", "LATE_MODULES", "RUN_MODULES", "AgentHeader",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

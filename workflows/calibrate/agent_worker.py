@@ -9,13 +9,15 @@ preflight, reports ready, waits for the go and runs them one by one. Everything 
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
 
-__all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "outcome_of", "preload"]
+__all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "late_modules", "outcome_of", "preload",
+           "preload_soon"]
 
 
 @dataclass(frozen=True)
@@ -102,9 +104,41 @@ def preload(modules: Sequence[str] = RUN_MODULES) -> None:
             importlib.import_module(name)
 
 
-#: Libraries an agent's summaries and figures import (none imports bubblecal): the calling process imports them
-#: while it waits for the workers' preflight (:func:`preload`).
+def preload_soon(modules: Sequence[str]) -> threading.Thread:
+    """Import ``modules`` on a daemon thread (:func:`preload`): the imports go on while this thread waits (for
+    other processes, for the device), and code that needs one of them waits for that module alone.
+
+    Parameters
+    ----------
+    modules : sequence of str
+        Module names.
+
+    Returns
+    -------
+    threading.Thread
+        The started thread.
+    """
+    thread = threading.Thread(target=preload, args=(tuple(modules),), name="bubblecal-preload", daemon=True)
+    thread.start()
+    return thread
+
+
+#: Libraries an agent's summaries and figures import (none imports bubblecal): imported while the processes wait
+#: for each other's preflight (:func:`preload_soon`, :func:`late_modules`).
 LATE_MODULES = ("pandas", "matplotlib.figure", "matplotlib.backends.backend_agg")
+
+
+def late_modules() -> tuple[str, ...]:
+    """The :data:`LATE_MODULES` an agent's process imports itself: pandas, and matplotlib unless the figures are
+    drawn in figure processes (:func:`~bubblecal.workflows.calibrate.figure_processes.figure_processes`).
+
+    Returns
+    -------
+    tuple of str
+    """
+    from bubblecal.workflows.calibrate.figure_processes import figure_processes
+
+    return LATE_MODULES[:1] if figure_processes() else LATE_MODULES
 
 
 def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> None:
@@ -148,6 +182,7 @@ def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, queue,
         queue.put(("error", index, f"{type(exc).__name__}: {exc}"))
         return
     queue.put(("ready", index, None))
+    preload_soon(late_modules())
     go.wait()
     from bubblecal.workflows.calibrate.run import run_agent_with_report
 

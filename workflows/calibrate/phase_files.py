@@ -75,6 +75,9 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
                 parts: Mapping | None = None) -> Path:
     """Write a phase result atomically: ArviZ NetCDF (``.nc``) or plain ``.npz`` (samples + attrs JSON).
 
+    The NetCDF file is written by :func:`bubblecal.inference.netcdf.write_netcdf` (ArviZ's layout and
+    compression, in one open of the file).
+
     Parameters
     ----------
     path : Path
@@ -113,7 +116,9 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
         idata.posterior.attrs.update({k: (json.dumps(v) if isinstance(v, (dict, list)) else
                                           ("nan" if isinstance(v, float) and not math.isfinite(v) else v))
                                       for k, v in meta.items()})
-        _retry_locked(lambda: atomic_write(path, lambda p: idata.to_netcdf(str(p))), path)
+        from bubblecal.inference.netcdf import write_netcdf
+
+        _retry_locked(lambda: atomic_write(path, lambda p: write_netcdf(idata, p)), path)
     else:
         arrays = {f"sample__{k}": np.asarray(v) for k, v in result.samples.items()}
         if loglik is not None:

@@ -58,6 +58,9 @@ class AgentResult:
     evidence : object or None
     pointwise : dict
         Phase name -> observed site -> (draw, ...) pointwise log likelihood (phase 2: one column per dataset).
+    bands : dict
+        Dataset name -> predictive medians and 90 % bands at the data and on a dense grid (filled by the
+        summaries, :func:`bubblecal.workflows.summary.summarise_agent`; read by the figures).
     """
 
     plan: AgentPlan
@@ -73,6 +76,7 @@ class AgentResult:
     report: Path | None = None
     evidence: object | None = None
     pointwise: dict = field(default_factory=dict)
+    bands: dict = field(default_factory=dict)
 
 
 def _curve_arguments(ap: AgentPlan, pad: bool | int) -> list[tuple[tuple, dict]]:
@@ -167,7 +171,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
         :class:`~bubblecal.inference.TMCMC`; row = stage, beta, ess, acceptance, log_evidence, ...).
     report : bool
         Also draw the figures and write ``report.md`` when ``config.figures`` is on (while the phase files are
-        still being written; :func:`run_agent_with_report`).
+        still being written; on 8 or more cores each figure in its own process,
+        :class:`~bubblecal.workflows.calibrate.figure_processes.FigureProcesses`; :func:`run_agent_with_report`).
 
     Returns
     -------
@@ -181,6 +186,20 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     RuntimeError
         A phase failed (finished phases stay on disk and are reused on rerun).
     """
+    drawers = None
+    if report and plan.config.figures:  # figures drawn side by side where cores are spare, by processes started ahead
+        from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
+
+        drawers = FigureProcesses()
+    try:
+        return _run_agent(plan, ap, progress, inject, stages, report, drawers)
+    finally:
+        if drawers is not None:
+            drawers.close()
+
+
+def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool, drawers) -> AgentResult:
+    """The body of :func:`run_agent`; ``drawers``: the figure processes (or None)."""
     import jax
 
     from bubblecal.inference.hierarchical import run_staged
@@ -218,6 +237,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
             result = store.load(name)
             if result is None:
                 store.start_writers()  # a phase will run: the writers start while its programs load
+                if drawers is not None:
+                    drawers.start()
                 if inject is not None:
                     inject(name)
             return result
@@ -270,7 +291,7 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
             from bubblecal.workflows.figures import agent_figures
             from bubblecal.workflows.report import write_report
 
-            result.figures = agent_figures(result, plan)
+            result.figures = agent_figures(result, plan, processes=drawers)
             result.report = write_report(result, plan)
     finally:
         store.flush()

@@ -1,11 +1,12 @@
 """Phase files written off the sampling thread: one writer thread, or writer processes where cores are spare.
 
-A NetCDF phase file costs about half a second whatever its size (ArviZ builds the groups, xarray opens the file once
-per group), and h5py runs every HDF5 call of a process behind one lock: one writer thread keeps up on a laptop, but
-on a GPU host, where a phase samples in a fraction of a second, 200 files queue behind it. There the files go to
-writer processes (spawned: JAX must not be forked), each with its own HDF5 library. The model-dependent part of an
-export (:func:`~bubblecal.workflows.calibrate.phase_inference_parts`) stays on the caller's thread; what crosses
-to a writer is host arrays and metadata.
+A NetCDF phase file costs a few hundredths of a second to a few tenths (ArviZ builds the groups as xarray datasets,
+:func:`~bubblecal.inference.write_netcdf` compresses and writes them), and h5py runs every HDF5 call of a process
+behind one lock: one writer thread keeps up on a laptop, but on a GPU host, where a phase samples in a fraction of a
+second, 200 files queue behind it. There the files go to writer processes (spawned: JAX must not be forked), each
+with its own HDF5 library. The model-dependent part of an export
+(:func:`~bubblecal.workflows.calibrate.phase_inference_parts`) stays on the caller's thread; what crosses to a writer
+is host arrays and metadata.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ WRITER_PROCESS_MIN_CPUS = 8
 #: Most writer processes (a quarter of the cores, at most this many).
 MAX_WRITER_PROCESSES = 4
 #: What a NetCDF write imports: each writer process imports it when it starts (:meth:`PhaseWriter.start`).
-WRITE_MODULES = ("arviz", "h5netcdf", "bubblecal.inference.idata", "bubblecal.workflows.calibrate.phase_files")
+WRITE_MODULES = ("arviz", "h5py", "bubblecal.inference.idata", "bubblecal.inference.netcdf",
+                 "bubblecal.workflows.calibrate.phase_files")
 
 
 def writer_processes(cpus: int | None = None) -> int:
@@ -52,6 +54,25 @@ def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -
     from bubblecal.workflows.calibrate.phase_files import write_phase
 
     return write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
+
+
+def _warm_up() -> None:
+    """Import what a write needs, then write one small phase file into a temporary folder: the first write of a
+    process pays for lazy imports and library set-up, which a writer started ahead pays while the phases sample."""
+    import tempfile
+
+    preload(WRITE_MODULES)
+    from bubblecal.inference.idata import ExportInfo
+    from bubblecal.inference.phase_results import PhaseResult
+
+    draws = np.zeros((1, 4))
+    info = ExportInfo(dims={"y": ("point",)}, units={"x": "DPD"},
+                      constant_data={"loading": np.zeros(3), "diameter_um": np.float64(1.0)})
+    parts = {"posterior": {"x": draws}, "sample_stats": {"lp": draws}, "log_likelihood": {"y": np.zeros((1, 4, 3))},
+             "observed_data": {"y": np.zeros(3)}, "info": info}
+    with tempfile.TemporaryDirectory(prefix="bubblecal-writer-") as folder:
+        _write(Path(folder) / "warm_up.nc", PhaseResult("warm_up", {"x": draws[0]}, 0.0, 0.0, "converged", 0.0),
+               None, {}, None, None, parts)
 
 
 def _host(obj):
@@ -104,13 +125,14 @@ class PhaseWriter:
         return self._pool
 
     def start(self) -> None:
-        """Start the writers now, each importing what a write needs, so that the first file does not wait for a
-        process start and its imports (a no-op for the writer thread and for writers already started)."""
+        """Start the writers now, each importing what a write needs and writing a small file of its own, so that the
+        first phase file does not wait for a process start, its imports and a first write's set-up (a no-op for the
+        writer thread and for writers already started)."""
         if self._pool is not None or self.processes == 0:
             return
         pool = self._executor()
         # one warm-up task per process: the pool spawns a process for each task that finds none idle
-        self._warm = [pool.submit(preload, WRITE_MODULES) for _ in range(self.processes)]
+        self._warm = [pool.submit(_warm_up) for _ in range(self.processes)]
 
     def submit(self, on_done: Callable[[], None], path: Path, result, loglik, attrs: Mapping, *, info=None,
                pointwise=None, parts: Mapping | None = None) -> None:
