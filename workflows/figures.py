@@ -26,8 +26,8 @@ from bubblecal.workflows.figures_population import diameter_figure, forest_figur
 from bubblecal.workflows.host_programs import frequency_program
 from bubblecal.workflows.plotting import COLOURS, figure_title, new_figure, save_figure, styled
 
-__all__ = ["agent_figures", "draw_figure", "FIGURES", "ka_kb_figure", "population_figure", "acoustic_figure",
-           "acoustic_band"]
+__all__ = ["agent_figures", "draw_figure", "figure_jobs", "FIGURES", "PHASE_FIGURES", "ka_kb_figure",
+           "population_figure", "acoustic_figure", "acoustic_band"]
 
 #: Up to this many curves ``ka_kb.png`` draws one coloured cloud (and legend entry) per curve.
 _FEW_CLOUDS = 6
@@ -274,6 +274,32 @@ def draw_figure(name: str, result, plan, path: Path, **kwargs) -> list[Path]:
     return [p for p in (out if isinstance(out, list) else [out]) if p is not None]
 
 
+#: Figures that read the phases alone, not the summaries (figure processes start them before the summaries run).
+PHASE_FIGURES = ("population_figure",)
+
+
+def figure_jobs(result, names=None) -> list[tuple[str, Path, dict]]:
+    """The figures of one agent to draw, as (name of :data:`FIGURES`, PNG path, keyword arguments of
+    :func:`draw_figure`), in drawing order; creates ``out/<agent>/<workflow>/figures/``.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run (or only sampled, for :data:`PHASE_FIGURES`).
+    names : collection of str or None
+        Only these figures (None: all).
+
+    Returns
+    -------
+    list of tuple
+    """
+    folder = result.plan.out_dir / "figures"
+    folder.mkdir(parents=True, exist_ok=True)
+    # the one figure that evaluates a compiled program does so here: the figure processes run no JAX
+    return [(name, folder / file, {"band": acoustic_band(result)} if name == "acoustic_figure" else {})
+            for name, file in FIGURES if names is None or name in names]
+
+
 def agent_figures(result, plan, *, processes=None) -> list[Path]:
     """Draw every figure of one agent under ``out/<agent>/<workflow>/figures/``.
 
@@ -282,7 +308,7 @@ def agent_figures(result, plan, *, processes=None) -> list[Path]:
     result : bubblecal.workflows.calibrate.AgentResult
         A summarised run.
     plan : bubblecal.workflows.calibrate.Plan
-    processes : bubblecal.workflows.calibrate.figure_processes.FigureProcesses or None
+    processes : bubblecal.workflows.calibrate.FigureProcesses or None
         Draw the figures in these processes, at once (None: one after the other in this one).
 
     Returns
@@ -291,11 +317,7 @@ def agent_figures(result, plan, *, processes=None) -> list[Path]:
         The written PNG files: the fit pages, ``forest.png``, ``diameter.png``, ``ka_kb.png``,
         ``population.png``, ``acoustic.png`` (those that apply to the run).
     """
-    folder = result.plan.out_dir / "figures"
-    folder.mkdir(parents=True, exist_ok=True)
-    # the one figure that evaluates a compiled program does so here: the figure processes run no JAX
-    figures = [(name, folder / file, {"band": acoustic_band(result)} if name == "acoustic_figure" else {})
-               for name, file in FIGURES]
+    jobs = figure_jobs(result)
     if processes is not None:
-        return processes.draw(result, plan, figures)
-    return [p for name, path, kwargs in figures for p in draw_figure(name, result, plan, path, **kwargs)]
+        return processes.draw(result, plan, jobs)
+    return [p for name, path, kwargs in jobs for p in draw_figure(name, result, plan, path, **kwargs)]

@@ -17,7 +17,7 @@ from pathlib import Path
 from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
 
 __all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "late_modules", "outcome_of", "preload",
-           "preload_soon"]
+           "preload_soon", "shutdown_soon"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +119,25 @@ def preload_soon(modules: Sequence[str]) -> threading.Thread:
         The started thread.
     """
     thread = threading.Thread(target=preload, args=(tuple(modules),), name="bubblecal-preload", daemon=True)
+    thread.start()
+    return thread
+
+
+def shutdown_soon(pool) -> threading.Thread:
+    """Shut a process pool down on a daemon thread: its queued tasks still run, then its processes end while the
+    caller goes on; join the thread to wait for their end.
+
+    Parameters
+    ----------
+    pool : concurrent.futures.ProcessPoolExecutor
+
+    Returns
+    -------
+    threading.Thread
+        The started thread.
+    """
+    thread = threading.Thread(target=pool.shutdown, kwargs={"wait": True}, name="bubblecal-pool-shutdown",
+                              daemon=True)
     thread.start()
     return thread
 

@@ -111,6 +111,8 @@ class FigureProcesses:
     def __init__(self, processes: int | None = None):
         self.processes = figure_processes() if processes is None else int(processes)
         self._pool = None
+        self._closer = None
+        self._futures: dict[str, object] = {}
 
     def start(self) -> None:
         """Spawn the processes now, each importing :data:`FIGURE_MODULES` (a no-op without processes or once
@@ -127,15 +129,36 @@ class FigureProcesses:
         for _ in range(self.processes):
             self._pool.submit(preload, FIGURE_MODULES)
 
-    def draw(self, result, plan, figures: Sequence[tuple[str, Path, dict]]) -> list[Path]:
-        """Draw ``figures`` (name of :data:`bubblecal.workflows.figures.FIGURES`, path, keyword arguments of
-        :func:`~bubblecal.workflows.figures.draw_figure`) of a summarised run.
+    def submit(self, result, plan, figures: Sequence[tuple[str, Path, dict]]) -> None:
+        """Start drawing ``figures`` now, the costliest first (e.g. :data:`~bubblecal.workflows.figures.PHASE_FIGURES`
+        before the summaries exist); :meth:`draw` collects them. A no-op without processes.
 
         Parameters
         ----------
         result : bubblecal.workflows.calibrate.AgentResult
         plan : bubblecal.workflows.calibrate.Plan
         figures : sequence of (str, Path, dict)
+            Name of :data:`bubblecal.workflows.figures.FIGURES`, PNG path, keyword arguments of
+            :func:`~bubblecal.workflows.figures.draw_figure`.
+        """
+        if self.processes == 0 or not figures:
+            return
+        self.start()
+        payload = figure_snapshot(result, plan)
+        rank = {name: k for k, name in enumerate(_COSTLIEST_FIRST)}
+        for name, path, kwargs in sorted(figures, key=lambda f: rank.get(f[0], -1)):
+            self._futures[name] = self._pool.submit(_draw, payload, name, Path(path), kwargs)
+
+    def draw(self, result, plan, figures: Sequence[tuple[str, Path, dict]]) -> list[Path]:
+        """Draw ``figures`` of a summarised run (those :meth:`submit` started are collected), then let the processes
+        end.
+
+        Parameters
+        ----------
+        result : bubblecal.workflows.calibrate.AgentResult
+        plan : bubblecal.workflows.calibrate.Plan
+        figures : sequence of (str, Path, dict)
+            As :meth:`submit`.
 
         Returns
         -------
@@ -151,24 +174,30 @@ class FigureProcesses:
 
         if self.processes == 0:
             return [p for name, path, kwargs in figures for p in draw_figure(name, result, plan, path, **kwargs)]
-        self.start()
-        payload = figure_snapshot(result, plan)
-        rank = {name: k for k, name in enumerate(_COSTLIEST_FIRST)}
-        order = sorted(range(len(figures)), key=lambda i: rank.get(figures[i][0], -1))
-        futures = {i: self._pool.submit(_draw, payload, *figures[i]) for i in order}
+        self.submit(result, plan, [f for f in figures if f[0] not in self._futures])
         out: list[Path] = []
         error = None
-        for i in range(len(figures)):
+        for name, _path, _kwargs in figures:
             try:
-                out += futures[i].result()
+                out += self._futures.pop(name).result()
             except Exception as exc:  # noqa: BLE001, PERF203 - every figure finishes before the first error is raised
                 error = error or exc
+        self.close_soon()
         if error is not None:
             raise error
         return out
 
+    def close_soon(self) -> None:
+        """Let the processes end once their figures are drawn (their interpreters' exit overlaps the caller's work)."""
+        if self._pool is not None and self._closer is None:
+            from bubblecal.workflows.calibrate.agent_worker import shutdown_soon
+
+            self._closer = shutdown_soon(self._pool)
+
     def close(self) -> None:
         """Stop the processes (waits for any figure still drawing)."""
         if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
+            self.close_soon()
+            self._closer.join()
+            self._pool = self._closer = None
+        self._futures.clear()

@@ -275,6 +275,7 @@ def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool
         joint = run_joint(ap, config, key, store, say)
         seconds["joint_nuts"] = joint.seconds
     seconds["sampling_total"] = time.perf_counter() - t_start
+    store.close_soon()  # every phase is saved: the writer processes end once their files are written
 
     # summaries, figures and report read the draws in memory: they run while the writers finish the phase files
     try:
@@ -282,6 +283,10 @@ def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool
         result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
                              population_predictive=None, seconds=seconds, reused=list(store.reused),
                              pointwise=store.pointwise)
+        if report and config.figures and drawers is not None:  # the figures of the phases alone start now
+            from bubblecal.workflows.figures import PHASE_FIGURES, figure_jobs
+
+            drawers.submit(result, plan, figure_jobs(result, PHASE_FIGURES))
         if config.summaries or config.figures:
             from bubblecal.workflows.summary import summarise_agent
 

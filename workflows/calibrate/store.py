@@ -198,6 +198,12 @@ class PhaseStore:
         text = json.dumps(self.manifest, indent=1, default=str, allow_nan=True)
         atomic_write(self.manifest_path, lambda p: p.write_text(text))
 
+    def close_soon(self) -> None:
+        """No more phases will be saved: the writer processes end once the queued files are written (:meth:`flush`
+        still waits for them and enters them in the manifest)."""
+        if self._writer is not None:
+            self._writer.close_soon()
+
     def flush(self) -> None:
         """Wait for the phase files :meth:`save` left to the writer, and enter them in the manifest.
 

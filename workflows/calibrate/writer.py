@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate.agent_worker import preload
+from bubblecal.workflows.calibrate.agent_worker import preload, shutdown_soon
 from bubblecal.workflows.calibrate.device import usable_cores
 
 __all__ = ["PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES"]
@@ -59,8 +59,12 @@ def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -
 def _warm_up() -> None:
     """Import what a write needs, then write one small phase file into a temporary folder: the first write of a
     process pays for lazy imports and library set-up, which a writer started ahead pays while the phases sample."""
+    import sys
     import tempfile
 
+    # ArviZ imports Numba, where it is installed, to compile statistics that a writer never computes
+    if "numba" not in sys.modules:
+        sys.modules["numba"] = None
     preload(WRITE_MODULES)
     from bubblecal.inference.idata import ExportInfo
     from bubblecal.inference.phase_results import PhaseResult
@@ -107,6 +111,7 @@ class PhaseWriter:
     def __init__(self, processes: int | None = None):
         self.processes = writer_processes() if processes is None else int(processes)
         self._pool = None
+        self._closer = None
         self._pending: list[tuple] = []
         self._errors: list[BaseException] = []
         self._warm: list = []
@@ -169,6 +174,12 @@ class PhaseWriter:
             else:
                 on_done()
 
+    def close_soon(self) -> None:
+        """No more files will come: the writers finish the queued ones and end meanwhile (their interpreters' exit
+        overlaps the caller's work); :meth:`close` still reports the writes and waits for the writers' end."""
+        if self._pool is not None and self._closer is None:
+            self._closer = shutdown_soon(self._pool)
+
     def close(self) -> None:
         """Wait for every write, report them, stop the writers.
 
@@ -181,8 +192,9 @@ class PhaseWriter:
             self._harvest(wait=True)
         finally:
             if self._pool is not None:
-                self._pool.shutdown(wait=True)
-                self._pool = None
+                self.close_soon()
+                self._closer.join()
+                self._pool = self._closer = None
         if self._errors:
             errors, self._errors = self._errors, []
             raise errors[0]

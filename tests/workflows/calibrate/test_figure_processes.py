@@ -11,15 +11,17 @@ from tests.workflows.test_figures_many import fake_result
 
 
 def test_processes_draw_the_same_files_as_the_agent_process(tmp_path):
-    """Every figure of a fake summarised run, byte for byte, in the same order; the costliest go first."""
+    """Every figure of a fake summarised run, byte for byte, in the same order, the figures of the phases alone
+    submitted first."""
     from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
-    from bubblecal.workflows.figures import agent_figures
+    from bubblecal.workflows.figures import PHASE_FIGURES, agent_figures, figure_jobs
 
     here, plan = fake_result(tmp_path / "here", 5)
     there, _ = fake_result(tmp_path / "there", 5)
     drawers = FigureProcesses(2)
     try:
         drawers.start()
+        drawers.submit(there, plan, figure_jobs(there, PHASE_FIGURES))
         got = agent_figures(there, plan, processes=drawers)
     finally:
         drawers.close()

@@ -74,10 +74,14 @@ def test_joint_file_chains_are_concatenated_on_read(tmp_path):
     np.testing.assert_array_equal(loglik, -np.arange(12.0))
 
 
-@pytest.mark.parametrize(("writers", "started"), [(0, False), (2, False), (2, True)],
-                         ids=["thread", "processes", "processes started ahead"])
-def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path, writers, started):
-    """Also with the writers started (and warmed up) before the first phase: the same files, the same manifest."""
+@pytest.mark.parametrize(("writers", "started", "closing"), [(0, False, False), (2, False, False), (2, True, False),
+                                                          (0, False, True), (2, True, True)],
+                         ids=["thread", "processes", "processes started ahead", "thread closing soon",
+                              "processes started ahead, closing soon"])
+def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_flush(tmp_path, writers, started,
+                                                                                     closing):
+    """Also with the writers started (and warmed up) before the first phase, and told to end once the queued files
+    are written before the flush: the same files, the same manifest."""
     import json
 
     import xarray as xr
@@ -92,7 +96,11 @@ def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_
         res = PhaseResult(n, {"ka": np.arange(5.0) + k, "kb": np.ones(5) * k}, -1.0 - k, 0.1, "converged", 1.0)
         direct.save(res)
         later.save(res)
+    if closing:
+        later.close_soon()
+        later.close_soon()  # a second call changes nothing
     later.flush()
+    assert later._writer is None
     manifest = json.loads((tmp_path / "later" / "manifest.json").read_text())
     assert sorted(manifest["phases"]) == sorted(NAMES)
     for n in NAMES:
