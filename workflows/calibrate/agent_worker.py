@@ -169,11 +169,8 @@ def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> No
 
             enable_compilation_cache(say=lambda m: queue.put(("warning", index, m)))
         preload()
-        if device == "gpu":  # the device's start-up (CUDA context) before the agents arrive
-            with contextlib.suppress(Exception):
-                import jax
-
-                jax.devices("gpu")
+        if device == "gpu":  # the device starts (CUDA context) while the agents arrive and are planned
+            threading.Thread(target=_start_gpu, name="bubblecal-gpu-start", daemon=True).start()
         assignment = inbox.get()
         if assignment is None:
             return
@@ -186,6 +183,14 @@ def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> No
     from bubblecal.workflows.console import end_process
 
     end_process(0)
+
+
+def _start_gpu() -> None:
+    """Start JAX's GPU backend (a failure is left to the preflight, which reports it)."""
+    with contextlib.suppress(Exception):
+        import jax
+
+        jax.devices("gpu")
 
 
 def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, queue, go) -> None:
