@@ -105,7 +105,7 @@ def run_level(config, diameter_um: float, n: int, device: str, scale: float, sub
                            params={k: np.asarray(design[k][idx]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][idx]), subdivisions=sub)
     qs_request = replace(request, params={k: v + (qs_shift or {}).get(k, 0.0) for k, v in request.params.items()})
-    qs_settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"} | (qs_overrides or {})
+    qs_settings = config.physics_tier_settings() | (qs_overrides or {})
     md_settings = {k: v for k, v in config.tier_settings.items() if k in SHARED} | (ref_overrides or {})
     out = {"indices": idx.tolist(), "grid": list(request.grid)}
     if qs_store:

@@ -37,7 +37,7 @@ def level_curves(name: str, diameter_um: float, n: int, subdivisions: int, devic
     if len(idx) == 0:
         raise SystemExit(f"{name}: no design point at {diameter_um} um (levels {config.diameters[0]} .. "
                          f"{config.diameters[-1]})")
-    settings = {k: v for k, v in config.tier_settings.items() if k != "max_replicas"}
+    settings = config.physics_tier_settings()
     tier = get_tier(config.tier, **{**settings, "subdivisions": subdivisions})
     request = CurveRequest(protocol=config.protocol, diameter_um=float(diameter_um),
                            grid=config.grid_for(float(diameter_um)),

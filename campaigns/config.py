@@ -359,10 +359,21 @@ class CampaignConfig:
             return self.loading_grid
         return published_grid(self.protocol, diameter_um)
 
+    def physics_tier_settings(self) -> dict:
+        """The tier settings that change the curves: ``tier_settings`` without :data:`EXECUTION_ONLY_TIER_SETTINGS`.
+
+        Returns
+        -------
+        dict
+            A new ``{name: value}`` dict, ready for ``get_tier(tier, **settings)``; the scheduling-only settings
+            (which give bit-identical curves) are left out.
+        """
+        return {k: v for k, v in self.tier_settings.items() if k not in EXECUTION_ONLY_TIER_SETTINGS}
+
     def design_dict(self) -> dict:
         """The fields that define the design and the records' meaning (:data:`DESIGN_FIELDS`), JSON-able.
 
-        ``tier_settings`` leaves out :data:`EXECUTION_ONLY_TIER_SETTINGS`.
+        ``tier_settings`` is :meth:`physics_tier_settings` (without :data:`EXECUTION_ONLY_TIER_SETTINGS`).
         """
         out = {}
         for k in DESIGN_FIELDS + OPTIONAL_DESIGN_FIELDS:
@@ -375,8 +386,7 @@ class CampaignConfig:
                 v = list(v)
             out[k] = v
         # scheduling-only settings give bit-identical curves, so they do not change the design
-        out["tier_settings"] = jsonable({k: v for k, v in out["tier_settings"].items()
-                                         if k not in EXECUTION_ONLY_TIER_SETTINGS})
+        out["tier_settings"] = jsonable(self.physics_tier_settings())
         return out
 
     def design_hash(self) -> str:

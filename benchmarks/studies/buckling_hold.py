@@ -78,8 +78,7 @@ def main() -> None:
                            subdivisions=args.subdivisions or cfg.subdivisions)
     out = {}
     qs_overrides = parse_tier_settings(args.qs_setting)
-    qs = get_tier("quasistatic", **{**{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"},
-                                    **qs_overrides})
+    qs = get_tier("quasistatic", **{**cfg.physics_tier_settings(), **qs_overrides})
     md_settings = {"scale": args.scale, **parse_tier_settings(args.md_setting)}
     if args.box_pad is not None:
         from bubblecal.surrogates import radius_of_diameter

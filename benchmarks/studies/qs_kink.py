@@ -48,7 +48,7 @@ def run_variant(variant: str, diameter_um: float, points: list[int], device: str
     cfg = load_campaign_file(CAMPAIGN).config
     design = design_points(cfg)
     grid = np.asarray(cfg.grid_for(diameter_um))
-    tier = get_tier("quasistatic", **{k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"})
+    tier = get_tier("quasistatic", **cfg.physics_tier_settings())
     request = CurveRequest(protocol="compression", diameter_um=diameter_um, grid=tuple(grid),
                            params={k: np.asarray(design[k][points]) for k in SHELL_PARAMETERS},
                            seeds=tuple(int(s) for s in design["seed"][points]), subdivisions=cfg.subdivisions)
@@ -70,9 +70,13 @@ def plate_step(variant: str) -> float:
     """Largest plate sub-step of a variant [DPD length]: 0.01 for ``smallstep``, X for ``step<X>``, else 0.06."""
     if variant == "smallstep":
         return 0.01
-    if variant.startswith("step"):
-        return float(variant[4:])
-    return 0.06
+    step = _step_size(variant)
+    return 0.06 if step is None else step
+
+
+def _step_size(variant: str) -> float | None:
+    """X of a ``step<X>`` variant [DPD length], None for another name; ValueError if X is not a number."""
+    return float(variant[4:]) if variant.startswith("step") else None
 
 
 def parse_selection(points: str, variants: str, allowed: tuple[str, ...]) -> tuple[list[int], list[str]]:
@@ -85,10 +89,12 @@ def parse_selection(points: str, variants: str, allowed: tuple[str, ...]) -> tup
 
 
 def _is_step(variant: str) -> bool:
+    """A ``step<X>`` variant with a number X > 0."""
     try:
-        return variant.startswith("step") and float(variant[4:]) > 0
+        step = _step_size(variant)
     except ValueError:
         return False
+    return step is not None and step > 0
 
 
 def main() -> None:

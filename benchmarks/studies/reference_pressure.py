@@ -83,7 +83,7 @@ def run_variant(variant: str, diameter_um: float, points: list[int], device: str
         conv = cfg.tier_settings.get("indentation_convention")
         tier = get_tier("implicit", scale=scale, p_water=P_WATER, **({"indentation_convention": conv} if conv else {}))
         return np.asarray(tier.run(request, device).observable, dtype=float)
-    settings = {k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"}
+    settings = cfg.physics_tier_settings()
     if variant in ("overpressure", "both"):
         settings["overpressure"] = P_BACK + P_GAS - P_WATER
     if variant in ("reservoir", "both"):

@@ -77,7 +77,7 @@ def campaign_settings(surrogate, diameter_um: float) -> tuple[str, dict, tuple]:
     name = ("sonovue_indentation_1.5-8um_mirheo" if surrogate.over_diameter
             else f"sonovue_indentation_{surrogate.diameter_um:.1f}um_mirheo")
     cfg = load_campaign_file(name).config
-    settings = {k: v for k, v in cfg.tier_settings.items() if k != "max_replicas"}  # scheduling only
+    settings = cfg.physics_tier_settings()  # without the scheduling-only settings
     settings["subdivisions"] = cfg.subdivisions or 4
     grid = tuple(cfg.grid_for(cfg.diameter_um if cfg.diameter_um is not None else diameter_um))
     return name, settings, grid
