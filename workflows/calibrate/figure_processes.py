@@ -19,9 +19,9 @@ __all__ = ["FigureProcesses", "figure_processes", "figure_snapshot", "FIGURE_MOD
 
 #: Cores from which an agent draws its figures in processes.
 FIGURE_PROCESS_MIN_CPUS = 8
-#: Most figure processes per agent: with the costliest figures submitted first, four draw the six figures in
-#: about the time of the costliest one.
-MAX_FIGURE_PROCESSES = 4
+#: Most figure processes per agent: one per figure (``population.png`` starts before the summaries, the other five
+#: after them), so that the figures take about the time of the costliest one.
+MAX_FIGURE_PROCESSES = 6
 #: Submission order, costliest first (the population grid and the fit pages take two to three times the others).
 _COSTLIEST_FIRST = ("population_figure", "fit_figure", "forest_figure", "ka_kb_figure", "acoustic_figure",
                     "diameter_figure")
@@ -40,13 +40,13 @@ def figure_processes(cpus: int | None = None) -> int:
     Returns
     -------
     int
-        0 below :data:`FIGURE_PROCESS_MIN_CPUS` cores, else min(:data:`MAX_FIGURE_PROCESSES`, cpus // 4).
+        0 below :data:`FIGURE_PROCESS_MIN_CPUS` cores, else min(:data:`MAX_FIGURE_PROCESSES`, cpus // 3).
     """
     if cpus is None:
         from bubblecal.workflows.calibrate.device import usable_cores
 
         cpus = usable_cores()
-    return 0 if cpus < FIGURE_PROCESS_MIN_CPUS else min(MAX_FIGURE_PROCESSES, cpus // 4)
+    return 0 if cpus < FIGURE_PROCESS_MIN_CPUS else min(MAX_FIGURE_PROCESSES, cpus // 3)
 
 
 def figure_snapshot(result, plan) -> bytes:

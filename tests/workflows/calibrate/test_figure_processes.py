@@ -62,9 +62,9 @@ def test_the_snapshot_loads_without_jax(tmp_path):
     assert out.stdout.strip() == "[]"
 
 
-@pytest.mark.parametrize(("cpus", "processes"), [(2, 0), (7, 0), (8, 2), (16, 4), (64, 4)])
+@pytest.mark.parametrize(("cpus", "processes"), [(2, 0), (7, 0), (8, 2), (16, 5), (64, 6)])
 def test_processes_follow_the_cores(cpus, processes):
-    """None below 8 cores, a quarter of them above, at most four."""
+    """None below 8 cores, a third of them above, at most one per figure."""
     from bubblecal.workflows.calibrate.figure_processes import figure_processes
 
     assert figure_processes(cpus) == processes
