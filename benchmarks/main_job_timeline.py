@@ -9,7 +9,8 @@ wait for the workers, each TMCMC phase, the phase files' exports, writes and fin
 the report, the process's end) are timed in every process: the hooks are installed when this file is imported, and
 the command's spawned processes import it again as their ``__mp_main__``. A hook wraps a function when its module
 is first imported, so the order of imports stays the command's own. Prints one row per step (start and end in
-seconds from this process's start, process, step) and per process its first and last step, then one JSON line.
+seconds from this process's start, process: caller, worker, writer, figures, or helper for one that only started,
+step) and per process its first and last step, then one JSON line.
 """
 
 from __future__ import annotations
@@ -118,11 +119,21 @@ for _name in HOOKS:
 
 def _report(path: str, total: float) -> dict:
     """Print the steps in order and each process's span; return the JSON record."""
-    rows = [json.loads(line) for line in open(path)]
+    with open(path, encoding="utf-8") as fh:
+        rows = [json.loads(line) for line in fh]
     rows.sort(key=lambda r: r["t0"])
     me = os.getpid()
-    workers = {r["pid"] for r in rows if r["name"] == "_work"}
-    roles = {r["pid"]: "caller" if r["pid"] == me else "worker" if r["pid"] in workers else "writer" for r in rows}
+    steps: dict[int, set] = {}
+    for r in rows:
+        steps.setdefault(r["pid"], set()).add(r["name"])
+
+    def role(pid: int) -> str:
+        if pid == me:
+            return "caller"
+        return next((who for step, who in (("_work", "worker"), ("_draw", "figures"), ("_write", "writer"))
+                     if step in steps[pid]), "helper")
+
+    roles = {pid: role(pid) for pid in steps}
     print(f"\n{'start s':>8} {'end s':>8} {'s':>6}  {'process':<14} step")
     for r in rows:
         print(f"{r['t0']:>8.2f} {r['t1']:>8.2f} {r['t1'] - r['t0']:>6.2f}  {roles[r['pid']] + ':' + str(r['pid']):<14} "

@@ -365,16 +365,13 @@ class CampaignConfig:
         Returns
         -------
         dict
-            A new ``{name: value}`` dict, ready for ``get_tier(tier, **settings)``; the scheduling-only settings
-            (which give bit-identical curves) are left out.
+            A new dict for ``get_tier(tier, **settings)`` (scheduling-only settings give bit-identical curves).
         """
         return {k: v for k, v in self.tier_settings.items() if k not in EXECUTION_ONLY_TIER_SETTINGS}
 
     def design_dict(self) -> dict:
-        """The fields that define the design and the records' meaning (:data:`DESIGN_FIELDS`), JSON-able.
-
-        ``tier_settings`` is :meth:`physics_tier_settings` (without :data:`EXECUTION_ONLY_TIER_SETTINGS`).
-        """
+        """The fields that define the design and the records' meaning (:data:`DESIGN_FIELDS`), JSON-able;
+        ``tier_settings`` is :meth:`physics_tier_settings`."""
         out = {}
         for k in DESIGN_FIELDS + OPTIONAL_DESIGN_FIELDS:
             v = getattr(self, k)

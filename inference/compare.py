@@ -22,7 +22,7 @@ import numpy as np
 from scipy.stats import ks_2samp
 
 if TYPE_CHECKING:
-    from bubblecal.inference.hierarchical import StagedResult
+    from bubblecal.inference.phase_results import StagedResult
 
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
 

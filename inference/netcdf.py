@@ -52,8 +52,9 @@ def write_netcdf(idata, path) -> Path:
     Raises
     ------
     TypeError
-        A variable's dtype (named with its group and the variable) or an attribute value (bool, None, a mapping,
-        a nested or mixed sequence, a text array) is not supported, as in ArviZ's writer; nothing is written.
+        A variable's dtype or an attribute value (bool, None, bytes, a mapping, a nested or mixed sequence, a text
+        array, a 0-d array) is not supported; the message names the file, the group and the variable or
+        attribute, and nothing is written.
     ValueError
         A layout ArviZ would write otherwise: a non-dimension or multi-dimensional coordinate, a data variable
         named as a dimension, a name with '/', a zero-length dimension, an attribute name that netCDF-4 or
@@ -72,8 +73,11 @@ def write_netcdf(idata, path) -> Path:
     import h5py
 
     path = Path(path)
-    root = _attrs(getattr(idata, "attrs", None) or {}, "the root group", HIDDEN_ATTRS)
-    plans = [_plan(group, getattr(idata, group)) for group in idata.groups()]  # every check before the file opens
+    try:  # every check before the file opens
+        root = _attrs(getattr(idata, "attrs", None) or {}, "the root group", HIDDEN_ATTRS)
+        plans = [_plan(group, getattr(idata, group)) for group in idata.groups()]
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{path}: {exc}") from None
     with h5py.File(path, "w", track_order=True) as f:
         for key, value in root:
             _put(f.id, key, value)
@@ -164,7 +168,7 @@ def _attr_array(value) -> np.ndarray | None:
         if not all(isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_)) for x in value):
             return None
     elif isinstance(value, np.ndarray):
-        if value.ndim != 1:  # h5netcdf stores a 0-d array in a shape it cannot read back
+        if value.ndim != 1:  # refused rather than stored in a shape that reads back otherwise than ArviZ's
             return None
     elif isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         return None

@@ -102,7 +102,7 @@ def run_agents(plan, jobs: int, cache: bool, workers=None) -> None:
         try:
             preflight(own)
             if workers is not None:
-                preload_soon(late_modules())  # imported later anyway: while the workers finish their preflight
+                preload_soon(late_modules(plan.config.device))  # needed later: while the workers finish their preflight
                 workers.wait_ready(on_warning=warn)
         except CalibrationError as exc:
             raise fail(str(exc)) from None

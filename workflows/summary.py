@@ -10,7 +10,7 @@
   (compression: force), nm (indentation: depth) or MHz (acoustics) (``docs/inference.md`` section 7); the
   dataset ``population (new bubble)`` holds the population-predictive draws of the pooled parameters;
 * ``ess`` (``ess.csv``): the phase-2 importance-sampling ESS per dataset
-  (:func:`bubblecal.inference.hierarchical.ess_table`) and ``pareto_k``, the PSIS Pareto k̂ of the dataset's
+  (:func:`bubblecal.inference.phase_results.ess_table`) and ``pareto_k``, the PSIS Pareto k̂ of the dataset's
   leave-one-out importance weights 1 / L_i(ψ) over the phase-2 draws (:func:`bubblecal.workflows.calibrate.
   phase2_pareto_k`; above 0.7 the leave-one-out estimate, and phase 3 exact, is unreliable for that dataset);
 * ``bands``: predictive medians and 90 % bands at the data and on a dense grid (for the figures).

@@ -156,6 +156,7 @@ def test_unsupported_dtypes_and_attributes_are_named_and_nothing_is_written(tmp_
         idata.posterior.attrs["bad"] = value
     else:
         idata.posterior["ka"].attrs["_FillValue"] = value
-    with pytest.raises(error, match=match):
+    with pytest.raises(error, match=match) as info:
         write_netcdf(idata, tmp_path / "x.nc")
+    assert str(info.value).startswith(f"{tmp_path / 'x.nc'}: ")
     assert not (tmp_path / "x.nc").exists()

@@ -24,7 +24,7 @@ DRAWS = 200
 
 def fake_result(out: Path, n: int, *, seed: int = 0, agent: str = "definity", workflow: str = "reduced"):
     """A summarised run of ``n`` compression curves (random diameters 1.5–6 um) and its top-level plan."""
-    from bubblecal.inference.hierarchical import PhaseResult, StagedResult
+    from bubblecal.inference.phase_results import PhaseResult, StagedResult
     from bubblecal.priors import load_priors
     from bubblecal.workflows.calibrate import AgentPlan, AgentResult, CalibrationConfig
     from bubblecal.workflows.summary import POPULATION_ROW, _param_rows

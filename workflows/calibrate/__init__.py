@@ -12,8 +12,10 @@ Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.joint`),
 :mod:`~bubblecal.workflows.calibrate.published` (the published study's inputs),
 :mod:`~bubblecal.workflows.calibrate.user_data` (measured bubbles from tidy files: ``data=CURVES.csv``),
-:mod:`~bubblecal.workflows.calibrate.device` (the JAX device), :mod:`~bubblecal.workflows.calibrate.lock` (one
-run per output folder), :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws),
+:mod:`~bubblecal.workflows.calibrate.device` (the JAX device, the host's cores and the helper processes they allow),
+:mod:`~bubblecal.workflows.calibrate.figure_processes` (figures drawn side by side),
+:mod:`~bubblecal.workflows.calibrate.lock` (one run per output folder),
+:mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws),
 :mod:`~bubblecal.workflows.calibrate.served` (which surrogate served each dataset, in words),
 :mod:`~bubblecal.workflows.calibrate.parallel` (agents calibrated at once in worker processes, whose body is
 :mod:`~bubblecal.workflows.calibrate.agent_worker`).
@@ -75,13 +77,15 @@ from bubblecal.workflows.calibrate.config import (
     phase2_samples,
     phase_tmcmc_options,
 )
-from bubblecal.workflows.calibrate.device import check_device, on_device, usable_cores
-from bubblecal.workflows.calibrate.figure_processes import (
-    FIGURE_PROCESS_MIN_CPUS,
-    MAX_FIGURE_PROCESSES,
-    FigureProcesses,
-    figure_processes,
+from bubblecal.workflows.calibrate.device import (
+    HELPER_PROCESS_MIN_CPUS,
+    HELPER_PROCESSES,
+    check_device,
+    helper_processes,
+    on_device,
+    usable_cores,
 )
+from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.parallel import (
     MAX_AUTO_JOBS,
@@ -90,12 +94,7 @@ from bubblecal.workflows.calibrate.parallel import (
     agent_jobs,
     gpu_memory_shared,
 )
-from bubblecal.workflows.calibrate.writer import (
-    MAX_WRITER_PROCESSES,
-    WRITER_PROCESS_MIN_CPUS,
-    PhaseWriter,
-    writer_processes,
-)
+from bubblecal.workflows.calibrate.writer import PhaseWriter
 
 #: Exported name -> defining module, imported on first access: the configuration, the device, the lock and the
 #: worker processes load no JAX, so the CLI starts (and spawns its workers) before JAX is imported.
@@ -128,8 +127,7 @@ __all__ = [
     "user_agent_plans",
     "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
-    "PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES",
-    "FigureProcesses", "figure_processes", "FIGURE_PROCESS_MIN_CPUS", "MAX_FIGURE_PROCESSES",
+    "PhaseWriter", "FigureProcesses", "helper_processes", "HELPER_PROCESSES", "HELPER_PROCESS_MIN_CPUS",
     "AgentOutcome", "AgentProcesses", "agent_groups", "agent_jobs", "gpu_memory_shared", "outcome_of",
     "MAX_AUTO_JOBS", "preload", "preload_soon", "late_modules", "LATE_MODULES", "RUN_MODULES", "AgentHeader",
 ]

@@ -1,8 +1,8 @@
 """The body of an agent worker process and what crosses back from it (:mod:`bubblecal.workflows.calibrate.parallel`).
 
-A worker starts before the run is planned: it switches the compilation cache on, imports what planning and sampling
-need (:data:`RUN_MODULES`) and starts the GPU, then takes its agents from its inbox, plans them, runs their
-preflight, reports ready, waits for the go and runs them one by one. Everything it returns is host data
+A worker starts before the run is planned: it switches the compilation cache on and imports what planning and
+sampling need (:data:`RUN_MODULES`), then takes its agents from its inbox while the GPU starts on a thread, plans
+them, runs their preflight, reports ready, waits for the go and runs them one by one. Everything it returns is host data
 (:class:`AgentOutcome`), and it ends without the interpreter's teardown once its messages are queued.
 """
 
@@ -124,12 +124,12 @@ def preload_soon(modules: Sequence[str]) -> threading.Thread:
 
 
 def shutdown_soon(pool) -> threading.Thread:
-    """Shut a process pool down on a daemon thread: its queued tasks still run, then its processes end while the
-    caller goes on; join the thread to wait for their end.
+    """Shut a pool down on a daemon thread: its queued tasks still run, then its processes (or threads) end while
+    the caller goes on; join the thread to wait for their end.
 
     Parameters
     ----------
-    pool : concurrent.futures.ProcessPoolExecutor
+    pool : concurrent.futures.Executor
 
     Returns
     -------
@@ -147,17 +147,23 @@ def shutdown_soon(pool) -> threading.Thread:
 LATE_MODULES = ("pandas", "matplotlib.figure", "matplotlib.backends.backend_agg")
 
 
-def late_modules() -> tuple[str, ...]:
+def late_modules(device: str) -> tuple[str, ...]:
     """The :data:`LATE_MODULES` an agent's process imports itself: pandas, and matplotlib unless the figures are
-    drawn in figure processes (:func:`~bubblecal.workflows.calibrate.figure_processes.figure_processes`).
+    drawn in figure processes (GPU runs with ``helper_processes('figure')`` > 0,
+    :mod:`~bubblecal.workflows.calibrate.figure_processes`).
+
+    Parameters
+    ----------
+    device : str
+        The run's device, 'cpu' or 'gpu'.
 
     Returns
     -------
     tuple of str
     """
-    from bubblecal.workflows.calibrate.figure_processes import figure_processes
+    from bubblecal.workflows.calibrate.device import helper_processes
 
-    return LATE_MODULES[:1] if figure_processes() else LATE_MODULES
+    return LATE_MODULES[:1] if device == "gpu" and helper_processes("figure") else LATE_MODULES
 
 
 def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> None:
@@ -206,7 +212,7 @@ def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, queue,
         queue.put(("error", index, f"{type(exc).__name__}: {exc}"))
         return
     queue.put(("ready", index, None))
-    preload_soon(late_modules())
+    preload_soon(late_modules(config.device))
     go.wait()
     from bubblecal.workflows.calibrate.run import run_agent_with_report
 

@@ -7,7 +7,14 @@ import os
 
 from bubblecal.workflows.calibrate.config import CalibrationError
 
-__all__ = ["check_device", "on_device", "usable_cores"]
+__all__ = ["check_device", "on_device", "usable_cores", "helper_processes", "HELPER_PROCESSES",
+           "HELPER_PROCESS_MIN_CPUS"]
+
+#: Cores from which an agent runs helper processes beside it (below, they would only compete with XLA for the cores).
+HELPER_PROCESS_MIN_CPUS = 8
+#: Helper processes of one agent: role -> (cores per process, most processes). Phase-file writers: a quarter of the
+#: cores, at most 4; figure processes: a third, at most one per figure.
+HELPER_PROCESSES = {"writer": (4, 4), "figure": (3, 6)}
 
 
 def usable_cores() -> int:
@@ -21,6 +28,31 @@ def usable_cores() -> int:
     if hasattr(os, "sched_getaffinity"):
         return max(1, len(os.sched_getaffinity(0)))
     return os.cpu_count() or 1
+
+
+def helper_processes(role: str, cpus: int | None = None) -> int:
+    """Helper processes of one agent (phase-file writers, figure processes) for a machine of ``cpus`` cores.
+
+    Parameters
+    ----------
+    role : str
+        A key of :data:`HELPER_PROCESSES`: 'writer' or 'figure'.
+    cpus : int or None
+        Cores (None: those this process may run on).
+
+    Returns
+    -------
+    int
+        0 below :data:`HELPER_PROCESS_MIN_CPUS` cores, else min(most, cpus // cores per process) of the role.
+
+    Raises
+    ------
+    KeyError
+        An unknown role.
+    """
+    share, most = HELPER_PROCESSES[role]
+    cpus = usable_cores() if cpus is None else int(cpus)
+    return 0 if cpus < HELPER_PROCESS_MIN_CPUS else min(most, cpus // share)
 
 
 def check_device(device: str) -> None:

@@ -1,27 +1,23 @@
-"""An agent's figures drawn at once, one per process, where cores are spare.
+"""An agent's figures drawn side by side in processes where cores are spare.
 
 Matplotlib renders under the interpreter lock, so threads would draw the figures one after the other; processes
 (spawned, started while the agent samples, each importing matplotlib and the figure modules) draw them side by
-side. What crosses to a process is a host-only copy of the summarised run (:func:`figure_snapshot`): draws,
-bands and priors, no sampler, surrogate, bundle or device array (the acoustic figure's f_res band is evaluated
-before, :func:`bubblecal.workflows.figures.acoustic_band`).
+side. What crosses to a process is a host-only copy of the summarised run (:func:`figure_snapshot`, written once to a
+temporary file that each process reads): the phase-2 and phase-3 draws, bands and priors, no sampler, surrogate,
+bundle or device array (the acoustic figure's f_res band is evaluated before,
+:func:`bubblecal.workflows.figures.acoustic_band`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import pickle
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["FigureProcesses", "figure_processes", "figure_snapshot", "FIGURE_MODULES", "FIGURE_PROCESS_MIN_CPUS",
-           "MAX_FIGURE_PROCESSES"]
+__all__ = ["FigureProcesses", "figure_snapshot", "FIGURE_MODULES"]
 
-#: Cores from which an agent draws its figures in processes.
-FIGURE_PROCESS_MIN_CPUS = 8
-#: Most figure processes per agent: one per figure (``population.png`` starts before the summaries, the other five
-#: after them), so that the figures take about the time of the costliest one.
-MAX_FIGURE_PROCESSES = 6
 #: Submission order, costliest first (the population grid and the fit pages take two to three times the others).
 _COSTLIEST_FIRST = ("population_figure", "fit_figure", "forest_figure", "ka_kb_figure", "acoustic_figure",
                     "diameter_figure")
@@ -29,29 +25,9 @@ _COSTLIEST_FIRST = ("population_figure", "fit_figure", "forest_figure", "ka_kb_f
 FIGURE_MODULES = ("pandas", "matplotlib.figure", "matplotlib.backends.backend_agg", "bubblecal.workflows.figures")
 
 
-def figure_processes(cpus: int | None = None) -> int:
-    """Figure processes for a machine of ``cpus`` cores (0: draw in the agent's own process).
-
-    Parameters
-    ----------
-    cpus : int or None
-        Cores (None: those this process may run on).
-
-    Returns
-    -------
-    int
-        0 below :data:`FIGURE_PROCESS_MIN_CPUS` cores, else min(:data:`MAX_FIGURE_PROCESSES`, cpus // 3).
-    """
-    if cpus is None:
-        from bubblecal.workflows.calibrate.device import usable_cores
-
-        cpus = usable_cores()
-    return 0 if cpus < FIGURE_PROCESS_MIN_CPUS else min(MAX_FIGURE_PROCESSES, cpus // 3)
-
-
 def figure_snapshot(result, plan) -> bytes:
-    """The pickled (result, plan) a figure needs: no sampler, surrogate, bundle or pointwise log likelihood, device
-    arrays as NumPy arrays.
+    """The pickled (result, plan) the figures need: phases 2 and 3 without their samplers, no surrogate, bundle or
+    log likelihood, device arrays as NumPy arrays.
 
     Parameters
     ----------
@@ -67,16 +43,16 @@ def figure_snapshot(result, plan) -> bytes:
     import io
 
     staged = result.staged
-    if staged is not None:  # the samplers hold models and programs: a figure reads the draws only
+    if staged is not None:  # the samplers hold models and programs; the figures read phases 2 and 3 only
         bare = lambda r: dataclasses.replace(r, sampler=None)  # noqa: E731
-        staged = dataclasses.replace(staged, phase1=[bare(r) for r in staged.phase1], phase2=bare(staged.phase2),
+        staged = dataclasses.replace(staged, phase1=[], phase2=bare(staged.phase2),
                                      phase3=[bare(r) for r in staged.phase3])
     # the networks and the acoustic law import JAX: the figures read draws and bands, never a surrogate
     ap = dataclasses.replace(result.plan, surrogates=[None] * len(result.plan.surrogates), f_res=None)
     slim = dataclasses.replace(plan, bundle=None, agents=[]) if dataclasses.is_dataclass(plan) else plan
     buffer = io.BytesIO()
     _HostPickler(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump(
-        (dataclasses.replace(result, plan=ap, staged=staged, pointwise={}), slim))
+        (dataclasses.replace(result, plan=ap, staged=staged, loglik={}, pointwise={}), slim))
     return buffer.getvalue()
 
 
@@ -91,28 +67,38 @@ class _HostPickler(pickle.Pickler):
         return NotImplemented
 
 
-def _draw(payload: bytes, name: str, path: Path, kwargs) -> list[Path]:
-    """Draw one figure from a :func:`figure_snapshot` (module level: a figure process unpickles it)."""
+@functools.lru_cache(maxsize=2)
+def _snapshot(path: str) -> tuple:
+    """The (result, plan) of a snapshot file, read once per process."""
+    return pickle.loads(Path(path).read_bytes())
+
+
+def _draw(snapshot: str, name: str, path: Path, kwargs) -> list[Path]:
+    """Draw one figure from a :func:`figure_snapshot` file (module level: a figure process unpickles it)."""
     from bubblecal.workflows.figures import draw_figure
 
-    result, plan = pickle.loads(payload)
+    result, plan = _snapshot(snapshot)
     return draw_figure(name, result, plan, path, **kwargs)
 
 
 class FigureProcesses:
-    """Figure processes of one agent: started ahead, then each figure of a run drawn in its own.
+    """Figure processes of one agent: started ahead, then the figures of a run drawn side by side.
 
     Parameters
     ----------
     processes : int or None
-        Processes; None: :func:`figure_processes` of this machine (0: :meth:`draw` draws in this process).
+        Processes; None: ``helper_processes('figure')`` of this machine
+        (:func:`~bubblecal.workflows.calibrate.device.helper_processes`; 0: :meth:`draw` draws in this process).
     """
 
     def __init__(self, processes: int | None = None):
-        self.processes = figure_processes() if processes is None else int(processes)
+        from bubblecal.workflows.calibrate.device import helper_processes
+
+        self.processes = helper_processes("figure") if processes is None else int(processes)
         self._pool = None
         self._closer = None
         self._futures: dict[str, object] = {}
+        self._folder: Path | None = None
 
     def start(self) -> None:
         """Spawn the processes now, each importing :data:`FIGURE_MODULES` (a no-op without processes or once
@@ -143,11 +129,16 @@ class FigureProcesses:
         """
         if self.processes == 0 or not figures:
             return
+        import tempfile
+
         self.start()
-        payload = figure_snapshot(result, plan)
+        if self._folder is None:
+            self._folder = Path(tempfile.mkdtemp(prefix="bubblecal-figures-"))
+        snapshot = self._folder / f"snapshot{len(list(self._folder.iterdir()))}.pkl"
+        snapshot.write_bytes(figure_snapshot(result, plan))  # once: every process reads the one file
         rank = {name: k for k, name in enumerate(_COSTLIEST_FIRST)}
         for name, path, kwargs in sorted(figures, key=lambda f: rank.get(f[0], -1)):
-            self._futures[name] = self._pool.submit(_draw, payload, name, Path(path), kwargs)
+            self._futures[name] = self._pool.submit(_draw, str(snapshot), name, Path(path), kwargs)
 
     def draw(self, result, plan, figures: Sequence[tuple[str, Path, dict]]) -> list[Path]:
         """Draw ``figures`` of a summarised run (those :meth:`submit` started are collected), then let the processes
@@ -188,16 +179,22 @@ class FigureProcesses:
         return out
 
     def close_soon(self) -> None:
-        """Let the processes end once their figures are drawn (their interpreters' exit overlaps the caller's work)."""
+        """Let the processes end once their figures are drawn (their interpreters' exit overlaps the caller's work);
+        no figure can be submitted after it."""
         if self._pool is not None and self._closer is None:
             from bubblecal.workflows.calibrate.agent_worker import shutdown_soon
 
             self._closer = shutdown_soon(self._pool)
 
     def close(self) -> None:
-        """Stop the processes (waits for any figure still drawing)."""
+        """Stop the processes (waits for any figure still drawing) and remove the snapshot files."""
+        import shutil
+
         if self._pool is not None:
             self.close_soon()
             self._closer.join()
             self._pool = self._closer = None
         self._futures.clear()
+        if self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
+            self._folder = None

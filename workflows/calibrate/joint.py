@@ -40,8 +40,8 @@ def run_joint(ap: AgentPlan, config: CalibrationConfig, key, store: PhaseStore, 
     """Joint hierarchical model with NUTS (non-centred); reuses ``joint_nuts`` when its hash matches."""
     from numpyro.infer import init_to_value, log_likelihood
 
-    from bubblecal.inference.hierarchical import PhaseResult
     from bubblecal.inference.nuts import run_nuts
+    from bubblecal.inference.phase_results import PhaseResult
     from bubblecal.models import hierarchical_model, nuts_init_values
     from bubblecal.workflows.calibrate.export import joint_export
 

@@ -32,7 +32,7 @@ def phase_inference_parts(result, loglik, *, info=None, pointwise=None) -> dict:
 
     Parameters
     ----------
-    result : bubblecal.inference.hierarchical.PhaseResult
+    result : bubblecal.inference.phase_results.PhaseResult
         Draws (DPD units) and, when it ran in this process, its sampler.
     loglik : array_like or None
         Log likelihood of every draw.
@@ -82,7 +82,7 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
     ----------
     path : Path
         Target file; its suffix picks the format.
-    result : bubblecal.inference.hierarchical.PhaseResult
+    result : bubblecal.inference.phase_results.PhaseResult
         Draws (DPD units), log evidence and its standard error, status, seconds.
     loglik : array_like or None
         Log likelihood of every draw (stored for the MAP).
@@ -102,6 +102,14 @@ def write_phase(path: Path, result, loglik, attrs: Mapping, *, info=None, pointw
     -------
     Path
         ``path``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        A variable or attribute that the NetCDF writer does not lay out
+        (:func:`~bubblecal.inference.write_netcdf`; the message names the file); nothing is written.
+    OSError
+        The file stayed locked by another process.
     """
     path = Path(path)
     meta = {"log_evidence": result.log_evidence, "log_evidence_se": result.log_evidence_se, "status": result.status,
@@ -167,7 +175,7 @@ def read_phase(path: Path):
     Returns
     -------
     tuple
-        (:class:`~bubblecal.inference.hierarchical.PhaseResult`, log likelihood per draw or None).
+        (:class:`~bubblecal.inference.phase_results.PhaseResult`, log likelihood per draw or None).
 
     Raises
     ------
@@ -182,7 +190,7 @@ def read_phase(path: Path):
 
 def _read_phase(path: Path):
     """:func:`read_phase` without the error translation."""
-    from bubblecal.inference.hierarchical import PhaseResult
+    from bubblecal.inference.phase_results import PhaseResult
 
     if path.suffix == ".nc":
         import xarray as xr

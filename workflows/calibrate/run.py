@@ -37,7 +37,7 @@ class AgentResult:
     Parameters
     ----------
     plan : AgentPlan
-    staged : bubblecal.inference.hierarchical.StagedResult or None
+    staged : bubblecal.inference.phase_results.StagedResult or None
         Phases 1, 2, 3 (``sampler='tmcmc'``).
     joint : bubblecal.workflows.calibrate.joint.JointResult or None
         The joint NUTS draws, log likelihood, seconds and diagnostics (``sampler='nuts'``).
@@ -171,8 +171,8 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
         :class:`~bubblecal.inference.TMCMC`; row = stage, beta, ess, acceptance, log_evidence, ...).
     report : bool
         Also draw the figures and write ``report.md`` when ``config.figures`` is on (while the phase files are
-        still being written; on 8 or more cores each figure in its own process,
-        :class:`~bubblecal.workflows.calibrate.figure_processes.FigureProcesses`; :func:`run_agent_with_report`).
+        still being written; on a GPU run with 8 or more cores, in figure processes side by side,
+        :class:`~bubblecal.workflows.calibrate.FigureProcesses`; :func:`run_agent_with_report`).
 
     Returns
     -------
@@ -186,16 +186,23 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
     RuntimeError
         A phase failed (finished phases stay on disk and are reused on rerun).
     """
-    drawers = None
-    if report and plan.config.figures:  # figures drawn side by side where cores are spare, by processes started ahead
-        from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
-
-        drawers = FigureProcesses()
+    drawers = _figure_drawers(plan.config) if report and plan.config.figures else None
     try:
         return _run_agent(plan, ap, progress, inject, stages, report, drawers)
     finally:
         if drawers is not None:
             drawers.close()
+
+
+def _figure_drawers(config: CalibrationConfig):
+    """Figure processes of a GPU run where cores are spare (started ahead, so their imports overlap the phases);
+    None elsewhere: on CPU devices the phases keep every core busy, and the figures are drawn in the agent's process.
+    """
+    if config.device != "gpu":
+        return None
+    from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
+
+    return FigureProcesses()
 
 
 def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool, drawers) -> AgentResult:
@@ -283,7 +290,7 @@ def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool
         result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
                              population_predictive=None, seconds=seconds, reused=list(store.reused),
                              pointwise=store.pointwise)
-        if report and config.figures and drawers is not None:  # the figures of the phases alone start now
+        if drawers is not None:  # the figures of the phases alone start now
             from bubblecal.workflows.figures import PHASE_FIGURES, figure_jobs
 
             drawers.submit(result, plan, figure_jobs(result, PHASE_FIGURES))

@@ -113,7 +113,7 @@ class PhaseStore:
     """Phase files of one agent/workflow folder plus ``manifest.json`` (config hash per phase).
 
     ``expected[name]`` holds the hash a phase must carry to be reused; :meth:`load` returns the stored
-    :class:`~bubblecal.inference.hierarchical.PhaseResult` when file and hash match (and not ``force``),
+    :class:`~bubblecal.inference.phase_results.PhaseResult` when file and hash match (and not ``force``),
     :meth:`save` writes the file atomically and records it in the manifest.
 
     Parameters
@@ -132,7 +132,7 @@ class PhaseStore:
         Write the files off the caller's thread (below).
     writers : int or None
         Writer processes of a background store (0: one thread; None: by the machine's cores,
-        :func:`~bubblecal.workflows.calibrate.writer.writer_processes`).
+        :func:`~bubblecal.workflows.calibrate.device.helper_processes`).
 
     A stored phase file that cannot be read (truncated, garbage) is not reused: that phase runs again, and so
     does every phase that depends on it (:func:`phase_dependencies`), while the others are still reused. So
@@ -238,7 +238,7 @@ class PhaseStore:
 
         Returns
         -------
-        bubblecal.inference.hierarchical.PhaseResult or None
+        bubblecal.inference.phase_results.PhaseResult or None
             None when the phase must run (also with ``force``, when its file is damaged or when a phase it
             depends on runs; its name then goes to :attr:`recomputed`); else the result, its log likelihoods
             recorded in :attr:`loglik` and its name in :attr:`reused`.
@@ -276,7 +276,7 @@ class PhaseStore:
 
         Parameters
         ----------
-        result : bubblecal.inference.hierarchical.PhaseResult
+        result : bubblecal.inference.phase_results.PhaseResult
             The phase; its sampler's final log likelihoods are stored with the draws.
         """
         name = result.name

@@ -18,35 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.workflows.calibrate.agent_worker import preload, shutdown_soon
-from bubblecal.workflows.calibrate.device import usable_cores
+from bubblecal.workflows.calibrate.device import helper_processes
 
-__all__ = ["PhaseWriter", "writer_processes", "WRITER_PROCESS_MIN_CPUS", "MAX_WRITER_PROCESSES"]
+__all__ = ["PhaseWriter"]
 
-#: Cores from which a background store writes through processes instead of one thread.
-WRITER_PROCESS_MIN_CPUS = 8
-#: Most writer processes (a quarter of the cores, at most this many).
-MAX_WRITER_PROCESSES = 4
 #: What a NetCDF write imports: each writer process imports it when it starts (:meth:`PhaseWriter.start`).
 WRITE_MODULES = ("arviz", "h5py", "bubblecal.inference.idata", "bubblecal.inference.netcdf",
                  "bubblecal.workflows.calibrate.phase_files")
-
-
-def writer_processes(cpus: int | None = None) -> int:
-    """Writer processes for a machine of ``cpus`` cores (0: one writer thread).
-
-    Parameters
-    ----------
-    cpus : int or None
-        Cores (None: those this process may run on).
-
-    Returns
-    -------
-    int
-        0 below :data:`WRITER_PROCESS_MIN_CPUS` cores, else min(:data:`MAX_WRITER_PROCESSES`, cpus // 4).
-    """
-    if cpus is None:
-        cpus = usable_cores()
-    return 0 if cpus < WRITER_PROCESS_MIN_CPUS else min(MAX_WRITER_PROCESSES, cpus // 4)
 
 
 def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -> Path:
@@ -100,7 +78,8 @@ class PhaseWriter:
     Parameters
     ----------
     processes : int or None
-        Writer processes; 0: one writer thread; None: :func:`writer_processes` of this machine.
+        Writer processes; 0: one writer thread; None: ``helper_processes('writer')`` of this machine
+        (:func:`~bubblecal.workflows.calibrate.device.helper_processes`).
 
     Notes
     -----
@@ -109,7 +88,7 @@ class PhaseWriter:
     """
 
     def __init__(self, processes: int | None = None):
-        self.processes = writer_processes() if processes is None else int(processes)
+        self.processes = helper_processes("writer") if processes is None else int(processes)
         self._pool = None
         self._closer = None
         self._pending: list[tuple] = []
@@ -149,9 +128,16 @@ class PhaseWriter:
             Called without arguments after the write succeeded (not after a failed one).
         path, result, loglik, attrs, info, pointwise, parts
             As :func:`~bubblecal.workflows.calibrate.write_phase`; ``parts`` computed on the sampling thread.
-        """
-        from bubblecal.inference.hierarchical import PhaseResult
 
+        Raises
+        ------
+        RuntimeError
+            After :meth:`close_soon`.
+        """
+        from bubblecal.inference.phase_results import PhaseResult
+
+        if self._closer is not None:
+            raise RuntimeError(f"{path}: the phase writer was told that no more files come (close_soon)")
         if self.processes > 0:  # what crosses to a process: host arrays and plain metadata, no sampler
             result = PhaseResult(result.name, _host(dict(result.samples)), result.log_evidence,
                                  result.log_evidence_se, result.status, result.seconds)
@@ -175,8 +161,9 @@ class PhaseWriter:
                 on_done()
 
     def close_soon(self) -> None:
-        """No more files will come: the writers finish the queued ones and end meanwhile (their interpreters' exit
-        overlaps the caller's work); :meth:`close` still reports the writes and waits for the writers' end."""
+        """No more files will come (a later :meth:`submit` raises RuntimeError): the writers finish the queued ones
+        and end meanwhile (their interpreters' exit overlaps the caller's work); :meth:`close` still reports the
+        writes and waits for the writers' end."""
         if self._pool is not None and self._closer is None:
             self._closer = shutdown_soon(self._pool)
 

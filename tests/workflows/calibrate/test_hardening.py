@@ -119,7 +119,7 @@ def test_lock_refuses_a_live_run_and_takes_over_a_stale_one(tmp_path, synthetic_
 @pytest.mark.parametrize("suffix", [".nc", ".npz"])
 def test_phase_store_names_a_damaged_file_and_recomputes_its_dependants(tmp_path, suffix):
     """The store alone (no sampling): a damaged phase is not reused, nor is any phase computed from it."""
-    from bubblecal.inference.hierarchical import PhaseResult
+    from bubblecal.inference.phase_results import PhaseResult
     from bubblecal.workflows.calibrate import PhaseStore
 
     names = ["phase1_a", "phase1_b", "phase2", "phase3_a", "phase3_b"]

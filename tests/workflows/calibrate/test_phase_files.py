@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.inference.hierarchical import PhaseResult
+from bubblecal.inference.phase_results import PhaseResult
 from bubblecal.workflows.calibrate import PhaseStore, phase_format, read_phase, write_phase
 
 NAMES = ["phase1_a", "phase1_b", "phase2", "phase3_a", "phase3_b"]
@@ -148,9 +148,11 @@ def test_a_netcdf_write_that_finds_its_file_locked_is_retried_then_named(tmp_pat
         phase_files._retry_locked(always_locked, tmp_path / "x.nc")
 
 
-def test_writer_processes_follow_the_cores():
-    from bubblecal.workflows.calibrate.writer import MAX_WRITER_PROCESSES, WRITER_PROCESS_MIN_CPUS, writer_processes
+@pytest.mark.parametrize(("cpus", "writers", "figures"), [(2, 0, 0), (7, 0, 0), (8, 2, 2), (16, 4, 5), (128, 4, 6)])
+def test_helper_processes_follow_the_cores(cpus, writers, figures):
+    """None below 8 cores; writers a quarter of the cores (at most 4), figure processes a third (at most 6)."""
+    from bubblecal.workflows.calibrate import helper_processes
 
-    assert writer_processes(2) == 0 and writer_processes(WRITER_PROCESS_MIN_CPUS - 1) == 0
-    assert writer_processes(WRITER_PROCESS_MIN_CPUS) == WRITER_PROCESS_MIN_CPUS // 4
-    assert writer_processes(16) == 4 and writer_processes(128) == MAX_WRITER_PROCESSES
+    assert helper_processes("writer", cpus) == writers and helper_processes("figure", cpus) == figures
+    with pytest.raises(KeyError):
+        helper_processes("reader", 16)
