@@ -83,6 +83,7 @@ def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_
     """Also with the writers started (and warmed up) before the first phase, and told to end once the queued files
     are written before the flush: the same files, the same manifest."""
     import json
+    import multiprocessing
 
     import xarray as xr
 
@@ -101,6 +102,7 @@ def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_
         later.close_soon()  # a second call changes nothing
     later.flush()
     assert later._writer is None
+    assert multiprocessing.active_children() == []  # the writer processes ended with the flush
     manifest = json.loads((tmp_path / "later" / "manifest.json").read_text())
     assert sorted(manifest["phases"]) == sorted(NAMES)
     for n in NAMES:
