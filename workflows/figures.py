@@ -26,7 +26,7 @@ from bubblecal.workflows.figures_population import diameter_figure, forest_figur
 from bubblecal.workflows.host_programs import frequency_program
 from bubblecal.workflows.plotting import COLOURS, figure_title, new_figure, save_figure, styled
 
-__all__ = ["agent_figures", "draw_figure", "figure_jobs", "FIGURES", "PHASE_FIGURES", "ka_kb_figure",
+__all__ = ["agent_figures", "draw_figure", "draw_jobs", "figure_jobs", "FIGURES", "PHASE_FIGURES", "ka_kb_figure",
            "population_figure", "acoustic_figure", "acoustic_band"]
 
 #: Up to this many curves ``ka_kb.png`` draws one coloured cloud (and legend entry) per curve.
@@ -320,4 +320,23 @@ def agent_figures(result, plan, *, processes=None) -> list[Path]:
     jobs = figure_jobs(result)
     if processes is not None:
         return processes.draw(result, plan, jobs)
+    return draw_jobs(result, plan, jobs)
+
+
+def draw_jobs(result, plan, jobs) -> list[Path]:
+    """Draw :func:`figure_jobs` one after the other in this process.
+
+    Parameters
+    ----------
+    result : bubblecal.workflows.calibrate.AgentResult
+        A summarised run.
+    plan : bubblecal.workflows.calibrate.Plan
+    jobs : sequence of (str, Path, dict)
+        As :func:`figure_jobs` returns them.
+
+    Returns
+    -------
+    list of Path
+        The written files in the order of ``jobs``.
+    """
     return [p for name, path, kwargs in jobs for p in draw_figure(name, result, plan, path, **kwargs)]

@@ -85,7 +85,7 @@ from bubblecal.workflows.calibrate.device import (
     on_device,
     usable_cores,
 )
-from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
+from bubblecal.workflows.calibrate.figure_processes import FigureProcesses, drawing_processes
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.parallel import (
     MAX_AUTO_JOBS,
@@ -127,7 +127,8 @@ __all__ = [
     "user_agent_plans",
     "surrogate_label", "acoustic_label", "served_lines",
     "phase_exports", "joint_export", "phase2_log_likelihood", "phase2_pareto_k", "PHASE2_LOGLIK",
-    "PhaseWriter", "FigureProcesses", "helper_processes", "HELPER_PROCESSES", "HELPER_PROCESS_MIN_CPUS",
+    "PhaseWriter", "FigureProcesses", "drawing_processes", "helper_processes", "HELPER_PROCESSES",
+    "HELPER_PROCESS_MIN_CPUS",
     "AgentOutcome", "AgentProcesses", "agent_groups", "agent_jobs", "gpu_memory_shared", "outcome_of",
     "MAX_AUTO_JOBS", "preload", "preload_soon", "late_modules", "LATE_MODULES", "RUN_MODULES", "AgentHeader",
 ]

@@ -149,8 +149,7 @@ LATE_MODULES = ("pandas", "matplotlib.figure", "matplotlib.backends.backend_agg"
 
 def late_modules(device: str) -> tuple[str, ...]:
     """The :data:`LATE_MODULES` an agent's process imports itself: pandas, and matplotlib unless the figures are
-    drawn in figure processes (GPU runs with ``helper_processes('figure')`` > 0,
-    :mod:`~bubblecal.workflows.calibrate.figure_processes`).
+    drawn in figure processes (:func:`~bubblecal.workflows.calibrate.figure_processes.drawing_processes`).
 
     Parameters
     ----------
@@ -161,9 +160,9 @@ def late_modules(device: str) -> tuple[str, ...]:
     -------
     tuple of str
     """
-    from bubblecal.workflows.calibrate.device import helper_processes
+    from bubblecal.workflows.calibrate.figure_processes import drawing_processes
 
-    return LATE_MODULES[:1] if device == "gpu" and helper_processes("figure") else LATE_MODULES
+    return LATE_MODULES[:1] if drawing_processes(device) else LATE_MODULES
 
 
 def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> None:

@@ -16,7 +16,7 @@ import pickle
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["FigureProcesses", "figure_snapshot", "FIGURE_MODULES"]
+__all__ = ["FigureProcesses", "drawing_processes", "figure_snapshot", "FIGURE_MODULES"]
 
 #: Submission order, costliest first (the population grid and the fit pages take two to three times the others).
 _COSTLIEST_FIRST = ("population_figure", "fit_figure", "forest_figure", "ka_kb_figure", "acoustic_figure",
@@ -79,6 +79,30 @@ def _draw(snapshot: str, name: str, path: Path, kwargs) -> list[Path]:
 
     result, plan = _snapshot(snapshot)
     return draw_figure(name, result, plan, path, **kwargs)
+
+
+def drawing_processes(device: str, cpus: int | None = None) -> int:
+    """Figure processes of an agent of a run on ``device`` (0: it draws its figures itself).
+
+    Parameters
+    ----------
+    device : str
+        The run's device, 'cpu' or 'gpu'.
+    cpus : int or None
+        Cores (None: those this process may run on).
+
+    Returns
+    -------
+    int
+        ``helper_processes('figure', cpus)`` on a GPU run (:func:`~bubblecal.workflows.calibrate.device.
+        helper_processes`); 0 on CPU devices, where the phases keep every core busy and the processes' imports
+        would compete with them.
+    """
+    if device != "gpu":
+        return 0
+    from bubblecal.workflows.calibrate.device import helper_processes
+
+    return helper_processes("figure", cpus)
 
 
 class FigureProcesses:
@@ -161,10 +185,10 @@ class FigureProcesses:
         Exception
             The first error a figure raised (after every figure finished).
         """
-        from bubblecal.workflows.figures import draw_figure
-
         if self.processes == 0:
-            return [p for name, path, kwargs in figures for p in draw_figure(name, result, plan, path, **kwargs)]
+            from bubblecal.workflows.figures import draw_jobs
+
+            return draw_jobs(result, plan, figures)
         self.submit(result, plan, [f for f in figures if f[0] not in self._futures])
         out: list[Path] = []
         error = None

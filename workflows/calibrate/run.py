@@ -195,14 +195,12 @@ def run_agent(plan: Plan, ap: AgentPlan, *, progress: Callable[[str], None] | No
 
 
 def _figure_drawers(config: CalibrationConfig):
-    """Figure processes of a GPU run where cores are spare (started ahead, so their imports overlap the phases);
-    None elsewhere: on CPU devices the phases keep every core busy, and the figures are drawn in the agent's process.
-    """
-    if config.device != "gpu":
-        return None
-    from bubblecal.workflows.calibrate.figure_processes import FigureProcesses
+    """Figure processes of a run that has them (:func:`~bubblecal.workflows.calibrate.figure_processes.
+    drawing_processes`; started ahead, so their imports overlap the phases); None: the agent draws its figures."""
+    from bubblecal.workflows.calibrate.figure_processes import FigureProcesses, drawing_processes
 
-    return FigureProcesses()
+    n = drawing_processes(config.device)
+    return FigureProcesses(n) if n else None
 
 
 def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool, drawers) -> AgentResult:

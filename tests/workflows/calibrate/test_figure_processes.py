@@ -83,6 +83,13 @@ def test_an_agent_process_imports_matplotlib_only_where_it_draws(monkeypatch, de
     assert late_modules(device) == modules
 
 
+@pytest.mark.parametrize(("device", "cpus", "processes"), [("gpu", 16, 5), ("gpu", 4, 0), ("cpu", 16, 0)])
+def test_figure_processes_only_on_gpu_runs_with_spare_cores(device, cpus, processes):
+    from bubblecal.workflows.calibrate import drawing_processes
+
+    assert drawing_processes(device, cpus) == processes
+
+
 def test_a_run_draws_the_same_figures_in_figure_processes(tmp_path, synthetic_bundle, monkeypatch):
     """A staged run whose figures go to two figure processes (the GPU path, forced here): the same PNG files as a
     run that draws them itself, the acoustic band included, and no process left behind."""
