@@ -113,6 +113,18 @@ def test_background_writes_equal_the_direct_ones_and_land_in_the_manifest_after_
             "log_evidence"]
 
 
+def test_a_phase_saved_after_close_soon_is_refused_by_name(tmp_path):
+    """Once the store was told that no more phases come, a late save names its file; the earlier one still lands."""
+    st = PhaseStore(tmp_path, background=True, writers=0)
+    st.expected = {n: f"hash-{n}" for n in NAMES}
+    st.save(PhaseResult("phase1_a", {"ka": np.arange(3.0)}, -1.0, 0.1, "converged", 1.0))
+    st.close_soon()
+    with pytest.raises(RuntimeError, match=r"phase1_b\.nc: the phase writer was told that no more files come"):
+        st.save(PhaseResult("phase1_b", {"ka": np.arange(3.0)}, -1.0, 0.1, "converged", 1.0))
+    st.flush()
+    assert read_phase(tmp_path / "phase1_a.nc")[0].name == "phase1_a"
+
+
 def test_a_failed_background_write_is_raised_by_flush_after_the_others_landed(tmp_path):
     import json
 
