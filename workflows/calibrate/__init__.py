@@ -15,6 +15,7 @@ Modules: :mod:`~bubblecal.workflows.calibrate.config` (settings and defaults),
 :mod:`~bubblecal.workflows.calibrate.device` (the JAX device, the host's cores and the helper processes they allow),
 :mod:`~bubblecal.workflows.calibrate.figure_processes` (figures drawn side by side),
 :mod:`~bubblecal.workflows.calibrate.lock` (one run per output folder),
+:mod:`~bubblecal.workflows.calibrate.imports` (libraries imported in the background, one thread at a time),
 :mod:`~bubblecal.workflows.calibrate.preflight` (the likelihood at prior draws),
 :mod:`~bubblecal.workflows.calibrate.served` (which surrogate served each dataset, in words),
 :mod:`~bubblecal.workflows.calibrate.parallel` (agents calibrated at once in worker processes, whose body is
@@ -49,8 +50,6 @@ from bubblecal.workflows.calibrate.agent_worker import (
     AgentOutcome,
     late_modules,
     outcome_of,
-    preload,
-    preload_soon,
 )
 from bubblecal.workflows.calibrate.config import (
     DEFAULT_PHASE2_SAMPLES,
@@ -86,6 +85,7 @@ from bubblecal.workflows.calibrate.device import (
     usable_cores,
 )
 from bubblecal.workflows.calibrate.figure_processes import FigureProcesses, drawing_processes
+from bubblecal.workflows.calibrate.imports import import_turn, library, preload, preload_soon
 from bubblecal.workflows.calibrate.lock import LOCK_NAME, run_lock
 from bubblecal.workflows.calibrate.parallel import (
     MAX_AUTO_JOBS,
@@ -130,7 +130,8 @@ __all__ = [
     "PhaseWriter", "FigureProcesses", "drawing_processes", "helper_processes", "HELPER_PROCESSES",
     "HELPER_PROCESS_MIN_CPUS",
     "AgentOutcome", "AgentProcesses", "agent_groups", "agent_jobs", "gpu_memory_shared", "outcome_of",
-    "MAX_AUTO_JOBS", "preload", "preload_soon", "late_modules", "LATE_MODULES", "RUN_MODULES", "AgentHeader",
+    "MAX_AUTO_JOBS", "preload", "preload_soon", "library", "import_turn", "late_modules", "LATE_MODULES",
+    "RUN_MODULES", "AgentHeader",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

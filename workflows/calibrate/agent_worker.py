@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
+from bubblecal.workflows.calibrate.imports import preload, preload_soon
 
-__all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "late_modules", "outcome_of", "preload",
-           "preload_soon", "shutdown_soon"]
+__all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "late_modules", "outcome_of",
+           "shutdown_soon"]
 
 
 @dataclass(frozen=True)
@@ -89,40 +90,6 @@ RUN_MODULES = ("bubblecal.workflows.calibrate.plan", "bubblecal.workflows.calibr
                "bubblecal.workflows.calibrate.run")
 
 
-def preload(modules: Sequence[str] = RUN_MODULES) -> None:
-    """Import ``modules`` now (one that is not installed is skipped: the code that needs it reports it).
-
-    Parameters
-    ----------
-    modules : sequence of str
-        Module names (default :data:`RUN_MODULES`).
-    """
-    import importlib
-
-    for name in modules:
-        with contextlib.suppress(ImportError):
-            importlib.import_module(name)
-
-
-def preload_soon(modules: Sequence[str]) -> threading.Thread:
-    """Import ``modules`` on a daemon thread (:func:`preload`): the imports go on while this thread waits (for
-    other processes, for the device), and code that needs one of them waits for that module alone.
-
-    Parameters
-    ----------
-    modules : sequence of str
-        Module names.
-
-    Returns
-    -------
-    threading.Thread
-        The started thread.
-    """
-    thread = threading.Thread(target=preload, args=(tuple(modules),), name="bubblecal-preload", daemon=True)
-    thread.start()
-    return thread
-
-
 def shutdown_soon(pool) -> threading.Thread:
     """Shut a pool down on a daemon thread: its queued tasks still run, then its processes (or threads) end while
     the caller goes on; join the thread to wait for their end.
@@ -173,7 +140,7 @@ def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> No
             from bubblecal.workflows.compile_cache import enable_compilation_cache
 
             enable_compilation_cache(say=lambda m: queue.put(("warning", index, m)))
-        preload()
+        preload(RUN_MODULES)
         if device == "gpu":  # the device starts (CUDA context) while the agents arrive and are planned
             threading.Thread(target=_start_gpu, name="bubblecal-gpu-start", daemon=True).start()
         assignment = inbox.get()

@@ -132,7 +132,7 @@ class FigureProcesses:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        from bubblecal.workflows.calibrate.agent_worker import preload
+        from bubblecal.workflows.calibrate.imports import preload
 
         self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"))
         # one warm-up task per process: the pool spawns a process for each task that finds none idle

@@ -26,6 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 from bubblecal.workflows.calibrate.agent_worker import AgentOutcome, _worker
 from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
 from bubblecal.workflows.calibrate.device import usable_cores
+from bubblecal.workflows.calibrate.imports import preload
 
 __all__ = ["AgentProcesses", "MAX_AUTO_JOBS", "agent_groups", "agent_jobs", "gpu_memory_shared"]
 
@@ -259,6 +260,7 @@ class AgentProcesses:
             worker that died names all of its agents not yet finished).
         """
         def drain() -> None:
+            preload(("pandas",))  # an outcome unpickles DataFrames: not beside another thread's import of pandas
             while len(self._exited) < len(self.processes):
                 msg = self._get()
                 if msg is None:

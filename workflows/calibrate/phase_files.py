@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from bubblecal.data import atomic_write
+from bubblecal.workflows.calibrate.imports import import_turn
 
 __all__ = ["PhaseFileError", "write_phase", "phase_inference_data", "phase_inference_parts", "read_phase",
            "read_pointwise", "phase_format"]
@@ -183,7 +184,8 @@ def read_phase(path: Path):
         The file is missing, truncated, damaged or holds no phase (the message names it and the cause).
     """
     try:
-        return _read_phase(Path(path))
+        with import_turn():  # a first read imports xarray, h5netcdf and dask: not beside another thread's imports
+            return _read_phase(Path(path))
     except Exception as exc:  # h5py, netCDF4, zipfile and JSON each raise their own kinds on damaged bytes
         raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
 
@@ -254,11 +256,12 @@ def phase_format(path: Path) -> int:
     PhaseFileError
         The file cannot be read.
     """
-    import xarray as xr
-
     try:
-        with xr.open_dataset(path, group="posterior", engine="h5netcdf") as ds:
-            return int(ds.attrs.get("bubblecal_idata_format", 0))
+        with import_turn():
+            import xarray as xr
+
+            with xr.open_dataset(path, group="posterior", engine="h5netcdf") as ds:
+                return int(ds.attrs.get("bubblecal_idata_format", 0))
     except Exception as exc:  # h5py and netCDF4 raise their own kinds on damaged bytes
         raise PhaseFileError(f"{path}: damaged or unreadable phase file ({type(exc).__name__}: {exc})") from exc
 
@@ -283,11 +286,12 @@ def read_pointwise(path: Path) -> dict[str, np.ndarray]:
     """
     if Path(path).suffix != ".nc":
         return {}
-    import xarray as xr
-
     try:
-        with xr.open_dataset(path, group="log_likelihood", engine="h5netcdf") as ds:
-            return {k: np.asarray(v.values[0]) for k, v in ds.data_vars.items()}
+        with import_turn():
+            import xarray as xr
+
+            with xr.open_dataset(path, group="log_likelihood", engine="h5netcdf") as ds:
+                return {k: np.asarray(v.values[0]) for k, v in ds.data_vars.items()}
     except OSError:
         return {}
     except Exception as exc:  # h5py raises its own kinds on damaged bytes

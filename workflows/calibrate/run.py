@@ -20,9 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from bubblecal.workflows.calibrate.agent_worker import late_modules
 from bubblecal.workflows.calibrate.config import CalibrationConfig, agent_seed, phase2_samples, phase_tmcmc_options
 from bubblecal.workflows.calibrate.device import on_device
 from bubblecal.workflows.calibrate.export import PHASE2_LOGLIK, phase2_log_likelihood, phase_exports
+from bubblecal.workflows.calibrate.imports import preload
 from bubblecal.workflows.calibrate.joint import run_joint
 from bubblecal.workflows.calibrate.plan import AgentPlan, Plan
 from bubblecal.workflows.calibrate.store import PhaseStore, bundle_hashes, config_hash, phase_hashes
@@ -288,6 +290,8 @@ def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool
         result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
                              population_predictive=None, seconds=seconds, reused=list(store.reused),
                              pointwise=store.pointwise)
+        if config.summaries or config.figures:  # pandas (and matplotlib) complete, whoever started importing them
+            preload(late_modules(config.device))
         if drawers is not None:  # the figures of the phases alone start now
             from bubblecal.workflows.figures import PHASE_FIGURES, figure_jobs
 

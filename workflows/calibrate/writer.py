@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bubblecal.workflows.calibrate.agent_worker import preload, shutdown_soon
+from bubblecal.workflows.calibrate.agent_worker import shutdown_soon
 from bubblecal.workflows.calibrate.device import helper_processes
+from bubblecal.workflows.calibrate.imports import import_turn, preload
 
 __all__ = ["PhaseWriter"]
 
@@ -28,10 +29,12 @@ WRITE_MODULES = ("arviz", "h5py", "bubblecal.inference.idata", "bubblecal.infere
 
 
 def _write(path: Path, result, loglik, attrs: Mapping, info, pointwise, parts) -> Path:
-    """:func:`~bubblecal.workflows.calibrate.write_phase` (module level: a writer process unpickles it)."""
-    from bubblecal.workflows.calibrate.phase_files import write_phase
+    """:func:`~bubblecal.workflows.calibrate.write_phase` (module level: a writer process unpickles it), in the
+    import turn: the writer thread's first write imports ArviZ (pandas, xarray, matplotlib), later ones lazily more."""
+    with import_turn():
+        from bubblecal.workflows.calibrate.phase_files import write_phase
 
-    return write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
+        return write_phase(path, result, loglik, attrs, info=info, pointwise=pointwise, parts=parts)
 
 
 def _warm_up() -> None:
