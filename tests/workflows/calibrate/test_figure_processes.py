@@ -92,8 +92,10 @@ def test_figure_processes_only_on_gpu_runs_with_spare_cores(device, cpus, proces
 
 def test_a_run_draws_the_same_figures_in_figure_processes(tmp_path, synthetic_bundle, monkeypatch):
     """A staged run whose figures go to two figure processes (the GPU path, forced here): the same PNG files as a
-    run that draws them itself, the acoustic band included, and no process left behind."""
+    run that draws them itself, the acoustic band included, and no process left behind. The second run reads the
+    first one's phases back (a reused phase holds the draws of the run that wrote it)."""
     import multiprocessing
+    import shutil
 
     from bubblecal.workflows.calibrate import CalibrationConfig, FigureProcesses, make_plan, run_calibration
     from bubblecal.workflows.calibrate import run as run_module
@@ -101,8 +103,10 @@ def test_a_run_draws_the_same_figures_in_figure_processes(tmp_path, synthetic_bu
     kw = dict(agents=("definity",), workflow="reduced-acoustic", bundle=synthetic_bundle, population=120,
               phase2_samples=120, predictive_samples=200, num_mcmc_steps=3, curves=("definity_compression_2.1um",))
     (here,) = run_calibration(make_plan(CalibrationConfig(out=tmp_path / "here", **kw)))
+    shutil.copytree(tmp_path / "here", tmp_path / "there", ignore=shutil.ignore_patterns("figures", "*.csv", "*.md"))
     monkeypatch.setattr(run_module, "_figure_drawers", lambda config: FigureProcesses(2))
     (there,) = run_calibration(make_plan(CalibrationConfig(out=tmp_path / "there", **kw)))
+    assert there.reused and not (set(here.reused) & set(there.reused))
     assert [p.name for p in there.figures] == [p.name for p in here.figures]
     assert "acoustic.png" in [p.name for p in here.figures]
     assert all(a.read_bytes() == b.read_bytes() for a, b in zip(here.figures, there.figures, strict=True))
