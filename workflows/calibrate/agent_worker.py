@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bubblecal.workflows.calibrate.config import CalibrationConfig, CalibrationError
-from bubblecal.workflows.calibrate.imports import preload, preload_soon
+from bubblecal.workflows.calibrate.imports import library, preload, preload_soon
 
 __all__ = ["AgentHeader", "AgentOutcome", "LATE_MODULES", "RUN_MODULES", "late_modules", "outcome_of",
            "shutdown_soon"]
@@ -158,16 +158,16 @@ def _worker(index: int, cache: bool, device: str | None, queue, go, inbox) -> No
 
 
 def _start_gpu() -> None:
-    """Start JAX's GPU backend (a failure is left to the preflight, which reports it)."""
+    """Start JAX's GPU backend (a failure is left to the preflight, which reports it), JAX imported in the import
+    turn (:mod:`~bubblecal.workflows.calibrate.imports`): the worker plans its agents meanwhile."""
     with contextlib.suppress(Exception):
-        import jax
-
-        jax.devices("gpu")
+        library("jax").devices("gpu")
 
 
 def _work(config: CalibrationConfig, agents: tuple[str, ...], index: int, queue, go) -> None:
     """The planning and the runs of :func:`_worker`."""
     try:
+        preload(("jax",))  # complete before planning imports it, if the GPU start's thread is importing it
         from bubblecal.workflows.calibrate.plan import make_plan
 
         plan = make_plan(config, agents=agents)

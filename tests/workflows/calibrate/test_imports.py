@@ -130,3 +130,19 @@ def test_phase_files_are_written_and_read_in_the_turn(tmp_path, monkeypatch):
         with contextlib.suppress(phase_files.PhaseFileError):
             read(tmp_path / "missing.nc")
     assert held == [("write", True)] + [("read", True)] * 3
+
+
+def test_a_workers_gpu_start_imports_jax_in_the_turn(monkeypatch):
+    """The worker's GPU-start thread imports JAX through library() (in the turn), then asks for the GPU."""
+    import bubblecal.workflows.calibrate.agent_worker as agent_worker
+
+    calls = []
+
+    class FakeJax:
+        @staticmethod
+        def devices(kind):
+            calls.append(("devices", kind))
+
+    monkeypatch.setattr(agent_worker, "library", lambda name: calls.append(("library", name)) or FakeJax)
+    agent_worker._start_gpu()
+    assert calls == [("library", "jax"), ("devices", "gpu")]
