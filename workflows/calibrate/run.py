@@ -290,13 +290,12 @@ def _run_agent(plan: Plan, ap: AgentPlan, progress, inject, stages, report: bool
         result = AgentResult(plan=ap, staged=staged, joint=joint, loglik=store.loglik, summary=None, ess=None,
                              population_predictive=None, seconds=seconds, reused=list(store.reused),
                              pointwise=store.pointwise)
-        if config.summaries or config.figures:  # pandas (and matplotlib) complete, whoever started importing them
-            preload(late_modules(config.device))
-        if drawers is not None:  # the figures of the phases alone start now
-            from bubblecal.workflows.figures import PHASE_FIGURES, figure_jobs
+        if config.summaries or config.figures:  # (figure processes come with config.figures)
+            preload(late_modules(config.device))  # pandas (and matplotlib) complete, whoever started importing them
+            if drawers is not None:  # the figures of the phases alone start now
+                from bubblecal.workflows.figures import PHASE_FIGURES, figure_jobs
 
-            drawers.submit(result, plan, figure_jobs(result, PHASE_FIGURES))
-        if config.summaries or config.figures:
+                drawers.submit(result, plan, figure_jobs(result, PHASE_FIGURES))
             from bubblecal.workflows.summary import summarise_agent
 
             summarise_agent(result, config)

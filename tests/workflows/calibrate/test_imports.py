@@ -109,8 +109,8 @@ def test_a_complete_library_is_returned_without_the_turn():
 
 
 def test_phase_files_are_written_and_read_in_the_turn(tmp_path, monkeypatch):
-    """The writer thread's writes and every read of a phase file hold the turn (their first calls import xarray,
-    h5netcdf and dask); the listener of worker processes imports pandas in it before unpickling an outcome."""
+    """The writer thread's writes and every read of a phase file hold the turn (their first calls import ArviZ,
+    xarray, h5netcdf and dask)."""
     import bubblecal.workflows.calibrate.phase_files as phase_files
     import bubblecal.workflows.calibrate.writer as writer
     from bubblecal.workflows.calibrate import import_turn
