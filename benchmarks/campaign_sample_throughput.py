@@ -20,7 +20,6 @@ Prints one table row per setting and one JSON line last (``{"benchmark": "campai
 from __future__ import annotations
 
 import argparse
-import gzip
 import json
 import time
 from pathlib import Path
@@ -31,34 +30,25 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def parse_setting(text: str) -> dict:
-    """'dtype=float32,max_replicas=2000' -> tier overrides (numbers as int / float, the rest as strings)."""
+    """'dtype=float32,max_replicas=2000' -> tier overrides, each value read as the campaign's ``--tier-setting``
+    reads it (:func:`bubblecal.campaigns.parse_tier_settings`); '-' or '' -> none."""
+    from bubblecal.campaigns import parse_tier_settings
+
     if text in ("", "-"):
         return {}
-    out = {}
-    for part in text.split(","):
-        key, _, value = part.partition("=")
-        if not key or not value:
-            raise SystemExit(f"--setting: {part!r} is not KEY=VALUE")
-        for cast in (int, float):
-            try:
-                out[key] = cast(value)
-                break
-            except ValueError:
-                continue
-        else:
-            out[key] = {"true": True, "false": False}.get(value.lower(), value)
-    return out
+    try:
+        return parse_tier_settings(text.split(","))
+    except ValueError as exc:
+        raise SystemExit(f"--setting: {exc}") from None
 
 
 def stored_curves(campaign: str) -> dict:
-    """sample id -> (y, status) of the shipped store's records."""
+    """sample id -> (y, status) of the latest record of every sample in the shipped store."""
+    from bubblecal.data.store import CampaignStore
+
     path = REPO / "data" / "training" / f"{campaign}.jsonl.gz"
-    out = {}
-    with gzip.open(path, "rt") as fh:
-        for line in fh:
-            rec = json.loads(line)
-            out[rec["sample_id"]] = (np.asarray(rec["y"], dtype=float), rec["status"])
-    return out
+    return {rec["sample_id"]: (np.asarray(rec["y"], dtype=float), rec["status"])
+            for rec in CampaignStore(path).read(warn=False)}
 
 
 def sample_indices(design: dict, per_level: int, levels: list[float] | None = None) -> list[int]:
@@ -98,10 +88,11 @@ def run_setting(campaign: str, overrides: dict, per_level: int, device: str, sto
     t_done = np.sort(np.asarray(finished)) if finished else np.full(1, np.nan)
     q = {f"{int(100 * f)}%": round(float(np.quantile(t_done, f)), 1) for f in (0.1, 0.5, 0.9, 0.99, 1.0)}
     # the pool's rate while it is full: curves finished between the 10 % and 90 % marks over that time
-    steady = 0.8 * len(t_done) / max(q["90%"] - q["10%"], 1e-9) * 3600.0
+    span = q["90%"] - q["10%"]
+    steady = 0.8 * len(t_done) / span * 3600.0 if len(t_done) >= 10 and span > 0 else None  # too few to tell
     return {"overrides": overrides, "curves": len(idx), "ok": int(sum(ok)), "wall_s": round(wall, 1),
             "last_curve_s": round(max(finished), 1) if finished else None, "finished_at_s": q,
-            "steady_curves_per_hour": round(steady),
+            "steady_curves_per_hour": None if steady is None else round(steady),
             "ok_per_hour": round(sum(ok) / wall * 3600.0),
             "fire_steps_mean": float(np.nanmean(steps)), "status_differs": differ,
             "rel_l2_vs_store": {"median": float(np.median(rel)), "p99": float(np.quantile(rel, 0.99)),
