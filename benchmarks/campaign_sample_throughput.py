@@ -8,8 +8,10 @@ wall time from the task's start to its last curve, ok curves per device-hour, th
 / 100 % of the curves had finished, the pool's rate while full (curves between the 10 % and 90 % marks over that
 time: what a pool much larger than its slots runs at, without its tail), the FIRE work per curve, and the
 curves' relative L2 against the shipped store's records of the same design points (median, p99, max over the curves
-ok in both; statuses that differ are counted).  ``--setting`` runs the sample once per value, each a comma list of
-tier overrides (``dtype=float32,max_replicas=2000``); ``-`` is the campaign as shipped.
+ok in both; statuses that differ are counted).  ``--reference`` first runs the sample under tight overrides (e.g.
+the CG at a 25x smaller force tolerance) and compares every setting, and the shipped store, with those curves: how
+far each minimiser's stopping point lies from the minimum.  ``--setting`` runs the sample once per value, each a
+comma list of tier overrides (``dtype=float32,max_replicas=2000``); ``-`` is the campaign as shipped.
 
     python benchmarks/campaign_sample_throughput.py --campaign definity_compression_1.5-8um --per-level 40 \
         --setting - --setting dtype=float32 --device cuda [--diameters 1.5,2.0] [--out OUT.json]
@@ -58,9 +60,34 @@ def sample_indices(design: dict, per_level: int, levels: list[float] | None = No
     return [int(i) for lvl in chosen for i in np.nonzero(d == lvl)[0][:per_level]]
 
 
+def rel_l2(curves: dict, reference: dict) -> dict | None:
+    """Relative L2 of ``curves`` against ``reference`` (both sample id -> (y, status)) over the samples ok in both:
+    median, p99 and max, or None when none is."""
+    rel = [float(np.linalg.norm(y - reference[sid][0]) / np.linalg.norm(reference[sid][0]))
+           for sid, (y, status) in curves.items() if status == "ok" and reference.get(sid, (None, ""))[1] == "ok"]
+    if not rel:
+        return None
+    return {"median": float(np.median(rel)), "p99": float(np.quantile(rel, 0.99)), "max": float(np.max(rel))}
+
+
+def worst(curves: dict, reference: dict, n: int = 3) -> list:
+    """The ``n`` samples farthest from ``reference`` and those whose ok-ness differs: [sample id, relative L2 (NaN
+    where a status differs), status, reference status]."""
+    out = []
+    for sid, (y, status) in curves.items():
+        ref_y, ref_status = reference[sid]
+        ok = status == "ok" and ref_status == "ok"
+        rel = float(np.linalg.norm(y - ref_y) / np.linalg.norm(ref_y)) if ok else float("nan")
+        out.append([sid, rel, status, ref_status])
+    differ = [r for r in out if np.isnan(r[1]) and (r[2] == "ok") != (r[3] == "ok")]
+    ranked = sorted((r for r in out if not np.isnan(r[1])), key=lambda r: -r[1])[:n]
+    return ranked + differ
+
+
 def run_setting(campaign: str, overrides: dict, per_level: int, device: str, stored: dict,
                 levels: list[float] | None = None) -> dict:
-    """One run of the sample under ``overrides``: counts, timings and the comparison with ``stored``."""
+    """One run of the sample under ``overrides``: counts, timings and the comparison with ``stored``; the curves
+    (sample id -> (y, status)) under the key ``curves_by_sample``."""
     import dataclasses
 
     from bubblecal.campaigns import design_points, load_campaign_file
@@ -76,14 +103,9 @@ def run_setting(campaign: str, overrides: dict, per_level: int, device: str, sto
     result = simulate_task(task, on_curve=lambda *a: finished.append(time.perf_counter() - t0))
     wall = time.perf_counter() - t0
     ok = [s == "ok" for s in result.status]
-    rel, differ = [], 0
-    for sid, y, status in zip(task.sample_ids, result.y, result.status, strict=True):
-        ref_y, ref_status = stored[sid]
-        if (status == "ok") != (ref_status == "ok"):
-            differ += 1
-        elif status == "ok":
-            rel.append(float(np.linalg.norm(y - ref_y) / np.linalg.norm(ref_y)))
-    rel = np.asarray(rel)
+    curves = {sid: (np.asarray(y, dtype=float), status)
+              for sid, y, status in zip(task.sample_ids, result.y, result.status, strict=True)}
+    differ = sum((status == "ok") != (stored[sid][1] == "ok") for sid, (_, status) in curves.items())
     steps = np.asarray(result.info.get("fire_steps", [np.nan]), dtype=float)
     t_done = np.sort(np.asarray(finished)) if finished else np.full(1, np.nan)
     q = {f"{int(100 * f)}%": round(float(np.quantile(t_done, f)), 1) for f in (0.1, 0.5, 0.9, 0.99, 1.0)}
@@ -95,8 +117,8 @@ def run_setting(campaign: str, overrides: dict, per_level: int, device: str, sto
             "steady_curves_per_hour": None if steady is None else round(steady),
             "ok_per_hour": round(sum(ok) / wall * 3600.0),
             "fire_steps_mean": float(np.nanmean(steps)), "status_differs": differ,
-            "rel_l2_vs_store": {"median": float(np.median(rel)), "p99": float(np.quantile(rel, 0.99)),
-                                "max": float(rel.max())} if rel.size else None}
+            "rel_l2_vs_store": rel_l2(curves, stored), "worst_vs_store": worst(curves, stored),
+            "curves_by_sample": curves}
 
 
 def main(argv=None) -> None:
@@ -107,6 +129,9 @@ def main(argv=None) -> None:
                     help="comma list of tier overrides, or '-' for the campaign as shipped (repeatable)")
     ap.add_argument("--diameters", default="", help="only these levels [um], comma list (default: every level)")
     ap.add_argument("--device", default="cuda")
+    ap.add_argument("--reference", default=None,
+                    help="tier overrides of a tight reference run (e.g. minimizer=cg,ftol=0.002): every setting and "
+                         "the shipped store are also compared with its curves")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     import warp as wp
@@ -115,13 +140,28 @@ def main(argv=None) -> None:
     wp.init()
     device_name = wp.get_device(args.device).name
     stored = stored_curves(args.campaign)
+    levels = [float(v) for v in args.diameters.split(",") if v]
+    reference = None
+    if args.reference:
+        ref_row = run_setting(args.campaign, parse_setting(args.reference), args.per_level, args.device, stored,
+                              levels)
+        reference = ref_row.pop("curves_by_sample")
+        print(f"reference {args.reference}: {ref_row['ok']}/{ref_row['curves']} ok in {ref_row['wall_s']} s",
+              flush=True)
+    sample = {sid: stored[sid] for sid in reference} if reference else {}
+    store_vs_reference = rel_l2(sample, reference) if reference else None
+    if reference:
+        print(f"shipped store vs reference: {store_vs_reference}", flush=True)
     rows = []
     print(f"{'setting':<34s} {'ok/curves':>11s} {'wall s':>7s} {'ok/h':>8s} {'FIRE/curve':>10s} "
           f"{'dL2 med / p99 / max vs store':>30s} {'status differs':>14s}", flush=True)
     for text in args.setting or ["-"]:
-        levels = [float(v) for v in args.diameters.split(",") if v]
         row = run_setting(args.campaign, parse_setting(text), args.per_level, args.device, stored, levels)
+        curves = row.pop("curves_by_sample")
         row["setting"] = text
+        if reference:
+            row["rel_l2_vs_reference"] = rel_l2(curves, reference)
+            print(f"    vs reference: {row['rel_l2_vs_reference']}", flush=True)
         rows.append(row)
         r = row["rel_l2_vs_store"] or {"median": np.nan, "p99": np.nan, "max": np.nan}
         print(f"{text:<34s} {row['ok']:>5d}/{row['curves']:<5d} {row['wall_s']:7.1f} {row['ok_per_hour']:8d} "
@@ -129,12 +169,12 @@ def main(argv=None) -> None:
               f"{100 * r['max']:.4f} % {row['status_differs']:14d}", flush=True)
         print(f"    finished by (s): {row['finished_at_s']}; while full: {row['steady_curves_per_hour']} curves/h",
               flush=True)
+        out = {"benchmark": "campaign_sample_throughput", "device": device_name, "campaign": args.campaign,
+               "per_level": args.per_level, "reference": args.reference, "store_vs_reference": store_vs_reference,
+               "rows": rows}
         if args.out:
-            args.out.write_text(json.dumps({"benchmark": "campaign_sample_throughput", "device": device_name,
-                                            "campaign": args.campaign, "per_level": args.per_level, "rows": rows},
-                                           indent=1))
-    print(json.dumps({"benchmark": "campaign_sample_throughput", "device": device_name, "campaign": args.campaign,
-                      "per_level": args.per_level, "rows": rows}))
+            args.out.write_text(json.dumps(out, indent=1))
+    print(json.dumps(out))
 
 
 if __name__ == "__main__":

@@ -63,48 +63,6 @@ def buckled_state(diameter_um: float, point: int, upto: int):
     return chain, res.x_final.copy(), float(res.plate_z[-1]), float(mesh.vertices[:, 2].mean()), info
 
 
-def cg_minimize(force, x0: np.ndarray, ftol: float = FTOL, max_iter: int = 20_000, first_move: float = 0.05):
-    """Polak-Ribiere+ CG on ``force(x) -> F`` (-dE/dx) with a secant line search on F . d; returns (x, iterations,
-    force evaluations, fmax)."""
-    n_eval = 0
-
-    def f_of(x):
-        nonlocal n_eval
-        n_eval += 1
-        return force(x)
-
-    x = x0.copy()
-    f = f_of(x)
-    d = f.copy()
-    fmax = float(np.max(np.linalg.norm(f, axis=1)))
-    it = 0
-    while fmax > ftol and it < max_iter:
-        it += 1
-        slope0 = float(np.sum(f * d))
-        if slope0 <= 0:  # not a descent direction: restart along the force
-            d = f.copy()
-            slope0 = float(np.sum(f * d))
-        dn = float(np.max(np.linalg.norm(d, axis=1)))
-        a0, g0, a1 = 0.0, slope0, min(1e-3, first_move / dn)
-        for _ in range(8):
-            f1 = f_of(x + a1 * d)
-            g1 = float(np.sum(f1 * d))
-            if abs(g1) <= 0.1 * abs(slope0):
-                break
-            if g1 > 0 and g0 > 0:  # still downhill: extrapolate, at most four capped moves further
-                an = a1 + min(2.0 * (a1 - a0), (a1 - a0) * g1 / (g0 - g1)) if g0 > g1 else 2.0 * a1
-                a0, g0, a1 = a1, g1, min(an, a1 + 4.0 * first_move / dn)
-            else:  # bracketed: secant step
-                an = a1 - g1 * (a1 - a0) / (g1 - g0)
-                a0, g0, a1 = (a0, g0, an) if g1 < 0 else (a1, g1, an)
-        x = x + a1 * d
-        beta = max(0.0, float(np.sum(f1 * (f1 - f)) / np.sum(f * f)))
-        d = f1 + beta * d
-        f = f1
-        fmax = float(np.max(np.linalg.norm(f, axis=1)))
-    return x, it, n_eval, fmax
-
-
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--diameter", type=float, default=7.0, help="diameter level of the design [um]")
@@ -113,6 +71,8 @@ def main(argv=None) -> None:
     ap.add_argument("--step", type=float, default=0.06, help="the next plate move (per plate, DPD length)")
     args = ap.parse_args(argv)
     import warp as wp
+
+    from bubblecal.sim.engine.minimize_cg import cg_minimize
 
     wp.config.quiet = True
     chain, x0, plate, zc, info = buckled_state(args.diameter, args.point, args.upto)
@@ -132,7 +92,8 @@ def main(argv=None) -> None:
         f[:, :2] -= f[:, :2].mean(axis=0)  # the tier's centre-of-mass pin in x, y
         return f
 
-    x_cg, iters, n_eval, fmax = cg_minimize(force, x0)
+    cg = cg_minimize(force, x0, ftol=FTOL, max_steps=200_000)
+    x_cg, iters, n_eval, fmax = cg.x, cg.n_lines, cg.steps + 1, cg.fmax
 
     def plate_force(x):
         chain.fire.x.assign(x)

@@ -11,7 +11,9 @@ What lives where:
   measurements (:mod:`~bubblecal.sim.engine.system_observables`) and health checks
   (:mod:`~bubblecal.sim.engine.health`);
 * the implicit-solvent shell system: :mod:`~bubblecal.sim.engine.implicit` (settings, observables beside it);
-* minimisers: :func:`fire_minimize` (NumPy reference) and :class:`DeviceFire` (device-resident, batched);
+* minimisers: FIRE (:func:`fire_minimize`, the NumPy reference, and :class:`DeviceFire`, device-resident and
+  batched) and a force-only nonlinear conjugate gradient (:func:`cg_minimize` and :class:`DeviceCG`), both device
+  minimisers on :mod:`~bubblecal.sim.engine.minimize_device_base`;
 * CUDA-graph chunks: :mod:`~bubblecal.sim.engine.graphs`; Warp kernels: :mod:`~bubblecal.sim.engine.kernels`.
 
 Importing this package loads no Warp and compiles nothing: the Warp-backed classes are imported on first
@@ -44,6 +46,7 @@ from bubblecal.sim.engine.minimize import (
     FireResult,
     fire_minimize,
 )
+from bubblecal.sim.engine.minimize_cg import CG_DEFAULTS, CgResult, cg_minimize
 from bubblecal.sim.engine.particles import (
     GAS,
     N_TYPES,
@@ -73,9 +76,10 @@ _LAZY = {
     "HealthReport": "bubblecal.sim.engine.health",
     "HealthMonitor": "bubblecal.sim.engine.health",
     "DeviceFire": "bubblecal.sim.engine.minimize_device",
-    "DeviceFireResult": "bubblecal.sim.engine.minimize_device",
+    "DeviceCG": "bubblecal.sim.engine.minimize_device_cg",
+    "DeviceMinimizeResult": "bubblecal.sim.engine.minimize_device_base",
     "numpy_force_fn": "bubblecal.sim.engine.minimize_device",
-    "cuda_threads_per_replica": "bubblecal.sim.engine.minimize_device",
+    "cuda_threads_per_replica": "bubblecal.sim.engine.minimize_device_base",
     "ChunkGraph": "bubblecal.sim.engine.graphs",
 }
 
@@ -96,7 +100,8 @@ __all__ = [
     "ImplicitShellSystem", "HealthThresholds", "default_vertex_friction", "GAS_P0_DEFAULT",
     # minimisers and CUDA graphs
     "fire_minimize", "FireResult", "STATUS_CONVERGED", "STATUS_MAX_STEPS", "STATUS_NONFINITE",
-    "DeviceFire", "DeviceFireResult", "numpy_force_fn", "cuda_threads_per_replica", "ChunkGraph",
+    "cg_minimize", "CgResult", "CG_DEFAULTS",
+    "DeviceFire", "DeviceCG", "DeviceMinimizeResult", "numpy_force_fn", "cuda_threads_per_replica", "ChunkGraph",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -7,15 +7,15 @@ row, per-replica convergence test ``max_i |F_i| <= ftol`` over the free componen
 (``dt``, ``alpha``, ``n_pos``, P = sum F.v, |F|^2, |v|^2, fmax, flags) are Warp arrays, updated by
 the kernels of :mod:`bubblecal.sim.engine.kernels.fire`.  The host only reads the per-replica status
 every ``sync_every`` iterations; on CUDA those iterations are captured once as a CUDA graph and
-replayed.  Replica-asynchronous use (restart, export / import of replicas):
-:mod:`bubblecal.sim.engine.minimize_device_async`.
+replayed.
 
 Replica r owns the contiguous rows ``[row_start[r], row_start[r+1])``.  Forces come from a
 ``force_fn(x, f)`` that *adds* -dE/dx into ``f`` (zeroed before every call) with Warp launches only;
 with graph capture on, every input that changes between minimisations (loads, plate positions)
-must live in device arrays read by those kernels.  The optional mean-force removal
-(``remove_mean``, per component) pins the centre of mass: the replica's mean force is subtracted
-before the fixed components (``free``) are zeroed, as in the NumPy reference.
+must live in device arrays read by those kernels.  The optional mean-force removal (``remove_mean``, per
+component) pins the centre of mass: the replica's mean force is subtracted before the fixed components (``free``)
+are zeroed, as in the NumPy reference.  Layout, status loop and replica-asynchronous use (restart, export / import
+of replicas) are the base's (:class:`bubblecal.sim.engine.minimize_device_base.DeviceMinimizer`).
 
 Iteration i of a replica = force evaluation, convergence test, FIRE update; ``steps`` counts the
 updates exactly as the NumPy version does (a replica converged at its first test reports 0).
@@ -24,90 +24,17 @@ updates exactly as the NumPy version does (a replica converged at its first test
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from bubblecal._extras import require
-from bubblecal.sim.engine.graphs import ChunkGraph
-from bubblecal.sim.engine.kernels.fire import ACTIVE, CONVERGED, FROZEN, MAX_STEPS, NONFINITE, fire_kernels
-from bubblecal.sim.engine.minimize_device_async import ReplicaAsyncFire
+from bubblecal.sim.engine.kernels.fire import fire_kernels
+from bubblecal.sim.engine.minimize_device_base import DeviceMinimizer
 
 wp = require("warp", "sim")
 
-__all__ = ["DeviceFire", "DeviceFireResult", "numpy_force_fn", "STATUS_NAMES", "cuda_threads_per_replica"]
-
-#: status code -> name (names shared with :mod:`bubblecal.sim.engine.minimize`, plus ``"frozen"``)
-STATUS_NAMES = {ACTIVE: "max_steps", CONVERGED: "converged", MAX_STEPS: "max_steps", NONFINITE: "nonfinite",
-                FROZEN: "frozen"}
-
-
-@dataclass
-class DeviceFireResult:
-    """Outcome of :meth:`DeviceFire.minimize`; per-replica arrays have length R.
-
-    Attributes
-    ----------
-    status : list of str
-        ``'converged'``, ``'max_steps'``, ``'nonfinite'`` or ``'frozen'`` per replica.
-    converged : numpy.ndarray
-        [R] bool.
-    steps : numpy.ndarray
-        [R] FIRE updates.
-    fmax : numpy.ndarray
-        [R] largest per-row force norm over the free components at the last test (force unit; inf if
-        non-finite, NaN if frozen).
-    n_evaluations : int
-        Force evaluations launched, including no-op iterations of a finished chunk.
-    n_syncs : int
-        Host reads of the status.
-    seconds : float
-        Wall time (s).
-    """
-
-    status: list[str]
-    converged: np.ndarray
-    steps: np.ndarray
-    fmax: np.ndarray
-    n_evaluations: int
-    n_syncs: int
-    seconds: float
-
-    @property
-    def all_converged(self) -> bool:
-        """Whether every replica converged."""
-        return bool(np.all(self.converged))
-
-
-def cuda_threads_per_replica(n_replicas: int, max_rows: int, min_threads: int = 64, max_threads: int = 1024,
-                             target_threads: int = 16384) -> int:
-    """Threads per replica of the FIRE row passes on a GPU.
-
-    64 for big batches, doubled (up to ``max_threads``) while the launch holds fewer than ``target_threads``
-    threads, never more than a replica's rows: each thread walks its replica's rows with stride T, so with few
-    replicas the loop's memory latency sets the iteration time (benchmarks/RESULTS.md).
-
-    Parameters
-    ----------
-    n_replicas : int
-        Replicas R.
-    max_rows : int
-        Rows of the largest replica.
-    min_threads, max_threads : int, optional
-        Bounds on the threads per replica.
-    target_threads : int, optional
-        Threads per launch worth reaching.
-
-    Returns
-    -------
-    int
-    """
-    t = int(min_threads)
-    while t < max_threads and n_replicas * t < target_threads:
-        t *= 2
-    return max(1, min(t, int(max_rows)))
+__all__ = ["DeviceFire", "numpy_force_fn"]
 
 
 def numpy_force_fn(callback: Callable[[np.ndarray], np.ndarray]):
@@ -133,7 +60,7 @@ def numpy_force_fn(callback: Callable[[np.ndarray], np.ndarray]):
     return fn
 
 
-class DeviceFire(ReplicaAsyncFire):
+class DeviceFire(DeviceMinimizer):
     """Batched FIRE with device-resident state (see the module docstring).
 
     Parameters
@@ -178,84 +105,29 @@ class DeviceFire(ReplicaAsyncFire):
                  max_move: float | None = 0.05, n_delay: int = 5, f_inc: float = 1.1, f_dec: float = 0.5,
                  alpha0: float = 0.1, f_alpha: float = 0.99, sync_every: int | None = None,
                  threads_per_replica: int | None = None, use_graph: bool | None = None):
-        if dtype not in (wp.float32, wp.float64):
-            raise ValueError(f"dtype must be wp.float32 or wp.float64, got {dtype!r}")
-        rs = np.asarray(row_start, dtype=np.int64)
-        if rs.ndim != 1 or rs.size < 2 or rs[0] < 0 or np.any(np.diff(rs) <= 0):
-            raise ValueError("row_start must be increasing, >= 0, with at least one non-empty replica")
-        self.R = int(rs.size - 1)
-        self.n_rows = int(rs[-1]) if n_rows is None else int(n_rows)
-        if self.n_rows < rs[-1]:
-            raise ValueError("n_rows is smaller than row_start[-1]")
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"dt must be a positive finite time, got {dt!r}")
-        self.device = wp.get_device(device)
-        self.dtype = dtype
-        self.vec3 = wp.vec3d if dtype is wp.float64 else wp.vec3f
-        self._np = np.float64 if dtype is wp.float64 else np.float32
-        self.force_fn = force_fn
+        super().__init__(row_start, force_fn, device=device, dtype=dtype, n_rows=n_rows, free=free,
+                         remove_mean=remove_mean, sync_every=sync_every, threads_per_replica=threads_per_replica,
+                         use_graph=use_graph)
         self._k = fire_kernels(dtype)
-        cuda = self.device.is_cuda
-        self.sync_every = int(sync_every) if sync_every else (25 if cuda else 4)
-        if self.sync_every < 1:
-            raise ValueError("sync_every must be >= 1")
-        max_rows = int(np.max(np.diff(rs)))
-        self.nthr = int(threads_per_replica) if threads_per_replica else (
-            cuda_threads_per_replica(self.R, max_rows) if cuda else 1)
-        capturable = bool(getattr(force_fn, "capturable", True))
-        self._chunks = ChunkGraph(self._iteration, self.device,
-                                  cuda and capturable and (True if use_graph is None else bool(use_graph)))
         self.consts = dict(dt=float(dt), dt_max=10.0 * dt if dt_max is None else float(dt_max),
                            dt_min=dt / 50.0 if dt_min is None else float(dt_min),
                            max_move=-1.0 if max_move is None else float(max_move), n_delay=int(n_delay),
                            f_inc=float(f_inc), f_dec=float(f_dec), alpha0=float(alpha0), f_alpha=float(f_alpha))
         n, R, dev, T, V = self.n_rows, self.R, self.device, dtype, self.vec3
-        fr = np.ones((n, 3), dtype=bool) if free is None else np.asarray(free, dtype=bool)
-        if fr.shape != (n, 3):
-            raise ValueError(f"free must be a [{n}, 3] boolean mask")
         inv_m = 1.0 / np.broadcast_to(np.asarray(mass, dtype=np.float64), (n,))
-        self.row_start = wp.array(rs.astype(np.int32), dtype=wp.int32, device=dev)
-        self.x = wp.zeros(n, dtype=V, device=dev)
         self.v = wp.zeros(n, dtype=V, device=dev)
-        self.f = wp.zeros(n, dtype=V, device=dev)
-        self.free = wp.array(fr.astype(self._np), dtype=V, device=dev)
         self.inv_mass = wp.array(inv_m.astype(self._np), dtype=T, device=dev)
-        self.mean_comps = V(*[1.0 if c else 0.0 for c in remove_mean])
-        self.remove_mean = bool(any(remove_mean))
         z = lambda dt_=T: wp.zeros(R, dtype=dt_, device=dev)  # noqa: E731
-        self.active = z(wp.int32)
-        self.status = z(wp.int32)
-        self.iters = z(wp.int32)
-        self.steps = z(wp.int32)
         self.npos = z(wp.int32)
         self.down = z(wp.int32)
-        self.nonfin = z(wp.int32)
-        self.dt_r, self.alpha_r, self.fnorm, self.fmax_out = z(), z(), z(), z()
+        self.dt_r, self.alpha_r, self.fnorm = z(), z(), z()
         self.fmax_acc, self.fsq_acc, self.pow_acc, self.vsq_acc = z(), z(), z(), z()
-        self.mean_acc = wp.zeros(R, dtype=V, device=dev)
-        self.tol = z()
-        self.max_steps = wp.zeros(1, dtype=wp.int32, device=dev)
 
-    # ------------------------------------------------------------------------------------------
-    def set_positions(self, x: np.ndarray) -> None:
-        """Copy host positions onto the device.
-
-        Parameters
-        ----------
-        x : numpy.ndarray
-            [n_rows, 3] positions (caller's length unit).
-        """
-        self.x.assign(np.ascontiguousarray(x, dtype=self._np))
-
-    def positions(self) -> np.ndarray:
-        """Device positions (synchronises).
-
-        Returns
-        -------
-        numpy.ndarray
-            [n_rows, 3] float64.
-        """
-        return self.x.numpy().astype(np.float64)
+    _ROW_STATE = ("x", "v", "f")
+    _REPLICA_STATE = ("active", "status", "iters", "steps", "npos", "down", "nonfin", "dt_r", "alpha_r", "fnorm",
+                      "fmax_out", "fmax_acc", "fsq_acc", "pow_acc", "vsq_acc", "mean_acc", "tol")
 
     # ------------------------------------------------------------------------------------------
     def _iteration(self) -> None:
@@ -283,67 +155,21 @@ class DeviceFire(ReplicaAsyncFire):
                   inputs=[self.x, self.v, self.f, self.free, self.row_start, self.status, self.nthr, self.dt_r,
                           self.alpha_r, self.fnorm, self.vsq_acc, T(c["max_move"])], device=dev)
 
-    @property
-    def use_graph(self) -> bool:
-        """Whether the ``sync_every`` iterations between status checks replay as one CUDA graph."""
-        return self._chunks.enabled
-
-    def minimize(self, ftol: float | np.ndarray = 1e-3, max_steps: int = 10_000,
-                 active: np.ndarray | None = None) -> DeviceFireResult:
-        """Minimise every active replica from the current device positions ``self.x``.
-
-        Parameters
-        ----------
-        ftol : float or numpy.ndarray, optional
-            Convergence threshold on the largest per-row force norm (force unit), scalar or [R].
-        max_steps : int, optional
-            Maximum FIRE updates per replica.
-        active : numpy.ndarray, optional
-            [R] bool, replicas taking part (the others keep their rows and report 'frozen').
-
-        Returns
-        -------
-        DeviceFireResult
-            Positions stay on the device (``self.x`` / :meth:`positions`).
-
-        Raises
-        ------
-        ValueError
-            On a negative ``max_steps`` or a wrong ``active`` shape.
-        """
-        t0 = time.perf_counter()
-        R, dev, c = self.R, self.device, self.consts
-        if int(max_steps) < 0:
-            raise ValueError(f"max_steps must be >= 0, got {max_steps!r}")
-        act = np.ones(R, dtype=bool) if active is None else np.asarray(active, dtype=bool)
-        if act.shape != (R,):
-            raise ValueError(f"active must hold one flag per replica ({R})")
-        tol = np.broadcast_to(np.asarray(ftol, dtype=np.float64), (R,))
-        self.tol.assign(tol.astype(self._np))
-        self.max_steps.assign(np.array([int(max_steps)], dtype=np.int32))
-        self.active.assign(act.astype(np.int32))
+    def _reset_all(self) -> None:
+        """FIRE at rest: ``active`` replicas ACTIVE with the initial time step and mixing, the others FROZEN."""
+        c, T = self.consts, self.dtype
         self.v.zero_()
         self.f.zero_()
-        T = self.dtype
-        wp.launch(self._k["reset_kernel"], dim=R,
+        wp.launch(self._k["reset_kernel"], dim=self.R,
                   inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
                           self.down, self.fmax_out, self.fmax_acc, self.fsq_acc, self.pow_acc, self.nonfin,
-                          self.vsq_acc, self.mean_acc, T(c["dt"]), T(c["alpha0"])], device=dev)
-        n_eval = n_sync = 0
-        max_chunks = (int(max_steps) + 1) // self.sync_every + 2
-        st = np.where(act, ACTIVE, FROZEN).astype(np.int32)
-        if act.any():
-            for _ in range(max_chunks):
-                self._chunks.run(self.sync_every)
-                n_eval += self.sync_every
-                st = self.status.numpy()
-                n_sync += 1
-                if not np.any(st == ACTIVE):
-                    break
-        fmax = self.fmax_out.numpy().astype(np.float64)
-        fmax = np.where(st == NONFINITE, np.inf, fmax)
-        fmax = np.where(st == FROZEN, np.nan, fmax)
-        status = [STATUS_NAMES[int(s)] for s in st]
-        return DeviceFireResult(status=status, converged=st == CONVERGED,
-                                steps=self.steps.numpy().astype(np.int64), fmax=fmax, n_evaluations=n_eval,
-                                n_syncs=n_sync, seconds=time.perf_counter() - t0)
+                          self.vsq_acc, self.mean_acc, T(c["dt"]), T(c["alpha0"])], device=self.device)
+
+    def _restart_flagged(self) -> None:
+        """The replicas flagged in ``active`` at rest with a fresh FIRE state; the others untouched."""
+        c, T, dev = self.consts, self.dtype, self.device
+        wp.launch(self._k["zero_rows_kernel"], dim=self.R * self.nthr,
+                  inputs=[self.v, self.row_start, self.active, self.nthr], device=dev)
+        wp.launch(self._k["restart_kernel"], dim=self.R,
+                  inputs=[self.active, self.status, self.iters, self.steps, self.dt_r, self.alpha_r, self.npos,
+                          self.down, self.fmax_out, T(c["dt"]), T(c["alpha0"])], device=dev)

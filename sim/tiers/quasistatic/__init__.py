@@ -44,6 +44,7 @@ from bubblecal.sim.tiers.quasistatic.compression import compression_pools, quasi
 from bubblecal.sim.tiers.quasistatic.indentation import quasistatic_indentation
 from bubblecal.sim.tiers.quasistatic.results import CompressionResult, IndentationResult
 from bubblecal.sim.tiers.quasistatic.settings import (
+    MINIMIZERS,
     SCHEDULES,
     STATUS_NONFINITE,
     STATUS_NOT_CONVERGED,
@@ -73,6 +74,7 @@ __all__ = [
     "IndentationResult",
     "IdealGas",
     "FireSettings",
+    "MINIMIZERS",
     "SCHEDULES",
     "STATUS_OK",
     "STATUS_NOT_CONVERGED",

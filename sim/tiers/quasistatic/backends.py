@@ -1,7 +1,9 @@
-"""The quasi-static tier's backend: a chain of load points relaxed by the device-resident FIRE.
+"""The quasi-static tier's backend: a chain of load points relaxed by a device-resident minimiser.
 
-Positions, velocities, forces and the FIRE state stay on the Warp device
-(:class:`bubblecal.sim.engine.minimize_device.DeviceFire`); shell (ShellForceField kernels), gas, pole loads or
+Positions, forces and the minimiser's state stay on the Warp device (FIRE,
+:class:`bubblecal.sim.engine.minimize_device.DeviceFire`, or the nonlinear CG,
+:class:`bubblecal.sim.engine.minimize_device_cg.DeviceCG`, after ``FireSettings.minimizer``;
+the attribute ``fire`` holds either); shell (ShellForceField kernels), gas, pole loads or
 plates, centre-of-mass removal and the observables are kernels (:mod:`bubblecal.sim.engine.kernels.qs_loading`);
 the host reads R status flags every ``sync_every`` iterations (CUDA: those iterations replay as one CUDA graph).
 This backend runs on every Warp device, the CPU included.
@@ -58,6 +60,7 @@ class _DeviceChain:
         from bubblecal.sim.engine.kernels.qs_loading import qs_kernels
         from bubblecal.sim.engine.kernels.shell import ShellForceField
         from bubblecal.sim.engine.minimize_device import DeviceFire
+        from bubblecal.sim.engine.minimize_device_cg import DeviceCG
 
         meshes = list(mesh) if isinstance(mesh, (list, tuple)) else None  # one reference per replica
         mesh = meshes[0] if meshes else mesh
@@ -76,7 +79,8 @@ class _DeviceChain:
         self._npf = npf
         self.k = qs_kernels(T)
         self.fire_settings = fire
-        self.fire = DeviceFire(np.arange(R + 1) * nv, self._forces, device=dev, dtype=T,
+        minimizer = DeviceCG if fire.minimizer == "cg" else DeviceFire
+        self.fire = minimizer(np.arange(R + 1) * nv, self._forces, device=dev, dtype=T,
                                free=np.tile(np.asarray(free_v, dtype=bool), (R, 1)), remove_mean=remove_mean,
                                **fire.constants(), sync_every=sync_every,
                                use_graph=use_graph)

@@ -17,6 +17,7 @@ __all__ = [
     "IdealGas",
     "FireSettings",
     "SCHEDULES",
+    "MINIMIZERS",
     "STATUS_OK",
     "STATUS_NOT_CONVERGED",
     "STATUS_NONFINITE",
@@ -29,6 +30,8 @@ STATUS_NOT_CONVERGED = "not_converged"
 STATUS_NONFINITE = "nonfinite"
 STATUS_RUPTURED = "ruptured"
 _FAILED = (STATUS_NONFINITE, STATUS_RUPTURED)
+#: Minimisers of the load points (:class:`FireSettings`).
+MINIMIZERS = ("fire", "cg")
 #: Load-point schedules: every replica at its own point (``async``) or the batch at the same point (``lockstep``).
 SCHEDULES = ("async", "lockstep")
 
@@ -70,7 +73,7 @@ class IdealGas:
 
 @dataclass(frozen=True)
 class FireSettings:
-    """FIRE controls for every load point.
+    """Minimiser controls for every load point.
 
     Parameters
     ----------
@@ -91,11 +94,17 @@ class FireSettings:
         How the shell forces are summed (:class:`bubblecal.sim.engine.kernels.shell.ShellForceField`):
         ``"auto"`` (per-vertex gather on a GPU, per-element scatter with atomics on the CPU), ``"gather"`` or
         ``"scatter"``; the same forces up to the summation order.
+    minimizer : str
+        ``"fire"`` (FIRE 2.0, :class:`bubblecal.sim.engine.DeviceFire`; the shipped training sets) or ``"cg"``
+        (the force-only nonlinear conjugate gradient, :class:`bubblecal.sim.engine.DeviceCG`: the same minima
+        within ``ftol``, far fewer force evaluations on buckled shells).  ``ftol``, ``max_steps`` and
+        ``stop_at_max_steps`` apply to both (``max_steps`` counts force evaluations for the CG); the other fields
+        are FIRE's.
 
     Raises
     ------
     ValueError
-        If ``force_mode`` is unknown.
+        If ``force_mode`` or ``minimizer`` is unknown.
     """
 
     ftol: float = 0.05
@@ -110,21 +119,26 @@ class FireSettings:
     alpha0: float = 0.1
     f_alpha: float = 0.99
     force_mode: str = "auto"
+    minimizer: str = "fire"
 
     def __post_init__(self) -> None:
         from bubblecal.sim.engine import FORCE_MODES  # Warp-free: settings stay cheap
 
         if self.force_mode not in FORCE_MODES:
             raise ValueError(f"FireSettings.force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
+        if self.minimizer not in MINIMIZERS:
+            raise ValueError(f"FireSettings.minimizer must be one of {MINIMIZERS}, got {self.minimizer!r}")
 
     def constants(self) -> dict:
-        """Keyword arguments of the FIRE minimisers.
+        """Keyword arguments of the minimiser's constants (FIRE's; none for the CG, which keeps its defaults).
 
         Returns
         -------
         dict
-            ``dt``, ``dt_max``, ``max_move`` and the FIRE 2.0 constants.
+            FIRE: ``dt``, ``dt_max``, ``max_move`` and the FIRE 2.0 constants; CG: empty.
         """
+        if self.minimizer == "cg":
+            return {}
         return {"dt": self.dt, "dt_max": self.dt_max, "max_move": self.max_move, "n_delay": self.n_delay,
                 "f_inc": self.f_inc, "f_dec": self.f_dec, "alpha0": self.alpha0, "f_alpha": self.f_alpha}
 

@@ -18,6 +18,7 @@ from bubblecal.sim.tiers.conventions import (
     indentation_convention,
 )
 from bubblecal.sim.tiers.quasistatic.settings import (
+    MINIMIZERS,
     SCHEDULES,
     STATUS_NONFINITE,
     STATUS_NOT_CONVERGED,
@@ -88,6 +89,11 @@ class QuasistaticTier:
         ``"auto"`` (per-vertex gather on a GPU, per-element scatter with atomics on the CPU), ``"gather"`` or
         ``"scatter"`` (:class:`bubblecal.sim.engine.kernels.shell.ShellForceField`): the same forces up to the
         summation order; a measurement knob (benchmarks/qs_iteration_cost.py ``--force-mode``).
+    minimizer : str
+        ``"fire"`` (default; the shipped training sets ran with it) or ``"cg"``, the force-only nonlinear
+        conjugate gradient (:class:`FireSettings`): the same minima within ``ftol`` with far fewer force
+        evaluations on buckled shells, so a campaign on large bubbles runs several times faster; ``max_steps``
+        then counts force evaluations.
     name : str
         The tier's name.
 
@@ -114,6 +120,7 @@ class QuasistaticTier:
     stop_unstable: bool = False
     first_load_ramp: int = 0
     force_mode: str = "auto"
+    minimizer: str = "fire"
     name: str = "quasistatic"
 
     def __post_init__(self) -> None:
@@ -129,6 +136,8 @@ class QuasistaticTier:
 
         if self.force_mode not in FORCE_MODES:
             raise ValueError(f"quasistatic tier: force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
+        if self.minimizer not in MINIMIZERS:
+            raise ValueError(f"quasistatic tier: minimizer must be one of {MINIMIZERS}, got {self.minimizer!r}")
         if self.schedule not in SCHEDULES:
             raise ValueError(f"quasistatic tier: schedule must be 'async' or 'lockstep', got {self.schedule!r}")
         if self.max_replicas is not None:
@@ -192,7 +201,7 @@ class QuasistaticTier:
             by_size = {d: mesh_for_diameter(d, mesh.subdivisions) for d in sorted(set(request.diameters_um))}
             meshes = [by_size[d] for d in request.diameters_um]
         fire = FireSettings(ftol=self.ftol, max_steps=self.max_steps, stop_at_max_steps=self.stop_unstable,
-                            force_mode=self.force_mode)
+                            force_mode=self.force_mode, minimizer=self.minimizer)
         gas = IdealGas(p0=self.gas_p0, p_ambient=self.gas_p0 - self.overpressure)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,
