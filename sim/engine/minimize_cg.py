@@ -7,7 +7,9 @@ of the directional force g(a) = F(x + a d) . d (g > 0: still downhill along d).
 
 Rules, per line (``d`` the search direction, ``slope = F(x) . d > 0``):
 
-* the first trial step is ``a = min(first_alpha, first_move / max_i |d_i|)``;
+* the first trial step of the first line is ``a = min(first_alpha, first_move / max_i |d_i|)``; of every later line
+  the last line's final step scaled by the ratio of the slopes, ``a_last slope_last / slope`` (Nocedal & Wright,
+  Numerical Optimization, eq. 3.60), moving at most ``grow * first_move``;
 * a trial with ``|g| <= accept * slope`` ends the line; so does the ``max_trials``-th trial (its point is kept);
 * g > 0 and no bracket yet: extrapolate by the secant through the last two downhill trials, at most doubling the
   step and moving at most ``grow * first_move`` (vertex length) further;
@@ -151,6 +153,7 @@ def cg_minimize(force: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, ftol:
             a1 = a_next
         else:  # a new line from here: along F first, then F + beta d (Polak-Ribiere+)
             fsq = float(np.sum(f1 * f1))
+            slope_prev = slope
             beta, slope = 0.0, fsq
             if trials > 0:
                 beta = max(0.0, (fsq - float(np.sum(f1 * f_b))) / fsq_b)
@@ -160,7 +163,11 @@ def cg_minimize(force: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, ftol:
                 n_lines += 1
             x, d, f_b, fsq_b = x1, f1 + beta * d, f1, fsq
             dn = fmax if beta == 0.0 else float(np.max(np.linalg.norm(d, axis=1)))
-            a1, a_lo, g_lo, a_hi, g_hi, trials = min(first_alpha, first_move / dn), 0.0, slope, -1.0, 0.0, 0
+            if trials > 0:  # the last line's step, scaled by the slopes (Nocedal & Wright, eq. 3.60), capped
+                a1 = min(a1 * slope_prev / slope, grow * first_move / dn)
+            else:
+                a1 = min(first_alpha, first_move / dn)
+            a_lo, g_lo, a_hi, g_hi, trials = 0.0, slope, -1.0, 0.0, 0
         x1 = x + a1 * d
         f1 = np.asarray(force(x1), dtype=np.float64)
         n_eval += 1

@@ -77,7 +77,7 @@ class DeviceCG(DeviceMinimizer):
         self.beta = wp.zeros(R, dtype=T, device=dev)
         self.dn_acc = wp.zeros(R, dtype=T, device=dev)
         self.red = wp.zeros((R, 4), dtype=T, device=dev)
-        self.ls = wp.zeros((R, 9), dtype=T, device=dev)
+        self.ls = wp.zeros((R, 10), dtype=T, device=dev)
 
     def _reset_all(self) -> None:
         """``active`` replicas ACTIVE at their first evaluation, the others FROZEN."""
@@ -113,6 +113,7 @@ class DeviceCG(DeviceMinimizer):
                   inputs=[self.x, self.f, self.d, self.f_b, self.row_start, self.action, self.nthr, self.beta,
                           self.ls, self.dn_acc], device=dev)
         wp.launch(k["first_step_kernel"], dim=self.R,
-                  inputs=[self.action, self.ls, self.dn_acc, T(c["first_alpha"]), T(c["first_move"])], device=dev)
+                  inputs=[self.action, self.ls, self.dn_acc, T(c["first_alpha"]), T(c["first_move"]), T(c["grow"])],
+                  device=dev)
         wp.launch(k["line_move_kernel"], dim=dimv,
                   inputs=[self.x, self.d, self.row_start, self.action, self.nthr, self.ls], device=dev)

@@ -26,8 +26,8 @@ MOVE = 1
 NEW_ALONG_F = 2
 NEW_LINE = 3
 
-# fields of the per-replica line state ``ls [R, 9]``
-_A1, _ALO, _GLO, _AHI, _GHI, _SLOPE, _FSQB, _DN, _DELTA = range(9)
+# fields of the per-replica line state ``ls [R, 10]`` (_APREV: the last line's final step times its slope)
+_A1, _ALO, _GLO, _AHI, _GHI, _SLOPE, _FSQB, _DN, _DELTA, _APREV = range(10)
 
 
 @functools.cache
@@ -42,6 +42,13 @@ def cg_kernels(dtype):
     T = dtype
     V = wp.vec3d if T is wp.float64 else wp.vec3f
     kern = kernel_decorator(T, "cg")
+
+    @wp.func
+    def first_step(a_slope_prev: T, slope: T, dn: T, first_alpha: T, first_move: T, grow: T):
+        """A line's first trial step: the last line's step scaled by the slopes, capped (the first line: small)."""
+        if a_slope_prev > T(0.0):
+            return wp.min(a_slope_prev / slope, grow * first_move / dn)
+        return wp.min(first_alpha, first_move / dn)
 
     @kern
     def reset_kernel(flag: wp.array(dtype=wp.int32), only_flagged: wp.int32, status: wp.array(dtype=wp.int32),
@@ -174,7 +181,9 @@ def cg_kernels(dtype):
         # a new line: along F on the first evaluation, else F + beta d (Polak-Ribiere+, restart when not downhill)
         beta = T(0.0)
         slope = fsq
+        ls[r, _APREV] = T(0.0)
         if tr > 0:
+            ls[r, _APREV] = ls[r, _A1] * ls[r, _SLOPE]  # the last line's step times its slope
             beta = wp.max(T(0.0), (fsq - gb) / ls[r, _FSQB])
             slope = fsq + beta * g1
             if slope <= T(0.0):
@@ -190,7 +199,7 @@ def cg_kernels(dtype):
         ls[r, _GHI] = T(0.0)
         if beta == T(0.0):
             ls[r, _DN] = fm
-            a1 = wp.min(first_alpha, first_move / fm)
+            a1 = first_step(ls[r, _APREV], slope, fm, first_alpha, first_move, grow)
             ls[r, _A1] = a1
             ls[r, _DELTA] = a1
             action[r] = NEW_ALONG_F
@@ -232,14 +241,14 @@ def cg_kernels(dtype):
 
     @kern
     def first_step_kernel(action: wp.array(dtype=wp.int32), ls: wp.array2d(dtype=T), dn_acc: wp.array(dtype=T),
-                          first_alpha: T, first_move: T):
+                          first_alpha: T, first_move: T, grow: T):
         """The first trial step of a new line along F + beta d, from its max |d|."""
         r = wp.tid()
         if action[r] != NEW_LINE:
             return
         dn = dn_acc[r]
         dn_acc[r] = T(0.0)
-        a1 = wp.min(first_alpha, first_move / dn)
+        a1 = first_step(ls[r, _APREV], ls[r, _SLOPE], dn, first_alpha, first_move, grow)
         ls[r, _DN] = dn
         ls[r, _A1] = a1
         ls[r, _DELTA] = a1
