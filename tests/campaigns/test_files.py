@@ -108,6 +108,7 @@ def test_priors_list_gives_the_union_box(tmp_path):
     ("max_steps = 4000", "max_step = 4000", "[tier].max_step", "allowed for tier 'quasistatic'"),
     ("max_steps = 4000", 'indentation_convention = "published"', "[tier].indentation_convention",
      "['bubblecal-v1', 'mirheo']"),
+    ("max_steps = 4000", 'minimizer = "lbfgs"', "[tier].minimizer", "('fire', 'cg')"),
     ('scheduler_address = "inline"', "n_workers = 0", "[dask].n_workers", ">= 1"),
     ('scheduler_address = "inline"', "threads = 2", "[dask].threads", "allowed: scheduler_address, n_workers"),
     ("[dask]", "[cluster]", "[cluster]", "allowed: campaign, ranges, tier, dask"),
@@ -121,6 +122,13 @@ def test_config_file_errors_name_file_field_and_allowed(tmp_path, old, new, key,
         load_campaign_config(path)
     msg = str(info.value)
     assert str(path) in msg and f"{key}:" in msg and allowed in msg, msg
+
+
+def test_the_minimizer_is_part_of_the_design(tmp_path):
+    # the CG's curves differ from FIRE's within the force tolerance: a store of one refuses a config of the other
+    fire = load_campaign_config(write(tmp_path, GOOD))
+    cg = load_campaign_config(write(tmp_path, GOOD.replace("max_steps = 4000", 'max_steps = 4000\nminimizer = "cg"')))
+    assert cg.tier_settings["minimizer"] == "cg" and cg.design_hash() != fire.design_hash()
 
 
 def test_missing_sections_and_bad_toml(tmp_path):
