@@ -65,32 +65,15 @@ class DeviceFire(DeviceMinimizer):
 
     Parameters
     ----------
-    row_start : sequence of int
-        [R + 1] first row of each replica (contiguous blocks; rows past ``row_start[-1]`` never move).
-    force_fn : callable
-        ``force_fn(x, f)`` adds forces (-dE/dx) into ``f`` with Warp launches only.
-    device : str, optional
-        Warp device.
-    dtype : warp scalar type, optional
-        ``wp.float64`` (default) or ``wp.float32``.
-    n_rows : int, optional
-        Rows of the position arrays (default ``row_start[-1]``).
-    free : numpy.ndarray, optional
-        [N, 3] bool mask of the components that may move (default all).
+    row_start, force_fn : optional
+        Replica layout and forces, as for :class:`~bubblecal.sim.engine.minimize_device_base.DeviceMinimizer`.
+    device, dtype, n_rows, free, remove_mean, sync_every, threads_per_replica, use_graph : optional
+        As for :class:`~bubblecal.sim.engine.minimize_device_base.DeviceMinimizer`.
     mass : float or numpy.ndarray, optional
         Scalar or per-row FIRE mass.
-    remove_mean : sequence of bool, optional
-        Per component, subtract the replica's mean force.
     dt, dt_max, dt_min, max_move, n_delay, f_inc, f_dec, alpha0, f_alpha : optional
         FIRE constants as in :func:`bubblecal.sim.engine.minimize.fire_minimize` (dt_max default 10 dt, dt_min
         dt / 50, ``max_move`` None: no cap), in the caller's time / length units.
-    sync_every : int, optional
-        Iterations between host status checks (default 25 on CUDA, 4 on the CPU).
-    threads_per_replica : int, optional
-        Threads per replica of the row passes (default on CUDA :func:`cuda_threads_per_replica`, 1 on the CPU).
-    use_graph : bool, optional
-        Capture ``sync_every`` iterations as a CUDA graph (default: on CUDA when ``force_fn`` is capturable;
-        plain launches if capture fails).
 
     Raises
     ------

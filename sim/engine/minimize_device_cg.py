@@ -33,12 +33,9 @@ class DeviceCG(DeviceMinimizer):
 
     Parameters
     ----------
-    row_start : sequence of int
-        [R + 1] first row of each replica (contiguous blocks; rows past ``row_start[-1]`` never move).
-    force_fn : callable
-        ``force_fn(x, f)`` adds forces (-dE/dx) into ``f`` with Warp launches only.
-    device, dtype, n_rows, free, remove_mean, sync_every, threads_per_replica, use_graph : optional
-        As for :class:`~bubblecal.sim.engine.minimize_device_base.DeviceMinimizer`.
+    row_start, force_fn, device, dtype, n_rows, free, remove_mean, sync_every, threads_per_replica, use_graph
+        The replica layout, forces and execution, as for
+        :class:`~bubblecal.sim.engine.minimize_device_base.DeviceMinimizer`.
     first_alpha, first_move, grow, accept, max_trials : optional
         Line-search constants of :func:`bubblecal.sim.engine.minimize_cg.cg_minimize` (``first_move`` in the
         caller's length unit).
