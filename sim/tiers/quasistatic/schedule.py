@@ -41,6 +41,15 @@ def _result_tables(n: int, n_points: int):
             {})
 
 
+def _obs_table(obs: dict, key: str, n: int, n_points: int) -> np.ndarray:
+    """The [n, n_points] table of observable ``key`` in ``obs``, created (NaN) on first use: allocated once, not per
+    point (a ``setdefault`` default is built on every call, an O(n) cost per measured point)."""
+    table = obs.get(key)
+    if table is None:
+        table = obs[key] = np.full((n, n_points), np.nan)
+    return table
+
+
 def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callable[[int], None] | None = None,
                progress: Callable[[int, int, float], None] | None = None, stop_unstable: bool = False) -> dict:
     """Chain the load points in lock-step on ``backend`` (module docstring); returns per-replica/point arrays
@@ -84,7 +93,7 @@ def _run_chain(backend, n_points: int, rupture_strain: float, set_point: Callabl
             strain[r, j] = eps[r]
             volume[r, j] = vols[r]
             for k, v in m.items():
-                obs.setdefault(k, np.full((R, n_points), np.nan))[r, j] = v[r]
+                _obs_table(obs, k, R, n_points)[r, j] = v[r]
         # failed replicas restart from (and stay frozen at) the reference so their rows stay finite
         backend.reset_failed(np.array([s in terminal for s in status]))
         if progress is not None:
@@ -194,7 +203,7 @@ def _run_chain_async(backend: _DeviceChain, n_points: int, rupture_strain: float
             strain[s_, jr] = eps[r]
             volume[s_, jr] = vols[r]
             for key, v in m.items():
-                obs.setdefault(key, np.full((S, n_points), np.nan))[s_, jr] = v[r]
+                _obs_table(obs, key, S, n_points)[s_, jr] = v[r]
             j[r] = jr + 1
             done[r] = j[r] >= n_points
         # failed replicas return to (and stay frozen at) the reference so their rows stay finite

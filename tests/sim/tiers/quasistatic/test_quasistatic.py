@@ -447,3 +447,16 @@ def test_first_load_ramp_is_the_grid_with_its_sub_points(mesh, schedule):
     assert np.all(rel < 0.02), rel
     with pytest.raises(ValueError, match="first_load_ramp"):
         quasistatic_indentation(p, mesh, grid, first_load_ramp=-1)
+
+
+def test_observable_tables_are_built_once():
+    # one [n, P] table per observable for the whole chain: a per-point rebuild made the host cost per curve grow
+    # with the pool's size (benchmarks/qs_host_overhead.py)
+    from bubblecal.sim.tiers.quasistatic.schedule import _obs_table
+
+    obs = {}
+    a = _obs_table(obs, "top", 3, 4)
+    a[0, 1] = 2.5
+    b = _obs_table(obs, "top", 3, 4)
+    assert b is a and b[0, 1] == 2.5 and np.isnan(b[2, 3]) and b.shape == (3, 4)
+    assert _obs_table(obs, "bottom", 3, 4) is not a and set(obs) == {"top", "bottom"}
