@@ -39,7 +39,7 @@ DESIGN_FIELDS = ("name", "protocol", "diameter_um", "ranges", "n_samples", "seed
 #: designs of the other campaigns keep their hashes.
 OPTIONAL_DESIGN_FIELDS = ("diameter_range_um", "diameter_step_um", "loading_fractions")
 #: [tier] keys that change how curves are scheduled on the device, not the curves: left out of the design hash.
-EXECUTION_ONLY_TIER_SETTINGS = ("schedule", "max_replicas")
+EXECUTION_ONLY_TIER_SETTINGS = ("schedule", "max_replicas", "sync_every")
 
 _DIAMETER_RANGE_UM = (0.5, 20.0)
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")

@@ -129,6 +129,9 @@ def test_the_minimizer_is_part_of_the_design(tmp_path):
     fire = load_campaign_config(write(tmp_path, GOOD))
     cg = load_campaign_config(write(tmp_path, GOOD.replace("max_steps = 4000", 'max_steps = 4000\nminimizer = "cg"')))
     assert cg.tier_settings["minimizer"] == "cg" and cg.design_hash() != fire.design_hash()
+    # how often the host reads the status is scheduling only: the same design
+    often = load_campaign_config(write(tmp_path, GOOD.replace("max_steps = 4000", "max_steps = 4000\nsync_every = 10")))
+    assert often.tier_settings["sync_every"] == 10 and often.design_hash() == fire.design_hash()
 
 
 def test_missing_sections_and_bad_toml(tmp_path):

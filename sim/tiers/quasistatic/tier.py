@@ -89,6 +89,10 @@ class QuasistaticTier:
         ``"auto"`` (per-vertex gather on a GPU, per-element scatter with atomics on the CPU), ``"gather"`` or
         ``"scatter"`` (:class:`bubblecal.sim.engine.kernels.shell.ShellForceField`): the same forces up to the
         summation order; a measurement knob (benchmarks/qs_iteration_cost.py ``--force-mode``).
+    sync_every : int, optional
+        Minimiser iterations between the host's status reads (one CUDA-graph replay); None: the minimiser's default
+        (25 on CUDA, 4 on the CPU).  Scheduling only: the same iterates and curves.  A converged replica waits up to
+        this many iterations before it is measured and moves on, which matters when points take few iterations.
     minimizer : str
         ``"fire"`` (default; the shipped training sets ran with it) or ``"cg"``, the force-only nonlinear
         conjugate gradient (:class:`FireSettings`): the same minima within ``ftol`` with far fewer force
@@ -120,6 +124,7 @@ class QuasistaticTier:
     stop_unstable: bool = False
     first_load_ramp: int = 0
     force_mode: str = "auto"
+    sync_every: int | None = None
     minimizer: str = "fire"
     name: str = "quasistatic"
 
@@ -136,6 +141,9 @@ class QuasistaticTier:
 
         if self.force_mode not in FORCE_MODES:
             raise ValueError(f"quasistatic tier: force_mode must be one of {FORCE_MODES}, got {self.force_mode!r}")
+        n = self.sync_every
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+            raise ValueError(f"quasistatic tier: sync_every must be an integer >= 1 or omitted, got {n!r}")
         if self.minimizer not in MINIMIZERS:
             raise ValueError(f"quasistatic tier: minimizer must be one of {MINIMIZERS}, got {self.minimizer!r}")
         if self.schedule not in SCHEDULES:
@@ -205,7 +213,8 @@ class QuasistaticTier:
         gas = IdealGas(p0=self.gas_p0, p_ambient=self.gas_p0 - self.overpressure)
         dtype = None if self.dtype is None else resolve_dtype(self.dtype)
         common = dict(gas=gas, device=device, dtype=dtype, fire=fire, rupture_strain=self.rupture_strain,
-                      extrapolate=self.extrapolate, schedule=self.schedule, max_replicas=self.max_replicas)
+                      extrapolate=self.extrapolate, schedule=self.schedule, max_replicas=self.max_replicas,
+                      sync_every=self.sync_every)
         grid = request.grid_array()
         conv = indentation_convention(self.indentation_convention)
         static = self._static_info(request, mesh, conv)

@@ -69,6 +69,25 @@ def test_quasistatic_tier_slot_refill_same_curves():
         get_tier("quasistatic", max_replicas=4, schedule="lockstep")
 
 
+@pytest.mark.parametrize("minimizer", ["fire", "cg"])
+def test_quasistatic_tier_sync_every_schedules_only(minimizer):
+    pytest.importorskip("warp")
+    from bubblecal.campaigns import EXECUTION_ONLY_TIER_SETTINGS
+    from bubblecal.sim.tiers import get_tier
+
+    req = CurveRequest("compression", 1.5, (0.0, 0.12, 0.24), PARAMS, (1, 2), subdivisions=2)
+    base = get_tier("quasistatic", minimizer=minimizer).run(req)
+    often = get_tier("quasistatic", minimizer=minimizer, sync_every=1, max_replicas=1).run(req)
+    assert often.status == base.status == ["ok", "ok"]
+    # the host reads the status after every iteration instead of every 4: the same iterates, the same curves
+    np.testing.assert_array_equal(often.observable, base.observable)
+    assert often.info["fire_steps"] == base.info["fire_steps"]
+    assert "sync_every" in EXECUTION_ONLY_TIER_SETTINGS  # so it leaves a campaign's design hash alone
+    for bad in (0, 2.5, True):
+        with pytest.raises(ValueError, match="sync_every must be an integer"):
+            get_tier("quasistatic", sync_every=bad)
+
+
 def test_quasistatic_tier_overpressure_inflates_the_shell_by_laplace():
     """A gas pressure Δp above the ambient inflates the unloaded sphere until the Lim area tension and the
     gas's expansion balance it: k_a α (2 + 2ε) A0 = [p0 / (1 + ε)³ − (p0 − Δp)] 3 V0 (1 + ε)², α = 2ε + ε²
