@@ -60,27 +60,37 @@ def sample_indices(design: dict, per_level: int, levels: list[float] | None = No
     return [int(i) for lvl in chosen for i in np.nonzero(d == lvl)[0][:per_level]]
 
 
-def rel_l2(curves: dict, reference: dict) -> dict | None:
-    """Relative L2 of ``curves`` against ``reference`` (both sample id -> (y, status)) over the samples ok in both:
-    median, p99 and max, or None when none is."""
-    rel = [float(np.linalg.norm(y - reference[sid][0]) / np.linalg.norm(reference[sid][0]))
-           for sid, (y, status) in curves.items() if status == "ok" and reference.get(sid, (None, ""))[1] == "ok"]
+def compare(curves: dict, reference: dict) -> list:
+    """Each sample of ``curves`` that ``reference`` also holds (both sample id -> (y, status)): [sample id, relative
+    L2 (NaN unless ok in both), status, reference status]."""
+    rows = []
+    for sid, (y, status) in curves.items():
+        if sid not in reference:
+            continue
+        ref_y, ref_status = reference[sid]
+        ok = status == "ok" and ref_status == "ok"
+        rows.append([sid, float(np.linalg.norm(y - ref_y) / np.linalg.norm(ref_y)) if ok else float("nan"), status,
+                     ref_status])
+    return rows
+
+
+def rel_stats(rows: list) -> dict | None:
+    """Median, p99 and max relative L2 over the :func:`compare` rows ok in both, or None when none is."""
+    rel = [r[1] for r in rows if not np.isnan(r[1])]
     if not rel:
         return None
     return {"median": float(np.median(rel)), "p99": float(np.quantile(rel, 0.99)), "max": float(np.max(rel))}
 
 
-def worst(curves: dict, reference: dict, n: int = 3) -> list:
-    """The ``n`` samples farthest from ``reference`` and those whose ok-ness differs: [sample id, relative L2 (NaN
-    where a status differs), status, reference status]."""
-    out = []
-    for sid, (y, status) in curves.items():
-        ref_y, ref_status = reference[sid]
-        ok = status == "ok" and ref_status == "ok"
-        rel = float(np.linalg.norm(y - ref_y) / np.linalg.norm(ref_y)) if ok else float("nan")
-        out.append([sid, rel, status, ref_status])
-    differ = [r for r in out if np.isnan(r[1]) and (r[2] == "ok") != (r[3] == "ok")]
-    ranked = sorted((r for r in out if not np.isnan(r[1])), key=lambda r: -r[1])[:n]
+def rel_l2(curves: dict, reference: dict) -> dict | None:
+    """:func:`rel_stats` of ``curves`` against ``reference``."""
+    return rel_stats(compare(curves, reference))
+
+
+def worst(rows: list, n: int = 3) -> list:
+    """The ``n`` :func:`compare` rows farthest from the reference, then those whose ok-ness differs."""
+    differ = [r for r in rows if (r[2] == "ok") != (r[3] == "ok")]
+    ranked = sorted((r for r in rows if not np.isnan(r[1])), key=lambda r: -r[1])[:n]
     return ranked + differ
 
 
@@ -105,7 +115,7 @@ def run_setting(campaign: str, overrides: dict, per_level: int, device: str, sto
     ok = [s == "ok" for s in result.status]
     curves = {sid: (np.asarray(y, dtype=float), status)
               for sid, y, status in zip(task.sample_ids, result.y, result.status, strict=True)}
-    differ = sum((status == "ok") != (stored[sid][1] == "ok") for sid, (_, status) in curves.items())
+    rows = compare(curves, stored)
     steps = np.asarray(result.info.get("fire_steps", [np.nan]), dtype=float)
     t_done = np.sort(np.asarray(finished)) if finished else np.full(1, np.nan)
     q = {f"{int(100 * f)}%": round(float(np.quantile(t_done, f)), 1) for f in (0.1, 0.5, 0.9, 0.99, 1.0)}
@@ -116,8 +126,9 @@ def run_setting(campaign: str, overrides: dict, per_level: int, device: str, sto
             "last_curve_s": round(max(finished), 1) if finished else None, "finished_at_s": q,
             "steady_curves_per_hour": None if steady is None else round(steady),
             "ok_per_hour": round(sum(ok) / wall * 3600.0),
-            "fire_steps_mean": float(np.nanmean(steps)), "status_differs": differ,
-            "rel_l2_vs_store": rel_l2(curves, stored), "worst_vs_store": worst(curves, stored),
+            "fire_steps_mean": float(np.nanmean(steps)),
+            "status_differs": sum((r[2] == "ok") != (r[3] == "ok") for r in rows),
+            "rel_l2_vs_store": rel_stats(rows), "worst_vs_store": worst(rows),
             "curves_by_sample": curves}
 
 

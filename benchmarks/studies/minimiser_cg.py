@@ -6,8 +6,8 @@ buckle at large sizes).  From that minimum the plates move one more sub-step (``
 the shell is relaxed twice from the same start, both to the tier's per-vertex force tolerance (0.05 DPD force):
 
 * FIRE, exactly as the tier runs it (:class:`bubblecal.sim.engine.minimize_device.DeviceFire`);
-* Polak-Ribiere+ nonlinear CG driven from the host, with a line search on the directional force F(x + a d) . d
-  alone (secant steps, a capped first step, a restart along F when d stops going downhill).
+* the Polak-Ribiere+ nonlinear CG of :func:`bubblecal.sim.engine.minimize_cg.cg_minimize` (the NumPy reference of
+  the tier's ``minimizer = "cg"``), driven from the host.
 
 The forces are the tier's own (``_DeviceChain._forces`` on one replica, the mean x, y force removed as the tier does).
 Reported: force evaluations of each, the largest vertex distance between the two minima and their plate forces.

@@ -36,3 +36,19 @@ def test_stored_curves_are_read_by_sample_id(cst):
     y, status = stored["definity_compression_1.5-8um-000000"]
     assert y.shape == (15,) and status in {"ok", "unstable", "ruptured", "failed"}
     assert sum(s == "ok" for _, s in stored.values()) == 32_972
+
+
+def test_comparison_rows_stats_and_worst(cst):
+    y = np.array([1.0, 2.0, 2.0])
+    curves = {"a": (y * 1.01, "ok"), "b": (y, "ok"), "c": (y, "ok"), "d": (y, "failed"), "e": (y, "ok")}
+    ref = {"a": (y, "ok"), "b": (y * 1.1, "ok"), "c": (y, "unstable"), "d": (y, "failed")}
+    rows = cst.compare(curves, ref)
+    assert [r[0] for r in rows] == ["a", "b", "c", "d"]  # "e" has no reference record
+    np.testing.assert_allclose(rows[0][1], 0.01)
+    np.testing.assert_allclose(rows[1][1], 0.1 / 1.1)
+    assert np.isnan(rows[2][1]) and np.isnan(rows[3][1])
+    stats = cst.rel_stats(rows)
+    np.testing.assert_allclose([stats["median"], stats["max"]], [(0.01 + 0.1 / 1.1) / 2, 0.1 / 1.1])
+    # the farthest first, then the sample ok in one run only ("d" failed in both: not listed)
+    assert [r[0] for r in cst.worst(rows, n=1)] == ["b", "c"]
+    assert cst.rel_l2(curves, ref) == stats and cst.rel_stats([]) is None
