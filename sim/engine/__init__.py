@@ -77,6 +77,7 @@ _LAZY = {
     "HealthMonitor": "bubblecal.sim.engine.health",
     "DeviceFire": "bubblecal.sim.engine.minimize_device",
     "DeviceCG": "bubblecal.sim.engine.minimize_device_cg",
+    "DeviceMinimizer": "bubblecal.sim.engine.minimize_device_base",
     "DeviceMinimizeResult": "bubblecal.sim.engine.minimize_device_base",
     "numpy_force_fn": "bubblecal.sim.engine.minimize_device",
     "cuda_threads_per_replica": "bubblecal.sim.engine.minimize_device_base",
@@ -101,7 +102,8 @@ __all__ = [
     # minimisers and CUDA graphs
     "fire_minimize", "FireResult", "STATUS_CONVERGED", "STATUS_MAX_STEPS", "STATUS_NONFINITE",
     "cg_minimize", "CgResult", "CG_DEFAULTS",
-    "DeviceFire", "DeviceCG", "DeviceMinimizeResult", "numpy_force_fn", "cuda_threads_per_replica", "ChunkGraph",
+    "DeviceFire", "DeviceCG", "DeviceMinimizer", "DeviceMinimizeResult", "numpy_force_fn", "cuda_threads_per_replica",
+    "ChunkGraph",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
