@@ -16,9 +16,11 @@ from bubblecal.sim.engine.kernels.shell.layout import (
     E_PB,
     E_VOL,
     ENERGY_TERMS,
+    P_A0TOT,
     P_KATOT,
     P_KVTOT,
     P_PB,
+    P_V0,
 )
 
 wp = require("warp", "sim")
@@ -105,9 +107,10 @@ class ShellFieldMeasurements:
         e = self._energy.numpy().astype(np.float64)
         a, vol = self.areas_volumes(x)
         t = self.param_table
-        e[:, E_AREA] = t[:, P_KATOT] * (a - self.area0) ** 2 / (2 * self.area0)
-        e[:, E_VOL] = t[:, P_KVTOT] * (vol - self.volume0) ** 2 / (2 * self.volume0)
-        e[:, E_PB] = -t[:, P_PB] * (vol - self.volume0)
+        a0, v0 = t[:, P_A0TOT], t[:, P_V0]  # the references the force kernels read
+        e[:, E_AREA] = t[:, P_KATOT] * (a - a0) ** 2 / (2 * a0)
+        e[:, E_VOL] = t[:, P_KVTOT] * (vol - v0) ** 2 / (2 * v0)
+        e[:, E_PB] = -t[:, P_PB] * (vol - v0)
         return e
 
     def reference_positions(self, n_rows: int | None = None) -> np.ndarray:
