@@ -10,8 +10,9 @@ time: what a pool much larger than its slots runs at, without its tail), the FIR
 curves' relative L2 against the shipped store's records of the same design points (median, p99, max over the curves
 ok in both; statuses that differ are counted).  ``--reference`` first runs the sample under tight overrides (e.g.
 the CG at a 25x smaller force tolerance) and compares every setting, and the shipped store, with those curves: how
-far each minimiser's stopping point lies from the minimum.  ``--setting`` runs the sample once per value, each a
-comma list of tier overrides (``dtype=float32,max_replicas=2000``); ``-`` is the campaign as shipped.
+far each minimiser's stopping point lies from the minimum, and which samples lie farthest.  ``--setting`` runs the
+sample once per value, each a comma list of tier overrides (``dtype=float32,max_replicas=2000``); ``-`` is the
+campaign as shipped.
 
     python benchmarks/campaign_sample_throughput.py --campaign definity_compression_1.5-8um --per-level 40 \
         --setting - --setting dtype=float32 --device cuda [--diameters 1.5,2.0] [--out OUT.json]
@@ -171,8 +172,9 @@ def main(argv=None) -> None:
         curves = row.pop("curves_by_sample")
         row["setting"] = text
         if reference:
-            row["rel_l2_vs_reference"] = rel_l2(curves, reference)
-            print(f"    vs reference: {row['rel_l2_vs_reference']}", flush=True)
+            vs_ref = compare(curves, reference)
+            row["rel_l2_vs_reference"], row["worst_vs_reference"] = rel_stats(vs_ref), worst(vs_ref)
+            print(f"    vs reference: {row['rel_l2_vs_reference']}; worst: {row['worst_vs_reference'][:3]}", flush=True)
         rows.append(row)
         r = row["rel_l2_vs_store"] or {"median": np.nan, "p99": np.nan, "max": np.nan}
         print(f"{text:<34s} {row['ok']:>5d}/{row['curves']:<5d} {row['wall_s']:7.1f} {row['ok_per_hour']:8d} "
