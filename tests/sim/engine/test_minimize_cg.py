@@ -137,24 +137,3 @@ def test_device_validates_its_constants():
         DeviceCG([0, 4], numpy_force_fn(lambda x: -x), grow=0.0)
     with pytest.raises(ValueError, match="row_start"):
         DeviceCG([0, 0], numpy_force_fn(lambda x: -x))
-
-
-@pytest.mark.gpu
-def test_cuda_graph_cg_matches_cpu():
-    wp.init()
-    if not wp.get_cuda_device_count():
-        pytest.skip("no CUDA device")
-    from bubblecal.sim.engine import ShellParams, icosphere
-    from bubblecal.sim.tiers.quasistatic import FireSettings, quasistatic_compression, quasistatic_indentation
-
-    mesh = icosphere(6.0, 3)
-    p = [ShellParams(ka=16751.0, kb=500.0), ShellParams(ka=4000.0, kb=300.0, b1=0.7, b2=0.75)]
-    cg = FireSettings(minimizer="cg")
-    for fn, grid, key in ((quasistatic_compression, [0.0, 0.12, 0.24], "force"),
-                          (quasistatic_indentation, [0.0, 20.0, 40.0], "displacement")):
-        cpu = fn(p, mesh, grid, device="cpu", fire=cg)
-        gpu = fn(p, mesh, grid, device="cuda:0", fire=cg)
-        assert gpu.status == cpu.status == ["ok", "ok"]
-        ref = getattr(cpu, key)
-        # GPU atomics sum in another order: the line searches may stop elsewhere within ftol
-        assert np.max(np.abs(getattr(gpu, key) - ref)) < 2e-3 * np.max(np.abs(ref))
