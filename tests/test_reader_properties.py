@@ -88,8 +88,21 @@ def damaged_bytes(draw, original: bytes):
     return bytes(data)
 
 
+_SCRATCH: dict[str, Path] = {}
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _scratch_root():
+    """One scratch folder for the module's generated files, removed afterwards (hypothesis examples cannot
+    take the function-scoped ``tmp_path``)."""
+    root = Path(tempfile.mkdtemp(prefix="bubblecal-prop-"))
+    _SCRATCH["root"] = root
+    yield root
+    shutil.rmtree(root, ignore_errors=True)
+
+
 def _write(content, name: str) -> Path:
-    folder = Path(tempfile.mkdtemp(prefix="bubblecal-prop-"))
+    folder = Path(tempfile.mkdtemp(dir=_SCRATCH["root"]))
     path = folder / name
     if isinstance(content, bytes):
         path.write_bytes(content)
@@ -245,7 +258,7 @@ def test_surrogate_npz(data):
 
 
 def _copy_bundle() -> Path:
-    folder = Path(tempfile.mkdtemp(prefix="bubblecal-prop-bundle-")) / "bundle"
+    folder = Path(tempfile.mkdtemp(dir=_SCRATCH["root"])) / "bundle"
     shutil.copytree(BUNDLE, folder)
     return folder
 

@@ -31,21 +31,26 @@ Choices (stated once; also returned in ``result.settings``):
   (:class:`QuasistaticTier`) reports the SUM of both, :data:`bubblecal.sim.tiers.DISPLACEMENT_CONVENTION`.
 * **Status per replica**: ``'ok'``; ``'not_converged'`` (FIRE hit ``max_steps`` at some point; the chain goes
   on, or ends there with ``FireSettings.stop_at_max_steps``); ``'nonfinite'``; ``'ruptured'`` (max triangle area
-  strain |A/A0 - 1| above ``rupture_strain``, default 1.0).  After ``nonfinite`` / ``ruptured`` the replica is
-  frozen and its later observables are NaN.  ``point_status[r][j]`` holds the per-point verdict.
+  strain |A/A0 - 1| above ``rupture_strain``, default 1.0); indentation with ``max_depth_fall``: ``'collapsed'``
+  (the depth fell under the rising force, :mod:`.collapse`).  After ``nonfinite`` / ``ruptured`` the replica is
+  frozen and its later observables are NaN; a ``collapsed`` curve reports NaN from its collapse point on.
+  ``point_status[r][j]`` holds the per-point verdict.
 
 Modules: :mod:`.settings` (gas, FIRE, statuses, argument checks), :mod:`.thermal_contact` (the entropic plate
 contact), :mod:`.backends` (the device chain), :mod:`.schedule` (lock-step and asynchronous schedules, slot
-refill), :mod:`.grids` (sub-steps, first-load ramp), :mod:`.compression`, :mod:`.indentation`, :mod:`.results`
+refill), :mod:`.grids` (sub-steps, first-load ramp), :mod:`.compression`, :mod:`.indentation`,
+:mod:`.collapse`, :mod:`.results`
 and :mod:`.tier` (:class:`QuasistaticTier`).  Importing this package does not import Warp.
 """
 
+from bubblecal.sim.tiers.quasistatic.collapse import depth_collapse_point
 from bubblecal.sim.tiers.quasistatic.compression import compression_pools, quasistatic_compression
 from bubblecal.sim.tiers.quasistatic.indentation import quasistatic_indentation
 from bubblecal.sim.tiers.quasistatic.results import CompressionResult, IndentationResult
 from bubblecal.sim.tiers.quasistatic.settings import (
     MINIMIZERS,
     SCHEDULES,
+    STATUS_COLLAPSED,
     STATUS_NONFINITE,
     STATUS_NOT_CONVERGED,
     STATUS_OK,
@@ -80,6 +85,8 @@ __all__ = [
     "STATUS_NOT_CONVERGED",
     "STATUS_NONFINITE",
     "STATUS_RUPTURED",
+    "STATUS_COLLAPSED",
+    "depth_collapse_point",
     "ThermalContact",
     "hard_wall_distance",
     "shell_fluctuation_sigma",

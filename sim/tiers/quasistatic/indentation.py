@@ -11,6 +11,7 @@ import numpy as np
 
 from bubblecal.sim.protocols.loading import validate_grid
 from bubblecal.sim.tiers.quasistatic.backends import _DeviceChain
+from bubblecal.sim.tiers.quasistatic.collapse import check_max_depth_fall, cut_collapsed
 from bubblecal.sim.tiers.quasistatic.grids import _ramp_grid, _select_points, _sum_substeps
 from bubblecal.sim.tiers.quasistatic.results import IndentationResult
 from bubblecal.sim.tiers.quasistatic.schedule import _run_chain, _run_device_async
@@ -47,6 +48,7 @@ class _IndentationPlan:
     unit: np.ndarray  # [Nv, 3] pole-load direction per unit total load
     static_settings: dict
     meshes: list | None = None  # one reference per replica (same topology), or None: ``mesh`` for all
+    max_depth_fall: float | None = None  # the collapse verdict's tolerance (None: off)
 
 
 def _anchored_equator(mesh) -> np.ndarray:
@@ -77,7 +79,8 @@ def _replica_meshes(meshes, mesh, n: int, patch_kw: dict, anchors: np.ndarray) -
 
 
 def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fraction_loaded, pole_patch,
-                      dtype, extrapolate, schedule, max_replicas, first_load_ramp, meshes=None) -> _IndentationPlan:
+                      dtype, extrapolate, schedule, max_replicas, first_load_ramp, meshes=None,
+                      max_depth_fall=None) -> _IndentationPlan:
     """Check the arguments of :func:`quasistatic_indentation` and lay out the run."""
     from bubblecal.sim.engine import pole_patches
 
@@ -89,6 +92,7 @@ def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fr
     chain_forces, keep = _ramp_grid(forces, int(first_load_ramp))
     schedule = _check_common(rupture_strain, fire, schedule)
     _check_max_replicas(max_replicas, schedule)
+    max_depth_fall = check_max_depth_fall(max_depth_fall)
     if pole_patch is not None and fraction_loaded is not None:
         raise ValueError("give fraction_loaded or pole_patch, not both")
     patch_kw = dict(pole_patch) if pole_patch is not None else {"fraction": 0.01 if fraction_loaded is None
@@ -118,9 +122,11 @@ def _indentation_plan(params, mesh, forces_dpd, *, gas, fire, rupture_strain, fr
                        "dtype": _dtype_name(dtype),
                        "start": "linear extrapolation" if extrapolate else "previous minimum",
                        "schedule": schedule, "max_replicas": max_replicas, "first_load_ramp": int(first_load_ramp)}
+    if max_depth_fall is not None:  # only when set: runs without the verdict record the settings they always had
+        static_settings["max_depth_fall"] = max_depth_fall
     return _IndentationPlan(forces=forces, chain_forces=chain_forces, keep=keep, schedule=schedule, params=params,
                             z0=z0, top=top, bottom=bottom, h0=h0, free_v=free_v, unit=unit,
-                            static_settings=static_settings, meshes=meshes)
+                            static_settings=static_settings, meshes=meshes, max_depth_fall=max_depth_fall)
 
 
 def _indentation_result(plan: _IndentationPlan, out: dict, t0: float) -> IndentationResult:
@@ -131,14 +137,22 @@ def _indentation_result(plan: _IndentationPlan, out: dict, t0: float) -> Indenta
     refs = plan.meshes or [None] * R
     patch0 = np.array([float(z[top].mean() - z[bottom].mean())
                        for z in ((z0 if m is None else m.vertices[:, 2]) for m in refs)])
-    H = out["obs"].get("H", np.full((R, nf), np.nan))
-    P = out["obs"].get("patch", np.full((R, nf), np.nan))
+    H = out["obs"].get("H", np.full((R, nf), np.nan)).copy()
+    P = out["obs"].get("patch", np.full((R, nf), np.nan)).copy()
+    volume, strain = out["volume"].copy(), out["max_area_strain"].copy()
+    status, point_status = list(out["status"]), [list(ps) for ps in out["point_status"]]
+    for r in range(R):
+        _, status[r], point_status[r], j = cut_collapsed(plan.h0[r] - H[r], status[r], point_status[r],
+                                                         plan.max_depth_fall)
+        if j is not None:  # the cut curve reports nothing past its collapse, as a failed one
+            for a in (H, P, volume, strain):
+                a[r, j:] = np.nan
     settings = {**plan.static_settings, "fire_evaluations": out["fire_evaluations"]}
     return IndentationResult(forces=plan.forces, displacement=plan.h0[:, None] - H, axial_diameter=H,
-                             axial_diameter0=plan.h0.copy(), d_patch=patch0[:, None] - P, volume=out["volume"],
-                             max_area_strain=out["max_area_strain"], fmax=out["fmax"],
-                             fire_steps=out["fire_steps"], status=out["status"],
-                             point_status=out["point_status"], x_final=out["x"], settings=settings,
+                             axial_diameter0=plan.h0.copy(), d_patch=patch0[:, None] - P, volume=volume,
+                             max_area_strain=strain, fmax=out["fmax"],
+                             fire_steps=out["fire_steps"], status=status,
+                             point_status=point_status, x_final=out["x"], settings=settings,
                              seconds=time.perf_counter() - t0)
 
 
@@ -151,7 +165,8 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
                             max_replicas: int | None = None, first_load_ramp: int = 0,
                             progress: Callable[[int, int, float], None] | None = None,
                             on_curve: Callable[[int, dict], None] | None = None,
-                            meshes: Sequence[ShellMesh] | None = None) -> IndentationResult:
+                            meshes: Sequence[ShellMesh] | None = None,
+                            max_depth_fall: float | None = None) -> IndentationResult:
     """Athermal quasi-static indentation d(F) of R replicas (one per ``params``) of ``mesh``.
 
     Parameters
@@ -209,6 +224,11 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         equator (icospheres of one level at several diameters): one pool then holds several bubble sizes, each
         replica's depth measured from its own reference extent, with the curves of separate runs.  None:
         ``mesh`` for every replica.
+    max_depth_fall : float, optional
+        The collapse verdict (:mod:`bubblecal.sim.tiers.quasistatic.collapse`), in (0, 1): a curve still 'ok'
+        or 'not_converged' whose depth falls below its deepest earlier point by more than this fraction of it
+        ends there, 'collapsed', with its prefix kept and NaN from that point on (depth, extents, volume,
+        strain).  None: no verdict.
 
     Returns
     -------
@@ -224,7 +244,7 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
     plan = _indentation_plan(params, mesh, forces_dpd, gas=gas, fire=fire, rupture_strain=rupture_strain,
                              fraction_loaded=fraction_loaded, pole_patch=pole_patch, dtype=dtype,
                              extrapolate=extrapolate, schedule=schedule, max_replicas=max_replicas,
-                             first_load_ramp=first_load_ramp, meshes=meshes)
+                             first_load_ramp=first_load_ramp, meshes=meshes, max_depth_fall=max_depth_fall)
     nv, chain_forces, keep = mesh.n_vertices, plan.chain_forces, plan.keep
     tag = np.zeros(nv, dtype=np.int32)
     tag[plan.top], tag[plan.bottom] = 1, -1
@@ -243,8 +263,10 @@ def quasistatic_indentation(params: Sequence[ShellParams] | ShellParams, mesh: S
         if on_curve is not None:
             def finish(i, row):
                 h = row["obs"].get("H", np.full(len(chain_forces), np.nan))[keep]
-                on_curve(i, {"displacement": plan.h0[i] - h, "status": row["status"],
-                             "point_status": [row["point_status"][j] for j in keep],
+                depth, status, point_status, _ = cut_collapsed(plan.h0[i] - h, row["status"],
+                                                               [row["point_status"][j] for j in keep],
+                                                               plan.max_depth_fall)
+                on_curve(i, {"displacement": depth, "status": status, "point_status": point_status,
                              "fire_steps": _sum_substeps(row["fire_steps"], keep),
                              "fire_steps_chain": np.asarray(row["fire_steps"]).copy(),
                              "settings": plan.static_settings})

@@ -22,6 +22,7 @@ __all__ = [
     "STATUS_NOT_CONVERGED",
     "STATUS_NONFINITE",
     "STATUS_RUPTURED",
+    "STATUS_COLLAPSED",
 ]
 
 #: Point / curve verdicts of the quasi-static chain (the tier maps them to bubblecal.data.names.STATUSES).
@@ -29,6 +30,8 @@ STATUS_OK = "ok"
 STATUS_NOT_CONVERGED = "not_converged"
 STATUS_NONFINITE = "nonfinite"
 STATUS_RUPTURED = "ruptured"
+#: indentation only: the depth fell under the rising force (:mod:`bubblecal.sim.tiers.quasistatic.collapse`)
+STATUS_COLLAPSED = "collapsed"
 _FAILED = (STATUS_NONFINITE, STATUS_RUPTURED)
 #: Minimisers of the load points (:class:`FireSettings`).
 MINIMIZERS = ("fire", "cg")

@@ -17,9 +17,11 @@ from bubblecal.sim.tiers.conventions import (
     IndentationConvention,
     indentation_convention,
 )
+from bubblecal.sim.tiers.quasistatic.collapse import check_max_depth_fall
 from bubblecal.sim.tiers.quasistatic.settings import (
     MINIMIZERS,
     SCHEDULES,
+    STATUS_COLLAPSED,
     STATUS_NONFINITE,
     STATUS_NOT_CONVERGED,
     STATUS_OK,
@@ -30,7 +32,7 @@ __all__ = ["QuasistaticTier"]
 
 #: quasi-static verdict -> bubblecal.data.names.STATUSES
 _QS_STATUS = {STATUS_OK: "ok", STATUS_NOT_CONVERGED: "unstable", STATUS_NONFINITE: "failed",
-              STATUS_RUPTURED: "ruptured"}
+              STATUS_RUPTURED: "ruptured", STATUS_COLLAPSED: "unstable"}
 
 
 @dataclass
@@ -93,6 +95,12 @@ class QuasistaticTier:
         Minimiser iterations between the host's status reads (one CUDA-graph replay); None: the minimiser's default
         (25 on CUDA, 4 on the CPU).  Scheduling only: the same iterates and curves.  A converged replica waits up to
         this many iterations before it is measured and moves on, which matters when points take few iterations.
+    max_depth_fall : float, optional
+        (indentation only) The collapse verdict, a fraction in (0, 1): a curve whose depth falls below its deepest
+        earlier point by more than this fraction of it ends there ('unstable', its prefix kept, later points NaN):
+        under a rising force a stable shell only gets deeper, so such a minimum lies on another branch
+        (:mod:`bubblecal.sim.tiers.quasistatic.collapse`).  None (default; the FIRE training sets ran without it):
+        no verdict.
     minimizer : str
         ``"fire"`` (default; the shipped training sets ran with it) or ``"cg"``, the force-only nonlinear
         conjugate gradient (:class:`FireSettings`): the same minima within ``ftol`` with far fewer force
@@ -125,6 +133,7 @@ class QuasistaticTier:
     first_load_ramp: int = 0
     force_mode: str = "auto"
     sync_every: int | None = None
+    max_depth_fall: float | None = None
     minimizer: str = "fire"
     name: str = "quasistatic"
 
@@ -144,6 +153,10 @@ class QuasistaticTier:
         n = self.sync_every
         if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
             raise ValueError(f"quasistatic tier: sync_every must be an integer >= 1 or omitted, got {n!r}")
+        try:
+            check_max_depth_fall(self.max_depth_fall)
+        except ValueError as exc:
+            raise ValueError(f"quasistatic tier: {exc}") from None
         if self.minimizer not in MINIMIZERS:
             raise ValueError(f"quasistatic tier: minimizer must be one of {MINIMIZERS}, got {self.minimizer!r}")
         if self.schedule not in SCHEDULES:
@@ -226,6 +239,9 @@ class QuasistaticTier:
             if self.first_load_ramp:
                 raise ValueError("quasistatic tier: first_load_ramp applies to indentation only (compression "
                                  "refines its plate steps itself)")
+            if self.max_depth_fall is not None:
+                raise ValueError("quasistatic tier: max_depth_fall applies to indentation only (a compressed shell "
+                                 "that buckles does lose force: the training filter judges those curves)")
             thermal = ThermalContact(kT=float(self.kT)) if self.thermal_contact else None
             row_cb = None
             if on_curve is not None:
@@ -251,7 +267,8 @@ class QuasistaticTier:
                               "settings": row["settings"]})
 
             res = quasistatic_indentation(params, mesh, grid, pole_patch=conv.pole_patch(), on_curve=row_cb,
-                                          first_load_ramp=self.first_load_ramp, meshes=meshes, **common)
+                                          first_load_ramp=self.first_load_ramp, meshes=meshes,
+                                          max_depth_fall=self.max_depth_fall, **common)
             obs = res.displacement
         status = [_QS_STATUS[s] for s in res.status]
         info = {**static, "fire_steps": res.fire_steps.sum(axis=1).tolist(), "settings": res.settings}
