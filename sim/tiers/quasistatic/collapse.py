@@ -3,7 +3,7 @@
 Under a force that only grows, a stable indented shell only gets deeper.  A minimum whose depth lies well below
 an earlier point's belongs to another branch (the loaded cap turned into a different buckled mode, or the
 shell snapped past a fold), which a force-controlled AFM never follows; such a curve is cut at that point
-('collapsed', its prefix kept) rather than reported as one smooth d(F) (docs/physics.md, quasi-static tier).
+('collapsed', its prefix kept) rather than reported as one smooth d(F) (docs/physics.md, section 7).
 """
 
 from __future__ import annotations
