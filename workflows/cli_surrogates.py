@@ -59,6 +59,9 @@ def train(
     batch_size: int = typer.Option(256),
     lr: float = typer.Option(1e-3),
     jobs: int = typer.Option(1, help="Architectures trained in parallel processes (1 torch thread each)."),
+    curve_weights: str = typer.Option("none", "--curve-weights", help="How much each curve counts in the loss: "
+                                      "'none' (the MSE over points) or 'capped' (a curve larger than the median "
+                                      "one counts as much as it)."),
     device: str = typer.Option("cpu", help="Training device: cpu | cuda | cuda:N (same recipe; CUDA replays each "
                                "Adam step from a captured graph; several --jobs share one GPU)."),
     checkpoints: Path = typer.Option(None, "--checkpoints", help="Save each trained architecture here and reuse "
@@ -132,9 +135,11 @@ def train(
                   f"--diameter is {diameter:g}")
         try:
             train_cfg = TrainConfig(lr=lr, batch_size=batch_size, max_epochs=max_epochs, patience=patience,
-                                    max_reductions=max_reductions, threads=1, device=device)
+                                    max_reductions=max_reductions, threads=1, device=device,
+                                    curve_weights=curve_weights)
         except ValueError as exc:
-            raise typer.BadParameter(str(exc).replace("TrainConfig.device", "--device")) from None
+            raise typer.BadParameter(str(exc).replace("TrainConfig.device", "--device")
+                                     .replace("TrainConfig.curve_weights", "--curve-weights")) from None
         inputs = {"inputs": "diameter", "ldo_bands": bands} if over_diameter else {}
         inputs["log_inputs"] = logged
         if sweep:

@@ -14,7 +14,12 @@ from bubblecal._extras import require
 torch = require("torch", "train")
 nn = torch.nn
 
-__all__ = ["EagerSteps", "GraphSteps"]
+__all__ = ["EagerSteps", "GraphSteps", "batch_loss"]
+
+
+def batch_loss(mse, pred, target, w):
+    """The batch loss: the plain MSE, or the mean of the weighted squared errors with per-point weights ``w``."""
+    return mse(pred, target) if w is None else torch.mean(w * (pred - target) ** 2)
 
 
 class EagerSteps:
@@ -30,10 +35,13 @@ class EagerSteps:
         Batch size.
     lr : float
         Initial learning rate.
+    w : torch.Tensor, optional
+        Per-point loss weights (n, 1) (:mod:`bubblecal.surrogates.training.weights`); None: the plain MSE.
     """
 
-    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float):
-        self.model, self.z, self.t, self.bs = model, z, t, bs
+    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float,
+                 w: torch.Tensor | None = None):
+        self.model, self.z, self.t, self.bs, self.w = model, z, t, bs, w
         self.opt = torch.optim.Adam(model.parameters(), lr=lr)
         self.loss_fn = nn.MSELoss()
 
@@ -50,7 +58,8 @@ class EagerSteps:
         for start in range(0, n, self.bs):
             idx = order[start:start + self.bs]
             self.opt.zero_grad(set_to_none=True)
-            loss = self.loss_fn(self.model(self.z[idx]), self.t[idx])
+            w = None if self.w is None else self.w[idx]
+            loss = batch_loss(self.loss_fn, self.model(self.z[idx]), self.t[idx], w)
             loss.backward()
             self.opt.step()
             total += loss.item() * idx.shape[0]
@@ -70,10 +79,13 @@ class GraphSteps:
         Batch size.
     lr : float
         Initial learning rate.
+    w : torch.Tensor, optional
+        Per-point loss weights (n, 1) on the same device; None: the plain MSE.
     """
 
-    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float):
-        self.model, self.z, self.t, self.bs = model, z, t, bs
+    def __init__(self, model: nn.Module, z: torch.Tensor, t: torch.Tensor, bs: int, lr: float,
+                 w: torch.Tensor | None = None):
+        self.model, self.z, self.t, self.bs, self.w = model, z, t, bs, w
         self.n = int(z.shape[0])
         dev = z.device
         self.params = list(model.parameters())
@@ -95,7 +107,7 @@ class GraphSteps:
 
     def _step(self, m: int) -> None:
         idx = self.idx[m]
-        loss = self.loss_fn(self.model(self.z[idx]), self.t[idx])
+        loss = batch_loss(self.loss_fn, self.model(self.z[idx]), self.t[idx], None if self.w is None else self.w[idx])
         loss.backward()
         self.opt.step()
         self.total.add_(loss.detach() * m)

@@ -136,8 +136,8 @@ def _n_params(sizes: Sequence[int]) -> int:
 
 def _train_job(args):
     """Train one architecture (in a worker process or inline) and checkpoint it."""
-    u, y, hidden, cfg, seed, progress, desc, ckpt, key = args
-    model = train_mlp(u, y, hidden, cfg, seed=seed, progress=progress, desc=desc)
+    u, y, curve, hidden, cfg, seed, progress, desc, ckpt, key = args
+    model = train_mlp(u, y, hidden, cfg, seed=seed, progress=progress, desc=desc, curve=curve)
     if ckpt is not None:
         save_checkpoint(ckpt, model, key)
     return model
@@ -197,7 +197,7 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
         train_set.check_trainable(min_curves=1, several_sizes=several)
     except DatasetError as exc:
         raise DatasetError(f"{exc} (in the training part of the grouped split)") from exc
-    u, y, _, _ = train_set.network_points(config.inputs, config.log_inputs)
+    u, y, curve, _ = train_set.network_points(config.inputs, config.log_inputs)
     archs = config.architectures()
     data_hash = ts.data_hash()
     models: list[TrainedMLP | None] = [None] * len(archs)
@@ -208,8 +208,8 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
         if ckpt is not None:
             models[i] = load_checkpoint(ckpt, key)
         if models[i] is None:
-            jobs.append((i, (u, y, h, config.train, config.seed, progress and config.jobs == 1, f"{len(h)}x{h[0]}",
-                             ckpt, key)))
+            jobs.append((i, (u, y, curve, h, config.train, config.seed, progress and config.jobs == 1,
+                             f"{len(h)}x{h[0]}", ckpt, key)))
     if progress and checkpoints is not None and len(jobs) < len(archs):
         print(f"sweep: {len(archs) - len(jobs)} of {len(archs)} architectures reused from {checkpoints}")
     if config.jobs > 1 and len(jobs) > 1:

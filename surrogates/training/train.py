@@ -24,7 +24,8 @@ import numpy as np
 
 from bubblecal._extras import require
 from bubblecal.surrogates.mlp import mlp_forward
-from bubblecal.surrogates.training.steps import EagerSteps, GraphSteps
+from bubblecal.surrogates.training.steps import EagerSteps, GraphSteps, batch_loss
+from bubblecal.surrogates.training.weights import CURVE_WEIGHTS, curve_weights
 
 torch = require("torch", "train")
 nn = torch.nn
@@ -61,11 +62,14 @@ class TrainConfig:
         ``'cpu'``, ``'cuda'`` or ``'cuda:N'``.
     cuda_graphs : bool
         On CUDA, replay one captured graph per Adam step (launch latency dominates small MLPs).
+    curve_weights : str
+        How much each curve counts in the loss (:mod:`bubblecal.surrogates.training.weights`): ``"none"`` (the
+        plain MSE over points) or ``"capped"`` (a curve larger than the median one counts as much as it).
 
     Raises
     ------
     ValueError
-        For an unknown ``device``.
+        For an unknown ``device`` or ``curve_weights``.
     """
 
     lr: float = 1e-3
@@ -79,15 +83,22 @@ class TrainConfig:
     threads: int | None = 1
     device: str = "cpu"
     cuda_graphs: bool = True
+    curve_weights: str = "none"
 
     def __post_init__(self):
         dev = str(self.device)
         if dev != "cpu" and dev != "cuda" and not (dev.startswith("cuda:") and dev[5:].isdigit()):
             raise ValueError(f"TrainConfig.device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
+        if self.curve_weights not in CURVE_WEIGHTS:
+            raise ValueError(f"TrainConfig.curve_weights must be one of {CURVE_WEIGHTS}, got {self.curve_weights!r}")
 
     def as_dict(self) -> dict:
-        """The settings as a plain dict (recorded in metadata and checkpoints)."""
-        return asdict(self)
+        """The settings as a plain dict (recorded in metadata and checkpoints; ``curve_weights`` only when not
+        ``"none"``, so the recipes of earlier networks and their checkpoint keys read unchanged)."""
+        d = asdict(self)
+        if d["curve_weights"] == "none":
+            del d["curve_weights"]
+        return d
 
 
 def numpy_forward(weights, biases, in_mean, in_std, out_mean, out_std, u) -> np.ndarray:
@@ -249,7 +260,7 @@ def _build(layer_sizes: Sequence[int], gen: torch.Generator) -> nn.Sequential:
 
 
 def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: TrainConfig | None = None,
-              seed: int = 0, progress: bool = True, desc: str = "train") -> TrainedMLP:
+              seed: int = 0, progress: bool = True, desc: str = "train", curve: np.ndarray | None = None) -> TrainedMLP:
     """Train one MLP with the recipe of the module docstring.
 
     Parameters
@@ -268,16 +279,19 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
         Show a progress bar.
     desc : str
         Label of the progress bar.
+    curve : numpy.ndarray of int, shape (n,), optional
+        Curve index of each point; needed by ``config.curve_weights`` other than ``"none"``.
 
     Returns
     -------
     TrainedMLP
-        The weights with the best validation loss.
+        The weights with the best validation loss (the weighted one with curve weights).
 
     Raises
     ------
     ValueError
-        For mismatched shapes, fewer than 10 points, or an input column or target of zero variance.
+        For mismatched shapes, fewer than 10 points, an input column or target of zero variance, or curve weights
+        without ``curve``.
     """
     from bubblecal._progress import ProgressLine
 
@@ -310,6 +324,11 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
         t = torch.as_tensor(((y - out_mean[0]) / out_std[0])[:, None], dtype=torch.float32)
         z_tr, t_tr = z[tr_idx], t[tr_idx]
         z_va, t_va = z[val_idx], t[val_idx]
+        if config.curve_weights != "none" and curve is None:
+            raise ValueError(f"curve_weights {config.curve_weights!r} needs the curve index of each point (curve)")
+        w = curve_weights(y, curve, config.curve_weights) if curve is not None else None
+        w = None if w is None else torch.as_tensor(w[:, None], dtype=torch.float32)
+        w_tr, w_va = (None, None) if w is None else (w[tr_idx], w[val_idx])
 
         gen = torch.Generator().manual_seed(int(seed))
         sizes = [u.shape[1], *[int(h) for h in hidden], 1]
@@ -318,14 +337,15 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
         if dev.type == "cuda":
             model = model.to(dev)
             z_tr, t_tr, z_va, t_va = (x.to(dev) for x in (z_tr, t_tr, z_va, t_va))
-        loss_fn = nn.MSELoss()
+            w_tr, w_va = (None, None) if w is None else (w_tr.to(dev), w_va.to(dev))
+        mse = nn.MSELoss()
         lr = config.lr
         n_tr = z_tr.shape[0]
         bs = min(config.batch_size, n_tr)
         if dev.type == "cuda" and config.cuda_graphs:
-            stepper = GraphSteps(model, z_tr, t_tr, bs, lr)
+            stepper = GraphSteps(model, z_tr, t_tr, bs, lr, w=w_tr)
         else:
-            stepper = EagerSteps(model, z_tr, t_tr, bs, lr)
+            stepper = EagerSteps(model, z_tr, t_tr, bs, lr, w=w_tr)
         best = math.inf
         best_state = {k: v.clone() for k, v in model.state_dict().items()}
         wait = 0
@@ -341,7 +361,7 @@ def train_mlp(u: np.ndarray, y: np.ndarray, hidden: Sequence[int], config: Train
                 hist_train.append(stepper.epoch(order))
                 model.eval()
                 with torch.no_grad():
-                    val = float(loss_fn(model(z_va), t_va))
+                    val = float(batch_loss(mse, model(z_va), t_va, w_va))
                 hist_val.append(val)
                 hist_lr.append(lr)
                 if not math.isfinite(val):
