@@ -22,7 +22,7 @@ PATH = default_bundle_path()
 pytestmark = pytest.mark.skipif(not (PATH / "manifest.json").is_file(), reason="no shipped bundle in this checkout")
 #: Shipped networks over the diameter: (accurate file, fast file, fast architecture).
 SHIPPED = {"compression": ("compression_1.5-8um.npz", "compression_1.5-8um_fast.npz", [64] * 3),
-           "indentation": ("indentation_1.5-8um.npz", "indentation_1.5-8um_fast.npz", [64] * 3)}
+           "indentation": ("indentation_1.5-8um.npz", "indentation_1.5-8um_fast.npz", [64] * 4)}
 
 
 @pytest.fixture(scope="module")
