@@ -68,15 +68,15 @@ def test_tier_refuses_max_depth_fall_for_compression():
         get_tier("quasistatic", max_depth_fall=0.05).run(req)
 
 
-def test_the_setting_enters_the_design_hash_only_when_set():
+def test_the_setting_enters_the_design_hash():
     from bubblecal.campaigns import load_campaign_file
 
     cfg = load_campaign_file("sonovue_indentation_1.5-8um_mirheo").config
-    same = dataclasses.replace(cfg, tier_settings={**cfg.tier_settings, "max_depth_fall": None})
-    other = dataclasses.replace(cfg, tier_settings={**cfg.tier_settings, "max_depth_fall": 0.05})
-    assert "max_depth_fall" not in cfg.tier_settings
-    assert other.design_hash() != cfg.design_hash()
-    assert same.design_hash() != other.design_hash()
+    assert cfg.tier_settings["max_depth_fall"] == 0.05  # the shipped design runs with the verdict
+    without = dataclasses.replace(cfg, tier_settings={k: v for k, v in cfg.tier_settings.items()
+                                                      if k != "max_depth_fall"})
+    other = dataclasses.replace(cfg, tier_settings={**cfg.tier_settings, "max_depth_fall": 0.1})
+    assert len({cfg.design_hash(), without.design_hash(), other.design_hash()}) == 3
 
 
 def test_a_stable_curve_is_left_alone_and_records_the_setting():
