@@ -198,6 +198,8 @@ def run_sweep(ts: TrainingSet, config: SweepConfig | None = None, progress: bool
     except DatasetError as exc:
         raise DatasetError(f"{exc} (in the training part of the grouped split)") from exc
     u, y, curve, _ = train_set.network_points(config.inputs, config.log_inputs)
+    if config.train.curve_weights == "none":
+        curve = None  # not sent to every worker process when the loss does not use it
     archs = config.architectures()
     data_hash = ts.data_hash()
     models: list[TrainedMLP | None] = [None] * len(archs)

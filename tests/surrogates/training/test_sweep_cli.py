@@ -84,6 +84,10 @@ def test_cli_errors_are_clear(tmp_path):
     r = runner.invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "3.0",
                             "--out", str(tmp_path / "o")])
     assert r.exit_code == 1 and "radius_dpd" in r.output
+    r = runner.invoke(app, ["train", str(data), "--setup", "compression", "--diameter", "2.1",
+                            "--curve-weights", "relative", "--out", str(tmp_path / "o")])
+    text = " ".join(r.output.replace("│", " ").split())  # the error panel wraps its lines
+    assert r.exit_code == 2 and "--curve-weights must be one of ('none', 'capped'), got 'relative'" in text
 
 
 def test_cli_published_indentation_head_nominal_diameter(shared_reference, tmp_path):
