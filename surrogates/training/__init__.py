@@ -3,7 +3,8 @@
 Numpy-only parts, imported with the package: the training set (:mod:`~bubblecal.surrogates.training.dataset`),
 reading and writing data (:mod:`~bubblecal.surrogates.training.data_io`), filtering
 (:mod:`~bubblecal.surrogates.training.filtering`), known-answer data (:mod:`~bubblecal.surrogates.training.synthetic`),
-the grouped holdout (:mod:`~bubblecal.surrogates.training.holdout`) and the ONNX parity check
+the grouped holdout (:mod:`~bubblecal.surrogates.training.holdout`), the per-curve loss weights
+(:mod:`~bubblecal.surrogates.training.weights`) and the ONNX parity check
 (:mod:`~bubblecal.surrogates.training.onnx_check`, onnxruntime imported on use).
 
 The torch parts - :mod:`~bubblecal.surrogates.training.train`, :mod:`~bubblecal.surrogates.training.sweep`,
@@ -57,6 +58,7 @@ from bubblecal.surrogates.training.synthetic import (
     relative_l2,
     truth,
 )
+from bubblecal.surrogates.training.weights import CURVE_WEIGHTS, curve_weights
 
 #: Torch-side names, imported on first access: module -> the names it exports.
 _TORCH_SIDE: dict[str, tuple[str, ...]] = {
@@ -81,6 +83,8 @@ __all__ = [
     "grouped_holdout", "diameter_bands", "curve_errors", "error_summary", "selection_score", "fast_choice",
     "FAST_MEDIAN_FACTOR", "FAST_P90_FACTOR", "MIN_SCORED_POINTS",
     "onnx_predict", "onnx_parity", "scaled_max_rel_diff",
+    # per-curve loss weights
+    "curve_weights", "CURVE_WEIGHTS",
     # torch side (lazy)
     *_LAZY,
 ]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bubblecal.surrogates.training.weights import CURVE_WEIGHTS, curve_weights
+from bubblecal.surrogates.training import CURVE_WEIGHTS, curve_weights
 
 torch = pytest.importorskip("torch")
 
